@@ -1,0 +1,232 @@
+//! The control step: the compensation law of the trunk paper (eq. 6–8), plus the velocity and
+//! position modes the characterisation tests need, torque and rate limits, and a filtered
+//! differentiator for the encoder.
+//!
+//! `C_c = J·q̈ + C_β(q̇) + gravity(q, …) + C_0 + spring(q, q̇)`, where gravity is the weight term,
+//! the weight term plus the table, or the weight term fused with the table (see [`gravity`]).
+//! In assist mode the output torque is `assist_k·q + assist_cmd + fraction·C_c`, limited to
+//! ±torque_limit and to rate_limit·dt per step; the motor command is that torque / (N − 1).
+//!
+//! The step is sans-IO and allocation-free: time (dt) and samples in, torques out. It clamps
+//! its inputs to [`INPUT_LIMITS`] and treats a non-finite input as a fault that drives the
+//! command to zero, so no input can produce a NaN or an unbounded torque.
+
+use crate::math;
+use crate::model::INPUT_LIMITS;
+use crate::params::{ParamId, ParamSet};
+use crate::table::{self, AXES_MAX};
+
+/// What the joint is asked to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Mode {
+    /// zero torque
+    Off,
+    /// the compensation law (the product's normal mode)
+    Assist,
+    /// PI velocity control with model feed-forward, rad/s (friction sweeps, trunk paper §3.2)
+    Velocity(f32),
+    /// PD position hold with gravity feed-forward, rad (static poses, trunk paper §3.3)
+    Position(f32),
+}
+
+/// One sample of the joint's state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Input {
+    /// joint angle, rad
+    pub q: f32,
+    /// joint velocity, rad/s
+    pub qd: f32,
+    /// joint acceleration, rad/s²
+    pub qdd: f32,
+    /// angles of other joints feeding a multi-joint gravity table, rad
+    pub others: [f32; 3],
+    /// extra support torque from the host, N·m at the output
+    pub assist_cmd: f32,
+}
+
+/// Result of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Output {
+    /// torque at the joint output after torque and rate limits, N·m
+    pub tau_out: f32,
+    /// motor torque command `tau_out/(N − 1)`, N·m
+    pub u_motor: f32,
+    /// the modelled disturbance C_c at this sample, N·m
+    pub c_c: f32,
+    /// the desired support torque, N·m
+    pub assist: f32,
+    /// the torque or rate limit was active
+    pub limited: bool,
+    /// an input was NaN/∞ and the command was driven to zero
+    pub bad_input: bool,
+}
+
+/// Gravity torque of the model: the weight term alone; the weight term plus the table (table
+/// present, `sigma_model = 0`); or weight and table fused (`sigma_model > 0`, arm paper §3.2.3).
+#[inline]
+pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
+    let w = p.terms().weight.torque(q);
+    let t = p.table();
+    if t.n_axes == 0 {
+        return w;
+    }
+    let mut x = [0.0f32; AXES_MAX];
+    for (axis, xi) in x.iter_mut().enumerate().take(t.n_axes as usize) {
+        let src = t.axis_source.get(axis).copied().unwrap_or(0) as usize;
+        *xi = if src == 0 { q } else { others.get(src - 1).copied().unwrap_or(0.0) };
+    }
+    let tau_t = table::interpolate(t, &t.torque, &x);
+    let sigma_m = p.get(ParamId::TableSigmaModel);
+    if sigma_m > 0.0 {
+        let sigma_t = table::interpolate(t, &t.sigma, &x);
+        table::fuse(w, sigma_m, tau_t, sigma_t, p.get(ParamId::TableClampK))
+    } else {
+        w + tau_t
+    }
+}
+
+/// The modelled disturbance `C_c` (trunk paper eq. 7, with spring and table terms): the torque
+/// the joint's own mechanics take at this state. In torque-mode logs this is `u − tau`.
+#[inline]
+pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
+    let t = p.terms();
+    t.j * qdd + t.friction.torque(qd) + gravity(p, q, others) + t.c0 + t.spring.torque(q, qd)
+}
+
+/// The controller's memory between steps.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Controller {
+    prev_tau: f32,
+    integ: f32,
+}
+
+impl Controller {
+    pub const fn new() -> Self {
+        Controller { prev_tau: 0.0, integ: 0.0 }
+    }
+
+    /// Forget the integrator and the last output (after a fault or a mode change).
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// The output torque of the previous step, N·m.
+    pub fn last_output(&self) -> f32 {
+        self.prev_tau
+    }
+
+    /// One control step of length `dt` seconds.
+    pub fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        let finite = math::is_finite(inp.q)
+            && math::is_finite(inp.qd)
+            && math::is_finite(inp.qdd)
+            && math::is_finite(inp.assist_cmd)
+            && inp.others.iter().all(|&o| math::is_finite(o));
+        let dt = if math::is_finite(dt) && dt > 0.0 { math::clamp(dt, 0.0, 1.0) } else { 0.0 };
+        let limit = p.get(ParamId::TorqueLimit);
+
+        let mut out = Output { bad_input: !finite, ..Output::default() };
+        let target = if !finite {
+            self.integ = 0.0;
+            0.0
+        } else {
+            let q = math::clamp(inp.q, -INPUT_LIMITS.q, INPUT_LIMITS.q);
+            let qd = math::clamp(inp.qd, -INPUT_LIMITS.qd, INPUT_LIMITS.qd);
+            let qdd = math::clamp(inp.qdd, -INPUT_LIMITS.qdd, INPUT_LIMITS.qdd);
+            let mut others = [0.0f32; 3];
+            for (o, i) in others.iter_mut().zip(inp.others.iter()) {
+                *o = math::clamp(*i, -INPUT_LIMITS.q, INPUT_LIMITS.q);
+            }
+            let assist_cmd = math::clamp(inp.assist_cmd, -limit, limit);
+            let c_c = disturbance(p, q, qd, qdd, &others);
+            out.c_c = c_c;
+            match mode {
+                Mode::Off => {
+                    self.integ = 0.0;
+                    0.0
+                }
+                Mode::Assist => {
+                    self.integ = 0.0;
+                    let assist = p.get(ParamId::AssistK) * q + assist_cmd;
+                    out.assist = assist;
+                    assist + p.get(ParamId::Fraction) * c_c
+                }
+                Mode::Velocity(v) => {
+                    let v = if math::is_finite(v) { math::clamp(v, -INPUT_LIMITS.qd, INPUT_LIMITS.qd) } else { 0.0 };
+                    let t = p.terms();
+                    let err = v - qd;
+                    // Anti-windup: the integrator alone can never ask for more than the limit.
+                    self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
+                    let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v);
+                    p.get(ParamId::VelKp) * err + self.integ + ff
+                }
+                Mode::Position(x) => {
+                    self.integ = 0.0;
+                    let x = if math::is_finite(x) { math::clamp(x, -INPUT_LIMITS.q, INPUT_LIMITS.q) } else { q };
+                    let t = p.terms();
+                    let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0);
+                    p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
+                }
+            }
+        };
+
+        let limited_target = math::clamp(target, -limit, limit);
+        let step_max = p.get(ParamId::RateLimit) * dt;
+        let delta = math::clamp(limited_target - self.prev_tau, -step_max, step_max);
+        let tau = math::clamp(self.prev_tau + delta, -limit, limit);
+        out.limited = limited_target != target || tau != limited_target;
+        self.prev_tau = tau;
+        out.tau_out = tau;
+        out.u_motor = tau * p.inv_ratio_m1();
+        out
+    }
+}
+
+/// Derivative of a sampled signal through a first-order low-pass (a "dirty derivative"):
+/// `y ← y + α·((x − x_prev)/dt − y)`, `α = dt/(dt + 1/(2π·f_c))`. Used for q̇ from encoder
+/// counts and for q̈ from q̇; the cut-off trades noise for lag (the trunk paper low-passed at
+/// 2 Hz offline; online the default is 20 Hz).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Differentiator {
+    prev: f32,
+    y: f32,
+    primed: bool,
+}
+
+impl Differentiator {
+    pub const fn new() -> Self {
+        Differentiator { prev: 0.0, y: 0.0, primed: false }
+    }
+
+    /// Feed the next sample `x` taken `dt` s after the previous one; returns the filtered
+    /// derivative. The first sample only primes the filter (returns 0). Non-finite samples or a
+    /// non-positive dt leave the state unchanged and return the last estimate.
+    pub fn update(&mut self, x: f32, dt: f32, cutoff_hz: f32) -> f32 {
+        if !(math::is_finite(x) && math::is_finite(dt) && dt > 0.0) {
+            return self.y;
+        }
+        if !self.primed {
+            self.prev = x;
+            self.primed = true;
+            return self.y;
+        }
+        let raw = (x - self.prev) / dt;
+        self.prev = x;
+        let tau = 1.0 / (2.0 * core::f32::consts::PI * math::clamp(cutoff_hz, 1.0e-3, 1.0e6));
+        let alpha = dt / (dt + tau);
+        let y = self.y + alpha * (raw - self.y);
+        if math::is_finite(y) {
+            self.y = y;
+        }
+        self.y
+    }
+
+    pub fn value(&self) -> f32 {
+        self.y
+    }
+
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+}
