@@ -21,6 +21,8 @@ const DP1: f32 = 1.570_312_5;
 const DP2: f32 = 4.837_512_969_970_703e-4;
 const DP3: f32 = 7.549_789_948_768_648e-8;
 const TWO_OVER_PI: f32 = 0.636_619_77;
+/// A reduced argument beyond π/4 (plus rounding slack) means the reduction itself failed.
+const REDUCED_MAX: f32 = 0.8;
 
 /// `(r, quadrant)` with `x = quadrant·π/2 + r`, `|r| ≤ π/4` (for |x| up to ~1e4; beyond that the
 /// reduction loses accuracy but stays finite and deterministic).
@@ -54,6 +56,11 @@ fn cos_poly(r: f32) -> f32 {
 #[inline]
 pub fn sin(x: f32) -> f32 {
     let (r, k) = reduce(x);
+    if abs(r) > REDUCED_MAX {
+        // |x| beyond ~2e9: the quadrant count saturated. Never reached from the control step
+        // (inputs are clamped); libm is exact there, just slower.
+        return libm::sinf(x);
+    }
     match k & 3 {
         0 => sin_poly(r),
         1 => cos_poly(r),
@@ -66,6 +73,9 @@ pub fn sin(x: f32) -> f32 {
 #[inline]
 pub fn cos(x: f32) -> f32 {
     let (r, k) = reduce(x);
+    if abs(r) > REDUCED_MAX {
+        return libm::cosf(x);
+    }
     match k & 3 {
         0 => cos_poly(r),
         1 => -sin_poly(r),

@@ -1,0 +1,235 @@
+//! Property tests of the core: finite outputs, friction symmetry, table and fusion bounds, and
+//! all-or-nothing parameter replacement.
+
+mod common;
+use common::*;
+use joint_core::control::{disturbance, Controller, Input, Mode};
+use joint_core::params::{check, ActiveParams, ParamError, ParamId, RawParams, PARAMS, PARAM_COUNT};
+use joint_core::table::{fuse, interpolate, validate, RawTable, AXES_MAX, CELLS_MAX};
+use proptest::prelude::*;
+
+/// Any finite f32, including huge and subnormal values.
+fn any_finite() -> impl Strategy<Value = f32> {
+    any::<f32>().prop_filter("finite", |x| x.is_finite())
+}
+
+/// A random but valid parameter set: every scalar drawn inside its declared range.
+fn valid_raw() -> impl Strategy<Value = RawParams> {
+    proptest::collection::vec(0.0f64..=1.0, PARAM_COUNT).prop_map(|u| {
+        let mut r = RawParams::defaults();
+        for (d, x) in PARAMS.iter().zip(u) {
+            let v = d.min as f64 + (d.max as f64 - d.min as f64) * x;
+            r.set(d.id, v as f32);
+        }
+        // Keep the one cross-parameter rule satisfied.
+        let rate = r.get(ParamId::ControlRateHz);
+        if r.get(ParamId::AccelCutoff) * 2.0 >= rate {
+            r.set(ParamId::AccelCutoff, rate / 4.0);
+        }
+        r.set(ParamId::TableSigmaModel, 0.0);
+        r
+    })
+}
+
+fn table_2d(g0: Vec<f32>, g1: Vec<f32>, vals: Vec<f32>, sig: Vec<f32>) -> RawTable {
+    let mut t = RawTable::EMPTY;
+    t.n_axes = 2;
+    t.axis_source = [0, 1, 0, 0];
+    t.points = [g0.len() as u8, g1.len() as u8, 0, 0];
+    for (i, g) in g0.iter().enumerate() {
+        t.grid[0][i] = *g;
+    }
+    for (i, g) in g1.iter().enumerate() {
+        t.grid[1][i] = *g;
+    }
+    for (i, v) in vals.iter().enumerate() {
+        t.torque[i] = *v;
+    }
+    for (i, s) in sig.iter().enumerate() {
+        t.sigma[i] = *s;
+    }
+    t.has_sigma = !sig.is_empty();
+    t
+}
+
+/// Strictly increasing grid of n points from increments.
+fn grid(n: usize) -> impl Strategy<Value = Vec<f32>> {
+    (-3.0f32..3.0, proptest::collection::vec(0.01f32..1.0, n - 1)).prop_map(|(start, incs)| {
+        let mut g = vec![start];
+        for d in incs {
+            let last = *g.last().unwrap();
+            g.push(last + d);
+        }
+        g
+    })
+}
+
+fn random_table() -> impl Strategy<Value = RawTable> {
+    (2usize..6, 2usize..6).prop_flat_map(|(n0, n1)| {
+        (
+            grid(n0),
+            grid(n1),
+            proptest::collection::vec(-50.0f32..50.0, n0 * n1),
+            proptest::collection::vec(0.01f32..5.0, n0 * n1),
+        )
+            .prop_map(|(g0, g1, v, s)| table_2d(g0, g1, v, s))
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn step_output_is_finite_and_limited_for_any_finite_input(
+        raw in valid_raw(), q in any_finite(), qd in any_finite(), qdd in any_finite(),
+        o in any_finite(), cmd in any_finite(), dt in any_finite(), mode in 0u8..4, target in any_finite(),
+    ) {
+        let p = check(&raw).unwrap();
+        let mode = match mode { 0 => Mode::Off, 1 => Mode::Assist, 2 => Mode::Velocity(target), _ => Mode::Position(target) };
+        let mut c = Controller::new();
+        let inp = Input { q, qd, qdd, others: [o, -o, o], assist_cmd: cmd };
+        for _ in 0..3 {
+            let out = c.step(&p, mode, &inp, dt);
+            prop_assert!(out.tau_out.is_finite() && out.u_motor.is_finite() && out.c_c.is_finite(), "{out:?}");
+            prop_assert!(out.tau_out.abs() <= p.get(ParamId::TorqueLimit));
+        }
+    }
+
+    #[test]
+    fn non_finite_input_drives_zero(raw in valid_raw(), bad in prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)], which in 0usize..4) {
+        let p = check(&raw).unwrap();
+        let mut inp = Input { q: 0.5, qd: 0.1, qdd: 0.0, others: [0.0; 3], assist_cmd: 0.0 };
+        match which { 0 => inp.q = bad, 1 => inp.qd = bad, 2 => inp.qdd = bad, _ => inp.others[1] = bad }
+        let mut c = Controller::new();
+        let out = c.step(&p, Mode::Assist, &inp, 1e-3);
+        prop_assert!(out.bad_input);
+        prop_assert_eq!(out.tau_out, 0.0);
+    }
+
+    #[test]
+    fn friction_is_odd_and_monotonic(raw in valid_raw(), v1 in 0.0f32..100.0, dv in 0.0f32..100.0) {
+        let p = check(&raw).unwrap();
+        let f = p.terms().friction;
+        prop_assert_eq!(f.torque(-v1), -f.torque(v1));
+        let v2 = v1 + dv;
+        prop_assert!(f.torque(v2) >= f.torque(v1), "f({v2}) = {} < f({v1}) = {}", f.torque(v2), f.torque(v1));
+        prop_assert!(f.torque(v1) >= 0.0);
+    }
+
+    #[test]
+    fn table_is_exact_at_grid_points(t in random_table()) {
+        prop_assert!(validate(&t).is_ok());
+        let (n0, n1) = (t.points[0] as usize, t.points[1] as usize);
+        for i in 0..n0 {
+            for j in 0..n1 {
+                let x = [t.grid[0][i], t.grid[1][j], 0.0, 0.0];
+                let v = interpolate(&t, &t.torque, &x);
+                let want = t.torque[i * n1 + j];
+                prop_assert!((v - want).abs() <= 1e-5 * want.abs().max(1.0), "({i},{j}): {v} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn table_is_bounded_by_its_cell_corners(t in random_table(), u0 in -0.5f32..1.5, u1 in -0.5f32..1.5) {
+        let (n0, n1) = (t.points[0] as usize, t.points[1] as usize);
+        let span0 = t.grid[0][n0 - 1] - t.grid[0][0];
+        let span1 = t.grid[1][n1 - 1] - t.grid[1][0];
+        let x0 = t.grid[0][0] + u0 * span0;
+        let x1 = t.grid[1][0] + u1 * span1;
+        let v = interpolate(&t, &t.torque, &[x0, x1, 0.0, 0.0]);
+        // Locate the cell (after clamping to the grid) and its four corners.
+        let c0 = x0.clamp(t.grid[0][0], t.grid[0][n0 - 1]);
+        let c1 = x1.clamp(t.grid[1][0], t.grid[1][n1 - 1]);
+        let i = (0..n0 - 1).rev().find(|&i| t.grid[0][i] <= c0).unwrap_or(0);
+        let j = (0..n1 - 1).rev().find(|&j| t.grid[1][j] <= c1).unwrap_or(0);
+        let corners = [t.torque[i * n1 + j], t.torque[i * n1 + j + 1], t.torque[(i + 1) * n1 + j], t.torque[(i + 1) * n1 + j + 1]];
+        let lo = corners.iter().cloned().fold(f32::INFINITY, f32::min);
+        let hi = corners.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+        prop_assert!(v >= lo - 1e-4 && v <= hi + 1e-4, "{v} outside [{lo}, {hi}]");
+    }
+
+    #[test]
+    fn fusion_never_leaves_the_clamp(tm in -100.0f32..100.0, sm in 1e-3f32..20.0, td in -1e4f32..1e4, sd in 1e-3f32..20.0, k in 0.0f32..5.0) {
+        let f = fuse(tm, sm, td, sd, k);
+        prop_assert!(f >= tm - k * sm - 1e-3 && f <= tm + k * sm + 1e-3, "{f} outside {tm} ± {k}·{sm}");
+        // Between the two estimates, too.
+        prop_assert!(f >= tm.min(td) - 1e-3 && f <= tm.max(td) + 1e-3);
+    }
+
+    #[test]
+    fn refused_set_leaves_old_in_force(good in valid_raw(), which in 0usize..PARAM_COUNT, kind in 0u8..3) {
+        let mut active = ActiveParams::new(check(&good).unwrap());
+        let before = active.current().clone();
+        let mut bad = good.clone();
+        let d = &PARAMS[which];
+        let value = match kind { 0 => f32::NAN, 1 => d.max + 1.0 + d.max.abs(), _ => d.min - 1.0 - d.min.abs() };
+        bad.set(d.id, value);
+        // Change every other parameter too, so a half-applied set would show.
+        for e in PARAMS.iter() { if e.id != d.id { bad.set(e.id, e.min); } }
+        let err = active.replace(&bad).unwrap_err();
+        prop_assert_eq!(err.param(), Some(d.id));
+        prop_assert_eq!(active.current(), &before);
+    }
+}
+
+#[test]
+fn table_rules_name_the_axis_and_index() {
+    let mut t = table_2d(vec![0.0, 0.5, 1.0], vec![0.0, 0.4, 0.3], vec![0.0; 9], vec![]);
+    assert_eq!(validate(&t), Err(joint_core::table::TableError::GridNotIncreasing { axis: 1, index: 2 }));
+    t.grid[1][2] = 0.8;
+    assert_eq!(validate(&t), Ok(()));
+    t.torque[4] = f32::NAN;
+    assert_eq!(validate(&t), Err(joint_core::table::TableError::TorqueNotFinite { index: 4 }));
+    t.torque[4] = 0.0;
+    t.points[0] = 1;
+    assert!(matches!(validate(&t), Err(joint_core::table::TableError::Points { axis: 0, points: 1 })));
+    t.points = [16, 16, 2, 0];
+    t.n_axes = 3;
+    for a in 0..3 {
+        for i in 0..16 {
+            t.grid[a][i] = i as f32;
+        }
+    }
+    assert!(matches!(validate(&t), Err(joint_core::table::TableError::TooManyCells { cells: 512 })));
+    assert!(CELLS_MAX >= 256 && AXES_MAX == 4);
+}
+
+#[test]
+fn fusion_needs_sigma_and_a_table() {
+    let mut raw = raw_from(&RIGHT);
+    raw.set(ParamId::TableSigmaModel, 0.3);
+    assert!(matches!(check(&raw), Err(ParamError::Inconsistent { param: ParamId::TableSigmaModel, .. })));
+    raw.table = table_2d(vec![0.0, 1.0], vec![0.0, 1.0], vec![1.0, 2.0, 3.0, 4.0], vec![]);
+    assert!(matches!(check(&raw), Err(ParamError::Inconsistent { param: ParamId::TableSigmaModel, .. })));
+    raw.table.has_sigma = true;
+    raw.table.sigma[..4].copy_from_slice(&[0.1; 4]);
+    let p = check(&raw).unwrap();
+    // Fused gravity stays within weight ± clamp_k·σ_m even though the table says otherwise.
+    let w = p.terms().weight.torque(0.5);
+    let g = joint_core::control::gravity(&p, 0.5, &[0.5, 0.0, 0.0]);
+    assert!((g - w).abs() <= 0.3 + 1e-5, "{g} vs {w}");
+    let plain = disturbance(&p, 0.5, 0.0, 0.0, &[0.5, 0.0, 0.0]);
+    assert!(plain.is_finite());
+}
+
+#[test]
+fn accel_cutoff_must_respect_nyquist() {
+    let mut raw = RawParams::defaults();
+    raw.set(ParamId::ControlRateHz, 100.0);
+    raw.set(ParamId::AccelCutoff, 60.0);
+    let e = check(&raw).unwrap_err();
+    assert!(matches!(e, ParamError::Inconsistent { param: ParamId::AccelCutoff, .. }));
+    assert!(e.to_string().contains("controller_accel_cutoff"), "{e}");
+}
+
+#[test]
+fn table_declares_every_id_in_order_and_defaults_pass() {
+    for (i, d) in PARAMS.iter().enumerate() {
+        assert_eq!(d.id.index(), i, "{} out of order", d.name);
+        assert!(d.min <= d.default && d.default <= d.max, "{} default outside range", d.name);
+        assert_eq!(d.name, format!("{}_{}", d.section, d.key), "{} is not section_key", d.name);
+        assert_eq!(ParamId::from_name(d.name), Some(d.id));
+    }
+    assert!(check(&RawParams::defaults()).is_ok());
+}
