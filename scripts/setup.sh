@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Idempotent setup for a fresh Debian 12 machine with rustup: the Cortex-M target, llvm-tools
+# (llvm-size for the firmware size report), qemu-system-arm (firmware tests on an emulated
+# Cortex-M4F) and socat (a pty pair that carries slcan between two programs).
+# Everything the README's two commands need is installed here, never by hand.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+log() { printf '\033[1msetup:\033[0m %s\n' "$*" >&2; }
+
+if ! command -v cargo >/dev/null 2>&1; then
+    if [ -x "$HOME/.cargo/bin/cargo" ]; then
+        export PATH="$HOME/.cargo/bin:$PATH"
+    else
+        echo "setup: cargo/rustup not found; install Rust with rustup first" >&2
+        exit 1
+    fi
+fi
+
+if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
+    log "adding rust target thumbv7em-none-eabihf"
+    rustup target add thumbv7em-none-eabihf >&2
+fi
+if ! rustup component list --installed | grep -q '^llvm-tools'; then
+    log "adding rustup component llvm-tools"
+    rustup component add llvm-tools >&2
+fi
+
+need_apt=()
+for pkg in qemu-system-arm socat; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
+done
+if [ ${#need_apt[@]} -gt 0 ]; then
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    log "installing Debian packages: ${need_apt[*]}"
+    $SUDO apt-get update -qq >&2
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >&2
+fi
+log "ready"
