@@ -16,11 +16,14 @@
 //! Plain `x.sin()`, `x.abs()` etc. are banned in `firmware/` (a test greps for them): with std
 //! linked on the PC they would resolve to std's implementations.
 
+// Cephes' published decimal constants; rounding them to f32 is intended.
+#![allow(clippy::excessive_precision)]
+
 // π/2 split so that k·DP1 and k·DP2 are exact in f32 for |k| < 2^12 (Cephes sinf).
 const DP1: f32 = 1.570_312_5;
 const DP2: f32 = 4.837_512_969_970_703e-4;
 const DP3: f32 = 7.549_789_948_768_648e-8;
-const TWO_OVER_PI: f32 = 0.636_619_77;
+const TWO_OVER_PI: f32 = core::f32::consts::FRAC_2_PI;
 /// A reduced argument beyond π/4 (plus rounding slack) means the reduction itself failed.
 const REDUCED_MAX: f32 = 0.8;
 
@@ -136,7 +139,8 @@ pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
 /// `true` for finite numbers (not NaN, not ±∞).
 #[inline(always)]
 pub fn is_finite(x: f32) -> bool {
-    x - x == 0.0
+    // core's is_finite is a bit test, identical on every target.
+    x.is_finite()
 }
 
 /// sign(v) smoothed linearly inside `|v| < band`, so a noisy zero velocity gives a small torque

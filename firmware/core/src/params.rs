@@ -90,6 +90,7 @@ impl ParamId {
         Self::ALL.get(i).copied()
     }
 
+    #[allow(clippy::indexing_slicing)]
     pub fn desc(self) -> &'static ParamDesc {
         // PARAMS is declared in ParamId order (a test checks it), so the index always exists.
         &PARAMS[self.index() % PARAM_COUNT]
