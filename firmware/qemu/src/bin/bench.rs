@@ -1,0 +1,255 @@
+//! Cost benchmark: instructions per compensation step on the emulated Cortex-M4F.
+//!
+//! Under `qemu-system-arm -icount shift=7` every instruction advances virtual time by
+//! 128 ns and SysTick (25 MHz on mps2-an386) becomes an exact, repeatable instruction
+//! counter. The image first measures ticks per instruction with a loop of known length
+//! (two instructions per iteration, two lengths so the fixed cost of reading the counter
+//! cancels), then times each configuration over the same inputs and subtracts the cost of
+//! the bare loop. Output: a table on semihosting stdout, one `bench` line per row for
+//! scripts. Exit status 0 when the full step (2-D fused table) is within
+//! `STEP_BUDGET_INSTRUCTIONS`, 2 when it is not, 1 on panic.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+firmware_qemu::entry!(run);
+
+/// The target for the full compensation step.
+#[cfg(target_os = "none")]
+const STEP_BUDGET_INSTRUCTIONS: f32 = 400.0;
+
+#[cfg(target_os = "none")]
+mod bench {
+    use core::hint::black_box;
+    use firmware_qemu::systick;
+    use joint_core::control::{Controller, Differentiator, Input, Mode};
+    use joint_core::fixed::{self, FixedParams, Fx};
+    use joint_core::params::{check, ParamId, ParamSet, RawParams};
+    use joint_core::vectors::{self, XorShift32};
+
+    pub const INPUTS: usize = 128;
+
+    /// `n` iterations of a two-instruction loop (`subs`, `bne`).
+    #[inline(never)]
+    pub fn spin(n: u32) {
+        if n == 0 {
+            return;
+        }
+        // SAFETY: register-only countdown loop; touches no memory and no stack.
+        unsafe {
+            core::arch::asm!(
+                "1:",
+                "subs {0}, {0}, #1",
+                "bne 1b",
+                inout(reg) n => _,
+                options(nomem, nostack),
+            );
+        }
+    }
+
+    /// SysTick ticks taken by `f`.
+    #[inline(always)]
+    pub fn ticks<F: FnMut()>(mut f: F) -> u32 {
+        let a = systick::now();
+        f();
+        let b = systick::now();
+        systick::elapsed(a, b)
+    }
+
+    /// Trunk-joint working range, no special values: the cost of a normal step.
+    pub fn inputs() -> [Input; INPUTS] {
+        let mut rng = XorShift32::new(vectors::SESSION_SEED ^ 0xBE7C_0000);
+        let mut v = [Input::default(); INPUTS];
+        for i in v.iter_mut() {
+            *i = Input {
+                q: rng.uniform(-0.3, 2.3),
+                qd: rng.uniform(-2.5, 2.5),
+                qdd: rng.uniform(-20.0, 20.0),
+                others: [rng.uniform(-1.2, 2.2), 0.0, 0.0],
+                assist_cmd: rng.uniform(-5.0, 5.0),
+            };
+        }
+        v
+    }
+
+    pub fn set(raw: &RawParams) -> Option<ParamSet> {
+        check(raw).ok()
+    }
+
+    /// Ticks for the empty loop over the inputs (what every measured loop also pays).
+    pub fn baseline(inp: &[Input; INPUTS]) -> u32 {
+        ticks(|| {
+            for i in inp.iter() {
+                black_box(i);
+                black_box(0.0f32);
+            }
+        })
+    }
+
+    pub fn steps(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
+        let mut ctl = Controller::new();
+        let dt = 1.0 / p.get(ParamId::ControlRateHz);
+        ticks(|| {
+            for i in inp.iter() {
+                let o = ctl.step(black_box(p), Mode::Assist, black_box(i), dt);
+                black_box(o.u_motor);
+            }
+        })
+    }
+
+    /// What the firmware's loop does per tick: q̇ and q̈ from the position by two
+    /// differentiators, then the step.
+    pub fn loop_body(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
+        let mut ctl = Controller::new();
+        let mut dq = Differentiator::new();
+        let mut dqd = Differentiator::new();
+        let rate = p.get(ParamId::ControlRateHz);
+        let dt = 1.0 / rate;
+        let vc = vectors::velocity_cutoff_hz(rate);
+        let ac = p.get(ParamId::AccelCutoff);
+        ticks(|| {
+            for i in inp.iter() {
+                let i = black_box(i);
+                let qd = dq.update(i.q, dt, vc);
+                let qdd = dqd.update(qd, dt, ac);
+                let x = Input { q: i.q, qd, qdd, others: i.others, assist_cmd: i.assist_cmd };
+                let o = ctl.step(black_box(p), Mode::Assist, &x, dt);
+                black_box(o.u_motor);
+            }
+        })
+    }
+
+    /// Ticks for `f(input)` over every input, the result kept alive.
+    pub fn each<F: FnMut(&Input) -> f32>(inp: &[Input; INPUTS], mut f: F) -> u32 {
+        ticks(|| {
+            for i in inp.iter() {
+                black_box(f(black_box(i)));
+            }
+        })
+    }
+
+    pub fn fixed_path(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
+        let fp = FixedParams::from_set(p);
+        let mut q = [Fx::ZERO; INPUTS];
+        let mut qd = [Fx::ZERO; INPUTS];
+        for ((a, b), i) in q.iter_mut().zip(qd.iter_mut()).zip(inp.iter()) {
+            *a = vectors::to_fx(i.q);
+            *b = vectors::to_fx(i.qd);
+        }
+        ticks(|| {
+            for (a, b) in q.iter().zip(qd.iter()) {
+                let d = fixed::disturbance_fx(black_box(&fp), black_box(*a), black_box(*b));
+                black_box(d);
+            }
+        })
+    }
+}
+
+#[cfg(target_os = "none")]
+fn run() -> i32 {
+    use bench::*;
+    use core::fmt::Write;
+    use firmware_qemu::{systick, EXIT_CHECK_FAILED};
+    use joint_core::vectors;
+
+    let Some(mut out) = firmware_qemu::LineOut::stdout() else {
+        return EXIT_CHECK_FAILED;
+    };
+    systick::start();
+
+    // Ticks per instruction from two loop lengths: the difference removes the fixed cost
+    // of the call and of reading the counter.
+    const N1: u32 = 10_000;
+    const N2: u32 = 110_000;
+    let t1 = ticks(|| spin(core::hint::black_box(N1)));
+    let t2 = ticks(|| spin(core::hint::black_box(N2)));
+    let tpi = (t2 - t1) as f32 / (2 * (N2 - N1)) as f32;
+    let _ = writeln!(
+        out,
+        "calibration: {} loop instructions took {} SysTick ticks: {:.4} ticks/instruction (expected 3.2 at shift=7)",
+        2 * (N2 - N1),
+        t2 - t1,
+        tpi
+    );
+    if !(tpi > 0.0) {
+        let _ = writeln!(out, "calibration failed: SysTick did not advance (is -icount set?)");
+        return EXIT_CHECK_FAILED;
+    }
+
+    let inp = inputs();
+    let base = baseline(&inp);
+    let per = |t: u32| (t.saturating_sub(base)) as f32 / tpi / INPUTS as f32;
+
+    let configs = [
+        ("friction+weight", vectors::friction_weight_only()),
+        ("+ inertia/offset", vectors::trunk_right()),
+        ("+ spring", vectors::trunk_spring()),
+        ("+ 2-D gravity table, fused", vectors::trunk_table_fused()),
+    ];
+    let _ = writeln!(out, "{:<44} {:>14}", "configuration", "instr/step");
+    let mut full = f32::INFINITY;
+    for (name, raw) in configs.iter() {
+        let Some(p) = set(raw) else {
+            let _ = writeln!(out, "parameter set '{name}' was refused by check()");
+            return EXIT_CHECK_FAILED;
+        };
+        let n = per(steps(&p, &inp));
+        full = n;
+        let _ = writeln!(out, "{:<44} {:>14.1}", name, n);
+        let _ = writeln!(out, "bench step \"{name}\" {n:.1}");
+    }
+    let Some(spring) = set(&vectors::trunk_spring()) else {
+        return EXIT_CHECK_FAILED;
+    };
+    let n = per(fixed_path(&spring, &inp));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "fixed-point friction+weight+spring (Q16.16)", n);
+    let _ = writeln!(out, "bench fixed \"fixed-point friction+weight+spring\" {n:.1}");
+    let Some(table) = set(&vectors::trunk_table_fused()) else {
+        return EXIT_CHECK_FAILED;
+    };
+    let n = per(loop_body(&table, &inp));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "loop body: 2 differentiators + full step", n);
+    let _ = writeln!(out, "bench loop \"2 differentiators + full step\" {n:.1}");
+
+    // Where a step's instructions go: the pieces the step is made of, timed alone.
+    let _ = writeln!(out, "components (same inputs, same subtraction):");
+    let t = table.terms();
+    let tbl = table.table();
+    let comps: [(&str, u32); 7] = [
+        ("math::sin (libm sinf)", each(&inp, |i| joint_core::math::sin(i.q))),
+        ("Friction::torque", each(&inp, |i| t.friction.torque(i.qd))),
+        ("Weight::torque", each(&inp, |i| t.weight.torque(i.q))),
+        ("table::interpolate (2-D, one value array)", each(&inp, |i| {
+            joint_core::table::interpolate(tbl, &tbl.torque, &[i.q, i.others[0], 0.0, 0.0])
+        })),
+        ("table::fuse", each(&inp, |i| joint_core::table::fuse(i.q, 0.3, i.qd, 0.2, 1.0))),
+        ("control::gravity (weight + 2 interpolations + fuse)", each(&inp, |i| {
+            joint_core::control::gravity(&table, i.q, &i.others)
+        })),
+        ("Differentiator::update", {
+            let mut d = joint_core::control::Differentiator::new();
+            each(&inp, |i| d.update(i.q, 0.001, 100.0))
+        }),
+    ];
+    for (name, tk) in comps.iter() {
+        let n = per(*tk);
+        let _ = writeln!(out, "  {:<52} {:>8.1}", name, n);
+        let _ = writeln!(out, "bench component \"{name}\" {n:.1}");
+    }
+    let _ = writeln!(
+        out,
+        "full step {:.1} instructions, budget {:.0}: {}",
+        full,
+        STEP_BUDGET_INSTRUCTIONS,
+        if full <= STEP_BUDGET_INSTRUCTIONS { "within budget" } else { "OVER BUDGET" }
+    );
+    if full <= STEP_BUDGET_INSTRUCTIONS {
+        0
+    } else {
+        EXIT_CHECK_FAILED
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    firmware_qemu::host_main("qemu-bench")
+}

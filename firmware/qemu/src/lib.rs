@@ -1,0 +1,97 @@
+//! Support for the joint core's test and benchmark images on QEMU's `mps2-an386`.
+//!
+//! These images run the real `joint_core` code on an emulated Cortex-M4F and talk to the
+//! host only through semihosting: text on stdout, an exact exit status, nothing else. The
+//! pieces here are what every image needs: a minimal runtime (vector table, FPU enable,
+//! .data/.bss init: see [`rt`]), a panic handler that exits with status 1 instead of
+//! spinning on `udf` like panic-probe does, and the SysTick counter the benchmark reads.
+//! On the host the crate is empty so that `cargo check --workspace` stays green.
+#![cfg_attr(target_os = "none", no_std)]
+
+#[cfg(target_os = "none")]
+pub mod rt;
+#[cfg(target_os = "none")]
+pub mod systick;
+
+#[cfg(target_os = "none")]
+pub use semihosting;
+
+/// `core::fmt::Write` to semihosting stdout, one SYS_WRITE per line instead of one per
+/// `write_str` (a semihosting call is a trap into QEMU; thousands of lines add up).
+#[cfg(target_os = "none")]
+pub struct LineOut {
+    out: semihosting::io::Stdout,
+    buf: [u8; 160],
+    len: usize,
+}
+
+#[cfg(target_os = "none")]
+impl LineOut {
+    pub fn stdout() -> Option<Self> {
+        semihosting::io::stdout().ok().map(|out| LineOut { out, buf: [0; 160], len: 0 })
+    }
+
+    pub fn flush(&mut self) -> core::fmt::Result {
+        use semihosting::io::Write as _;
+        let pending = self.buf.get(..self.len).ok_or(core::fmt::Error)?;
+        self.out.write_all(pending).map_err(|_| core::fmt::Error)?;
+        self.len = 0;
+        Ok(())
+    }
+}
+
+#[cfg(target_os = "none")]
+impl core::fmt::Write for LineOut {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        for &b in s.as_bytes() {
+            if self.len == self.buf.len() {
+                self.flush()?;
+            }
+            if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = b;
+                self.len += 1;
+            }
+            if b == b'\n' {
+                self.flush()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(target_os = "none")]
+impl Drop for LineOut {
+    fn drop(&mut self) {
+        let _ = self.flush();
+    }
+}
+
+/// Exit status of an image whose checks failed (as opposed to a panic, which is 1, and a
+/// CPU fault, which is 3): scripts tell the three apart.
+pub const EXIT_CHECK_FAILED: i32 = 2;
+/// Exit status after a HardFault or another fault exception.
+pub const EXIT_FAULT: i32 = 3;
+
+/// Declares the image's entry point: `firmware_qemu::entry!(main);` with `fn main() -> i32`.
+/// The returned value becomes QEMU's exit status through semihosting's SYS_EXIT_EXTENDED.
+#[macro_export]
+macro_rules! entry {
+    ($main:path) => {
+        #[no_mangle]
+        pub extern "C" fn __qemu_entry() -> ! {
+            let f: fn() -> i32 = $main;
+            let code = f();
+            $crate::semihosting::process::exit(code)
+        }
+    };
+}
+
+/// Host build of an image: says where it belongs instead of pretending to run.
+#[cfg(not(target_os = "none"))]
+pub fn host_main(name: &str) {
+    eprintln!(
+        "{name} is a test image for qemu-system-arm -M mps2-an386; build it with \
+         --target thumbv7em-none-eabihf and run scripts/qemu-test.sh"
+    );
+    std::process::exit(2);
+}

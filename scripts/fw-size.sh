@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Builds the release board image and prints its flash and static RAM use against the
+# budget (flash <= 64 KiB, static RAM <= 16 KiB; stretch 48 KiB / 12 KiB). Exits 1 when
+# over budget, 2 when the build or the measurement itself fails.
+#
+# Flash = .vector_table + .text + .rodata + .data (its load image lives in flash);
+# static RAM = .data + .bss + .uninit (the stack is not counted: it takes what is left).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+FLASH_BUDGET=$((64 * 1024))
+RAM_BUDGET=$((16 * 1024))
+FLASH_STRETCH=$((48 * 1024))
+RAM_STRETCH=$((12 * 1024))
+
+TARGET=thumbv7em-none-eabihf
+TARGET_DIR=${CARGO_TARGET_DIR:-target}
+LLVM_SIZE="$(rustc --print sysroot)/lib/rustlib/x86_64-unknown-linux-gnu/bin/llvm-size"
+if [[ ! -x "$LLVM_SIZE" ]]; then
+    echo "fw-size: llvm-size not found at $LLVM_SIZE (rustup component add llvm-tools)" >&2
+    exit 2
+fi
+
+cargo build --release -p firmware --target "$TARGET" >&2 || exit 2
+ELF="$TARGET_DIR/$TARGET/release/firmware"
+[[ -f "$ELF" ]] || { echo "fw-size: no image at $ELF" >&2; exit 2; }
+
+# llvm-size -A: "section size addr" rows.
+read -r FLASH RAM < <("$LLVM_SIZE" -A "$ELF" | awk '
+    $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { flash += $2 }
+    $1 == ".data" { flash += $2; ram += $2 }
+    $1 == ".bss" || $1 == ".uninit" { ram += $2 }
+    END { print flash + 0, ram + 0 }')
+
+"$LLVM_SIZE" -A "$ELF" | awk '$1 ~ /^\.(vector_table|text|rodata|data|bss|uninit)$/' >&2
+pct() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", 100 * a / b }'; }
+printf 'flash: %6d bytes (%5.1f KiB) of %d KiB budget (%s %%), stretch %d KiB\n' \
+    "$FLASH" "$(awk -v a="$FLASH" 'BEGIN{print a/1024}')" $((FLASH_BUDGET / 1024)) \
+    "$(pct "$FLASH" "$FLASH_BUDGET")" $((FLASH_STRETCH / 1024))
+printf 'ram:   %6d bytes (%5.1f KiB) of %d KiB budget (%s %%), stretch %d KiB\n' \
+    "$RAM" "$(awk -v a="$RAM" 'BEGIN{print a/1024}')" $((RAM_BUDGET / 1024)) \
+    "$(pct "$RAM" "$RAM_BUDGET")" $((RAM_STRETCH / 1024))
+
+status=0
+if (( FLASH > FLASH_BUDGET )); then echo "fw-size: flash over budget" >&2; status=1; fi
+if (( RAM > RAM_BUDGET )); then echo "fw-size: static RAM over budget" >&2; status=1; fi
+if (( status == 0 && FLASH <= FLASH_STRETCH && RAM <= RAM_STRETCH )); then
+    echo "within the stretch budget too"
+fi
+exit $status
