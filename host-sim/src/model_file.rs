@@ -1,0 +1,481 @@
+//! The joint model TOML (spec §2) and its conversion to and from the core's parameters.
+//!
+//! Which keys exist is not written down here: every scalar key is a [`ParamDesc`] of the core's
+//! [`PARAMS`] table (`section`, `key`), so a parameter added to the core is a TOML key at once.
+//! The file is parsed with serde, unknown sections are refused by `deny_unknown_fields`, unknown
+//! keys inside a section by the lookup in `PARAMS`; both errors name the key and its line.
+//! Every section is optional; a key left out takes the table default (0 for every model term,
+//! so a missing section is a term the model does not have).
+//!
+//! The gravity table's `axes` are log columns: `"q"` is the joint's own angle (axis source 0),
+//! every other name (`"q_<joint>"`) gets the next free slot 1..=3 in order of first appearance;
+//! [`ModelFile::other_columns`] returns that mapping so a log's `q_<name>` columns can feed the
+//! core's `Input::others`.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use joint_core::params::{self, ParamDesc, ParamError, ParamId, ParamSet, RawParams, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A section of scalar keys, validated against `PARAMS` after parsing.
+pub(crate) type Section = BTreeMap<String, Spanned<f64>>;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct GravityTableToml {
+    pub axes: Spanned<Vec<String>>,
+    pub grid: Spanned<Vec<Vec<f64>>>,
+    pub torque: Spanned<Vec<f64>>,
+    #[serde(default)]
+    pub sigma: Option<Spanned<Vec<f64>>>,
+    #[serde(default)]
+    pub sigma_model: Option<Spanned<f64>>,
+    #[serde(default)]
+    pub clamp_k: Option<Spanned<f64>>,
+}
+
+/// Declares a serde struct holding the model sections plus extra fields (the plant file adds its
+/// effect sections), so the model part is declared once for both files.
+macro_rules! model_toml_struct {
+    ($(#[$meta:meta])* $vis:vis struct $name:ident { $($extra:tt)* }) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        $vis struct $name {
+            #[serde(default)]
+            pub name: Option<String>,
+            #[serde(default)]
+            pub friction: Option<Section>,
+            #[serde(default)]
+            pub weight: Option<Section>,
+            #[serde(default)]
+            pub inertia: Option<Section>,
+            #[serde(default)]
+            pub offset: Option<Section>,
+            #[serde(default)]
+            pub spring: Option<Section>,
+            #[serde(default)]
+            pub gravity_table: Option<GravityTableToml>,
+            #[serde(default)]
+            pub compensation: Option<Section>,
+            #[serde(default)]
+            pub controller: Option<Section>,
+            $($extra)*
+        }
+
+        impl $name {
+            /// The scalar sections by TOML name, for the `PARAMS` lookup.
+            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&Section>); 7] {
+                [
+                    ("friction", self.friction.as_ref()),
+                    ("weight", self.weight.as_ref()),
+                    ("inertia", self.inertia.as_ref()),
+                    ("offset", self.offset.as_ref()),
+                    ("spring", self.spring.as_ref()),
+                    ("compensation", self.compensation.as_ref()),
+                    ("controller", self.controller.as_ref()),
+                ]
+            }
+        }
+    };
+}
+pub(crate) use model_toml_struct;
+
+model_toml_struct! {
+    pub(crate) struct ModelToml {}
+}
+
+/// The gravity table as the file gives it (f64, names), before it becomes a core `RawTable`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TableSpec {
+    pub axes: Vec<String>,
+    pub grid: Vec<Vec<f64>>,
+    pub torque: Vec<f64>,
+    pub sigma: Option<Vec<f64>>,
+}
+
+/// A parsed model file: the values the file sets explicitly (by `ParamId` index), the line each
+/// came from, and the gravity table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelFile {
+    pub name: Option<String>,
+    values: [Option<f64>; PARAM_COUNT],
+    lines: [Option<usize>; PARAM_COUNT],
+    pub table: Option<TableSpec>,
+    table_line: Option<usize>,
+    /// file name for error messages
+    pub file: String,
+}
+
+/// Why a model file was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ModelError {
+    #[error("{file}: cannot read: {msg}")]
+    Io { file: String, msg: String },
+    #[error("{file}: {msg}")]
+    Toml { file: String, msg: String },
+    #[error("{file}: line {line}: unknown key `{key}` in [{section}] (known keys: {known})")]
+    UnknownKey { file: String, line: usize, section: String, key: String, known: String },
+    #[error("{file}: line {line}: [gravity_table] {key}: {msg}")]
+    Table { file: String, line: usize, key: &'static str, msg: String },
+    #[error("{file}: {location}[{section}] {key}: {msg}")]
+    Param { file: String, location: String, section: &'static str, key: &'static str, msg: String },
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    1 + text.as_bytes().iter().take(offset).filter(|&&b| b == b'\n').count()
+}
+
+fn known_keys(section: &str) -> String {
+    PARAMS.iter().filter(|d| d.section == section).map(|d| d.key).collect::<Vec<_>>().join(", ")
+}
+
+impl ModelFile {
+    /// An empty model: every parameter at its default, no table.
+    pub fn empty(file: &str) -> ModelFile {
+        ModelFile {
+            name: None,
+            values: [None; PARAM_COUNT],
+            lines: [None; PARAM_COUNT],
+            table: None,
+            table_line: None,
+            file: file.to_string(),
+        }
+    }
+
+    pub fn read_file(path: &Path) -> Result<ModelFile, ModelError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError::Io { file: file.clone(), msg: e.to_string() })?;
+        Self::parse(&text, &file)
+    }
+
+    /// Parses model TOML text; `file` is only used in messages.
+    pub fn parse(text: &str, file: &str) -> Result<ModelFile, ModelError> {
+        let toml: ModelToml = toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
+        Self::from_toml(&toml, text, file)
+    }
+
+    pub(crate) fn from_toml(
+        toml: &ModelToml,
+        text: &str,
+        file: &str,
+    ) -> Result<ModelFile, ModelError> {
+        Self::from_parts(toml.name.clone(), &toml.scalar_sections(), toml.gravity_table.as_ref(), text, file)
+    }
+
+    pub(crate) fn from_parts(
+        name: Option<String>,
+        sections: &[(&'static str, Option<&Section>)],
+        table: Option<&GravityTableToml>,
+        text: &str,
+        file: &str,
+    ) -> Result<ModelFile, ModelError> {
+        let mut mf = ModelFile::empty(file);
+        mf.name = name;
+        for (section, keys) in sections {
+            let Some(keys) = keys else { continue };
+            for (key, value) in keys.iter() {
+                let line = line_of(text, value.span().start);
+                let Some(d) = PARAMS.iter().find(|d| d.section == *section && d.key == key) else {
+                    return Err(ModelError::UnknownKey {
+                        file: file.to_string(),
+                        line,
+                        section: section.to_string(),
+                        key: key.clone(),
+                        known: known_keys(section),
+                    });
+                };
+                mf.set(d.id, *value.get_ref(), Some(line));
+            }
+        }
+        if let Some(t) = table {
+            for (id, v) in [(ParamId::TableSigmaModel, &t.sigma_model), (ParamId::TableClampK, &t.clamp_k)] {
+                if let Some(v) = v {
+                    mf.set(id, *v.get_ref(), Some(line_of(text, v.span().start)));
+                }
+            }
+            mf.table_line = Some(line_of(text, t.axes.span().start));
+            mf.table = Some(TableSpec {
+                axes: t.axes.get_ref().clone(),
+                grid: t.grid.get_ref().clone(),
+                torque: t.torque.get_ref().clone(),
+                sigma: t.sigma.as_ref().map(|s| s.get_ref().clone()),
+            });
+        }
+        Ok(mf)
+    }
+
+    /// Sets a parameter explicitly (`line` = where it came from, if from a file).
+    pub fn set(&mut self, id: ParamId, value: f64, line: Option<usize>) {
+        if let Some(v) = self.values.get_mut(id.index()) {
+            *v = Some(value);
+        }
+        if let Some(l) = self.lines.get_mut(id.index()) {
+            *l = line;
+        }
+    }
+
+    /// The value the file sets for `id`, if it sets one.
+    pub fn explicit(&self, id: ParamId) -> Option<f64> {
+        self.values.get(id.index()).copied().flatten()
+    }
+
+    /// The value for `id`: the file's, else the core's default.
+    pub fn value(&self, id: ParamId) -> f64 {
+        self.explicit(id).unwrap_or_else(|| f64::from(id.desc().default))
+    }
+
+    /// The value at a TOML place (`"friction"`, `"c"`), file value or default; `None` if no
+    /// parameter lives there.
+    pub fn get(&self, section: &str, key: &str) -> Option<f64> {
+        PARAMS.iter().find(|d| d.section == section && d.key == key).map(|d| self.value(d.id))
+    }
+
+    /// Log columns feeding the core's `others[0..3]`, in slot order.
+    pub fn other_columns(&self) -> Vec<String> {
+        let mut v: Vec<String> = Vec::new();
+        if let Some(t) = &self.table {
+            for a in &t.axes {
+                if a != "q" && !v.contains(a) {
+                    v.push(a.clone());
+                }
+            }
+        }
+        v
+    }
+
+    fn location(&self, id: ParamId) -> String {
+        match self.lines.get(id.index()).copied().flatten() {
+            Some(l) => format!("line {l}: "),
+            None => String::new(),
+        }
+    }
+
+    fn param_error(&self, e: ParamError) -> ModelError {
+        match e.param() {
+            Some(id) => {
+                let d = id.desc();
+                let what = if self.explicit(id).is_some() { "" } else { " (default; not set in the file)" };
+                ModelError::Param {
+                    file: self.file.clone(),
+                    location: self.location(id),
+                    section: d.section,
+                    key: d.key,
+                    msg: format!("{e}{what}"),
+                }
+            }
+            None => ModelError::Table {
+                file: self.file.clone(),
+                line: self.table_line.unwrap_or(0),
+                key: "grid/torque/sigma",
+                msg: e.to_string(),
+            },
+        }
+    }
+
+    fn table_error(&self, key: &'static str, msg: String) -> ModelError {
+        ModelError::Table { file: self.file.clone(), line: self.table_line.unwrap_or(0), key, msg }
+    }
+
+    /// The core's raw parameters (unchecked by the core, but the table shape is checked here).
+    pub fn raw_params(&self) -> Result<RawParams, ModelError> {
+        let mut raw = RawParams::defaults();
+        for d in PARAMS.iter() {
+            if let Some(v) = self.explicit(d.id) {
+                // f64 → f32 rounds to nearest; values outside f32 become ±inf and check() names them.
+                raw.set(d.id, v as f32);
+            }
+        }
+        if let Some(t) = &self.table {
+            raw.table = self.raw_table(t)?;
+        }
+        Ok(raw)
+    }
+
+    fn raw_table(&self, t: &TableSpec) -> Result<RawTable, ModelError> {
+        let mut rt = RawTable::EMPTY;
+        let n = t.axes.len();
+        if n == 0 || n > AXES_MAX {
+            return Err(self.table_error("axes", format!("{n} axes given, 1..={AXES_MAX} supported")));
+        }
+        let others = self.other_columns();
+        if others.len() > 3 {
+            return Err(self.table_error("axes", format!("{} other joints named, at most 3 fit", others.len())));
+        }
+        for (i, a) in t.axes.iter().enumerate() {
+            if t.axes.iter().take(i).any(|b| b == a) {
+                return Err(self.table_error("axes", format!("axis `{a}` appears twice")));
+            }
+            if a != "q" && !(a.len() > 2 && a.starts_with("q_")) {
+                return Err(self.table_error("axes", format!("axis `{a}` is not a log angle column (`q` or `q_<name>`)")));
+            }
+            let src = if a == "q" { 0 } else { 1 + others.iter().position(|o| o == a).unwrap_or(0) };
+            if let Some(s) = rt.axis_source.get_mut(i) {
+                *s = src as u8;
+            }
+        }
+        if t.grid.len() != n {
+            return Err(self.table_error("grid", format!("{} grid rows for {n} axes", t.grid.len())));
+        }
+        let mut cells = 1usize;
+        for (i, g) in t.grid.iter().enumerate() {
+            if g.len() < 2 || g.len() > AXIS_POINTS_MAX {
+                return Err(self.table_error("grid", format!("grid[{i}] has {} points, 2..={AXIS_POINTS_MAX} supported", g.len())));
+            }
+            cells *= g.len();
+            if let (Some(p), Some(row)) = (rt.points.get_mut(i), rt.grid.get_mut(i)) {
+                *p = g.len() as u8;
+                for (dst, src) in row.iter_mut().zip(g) {
+                    *dst = *src as f32;
+                }
+            }
+        }
+        if cells > CELLS_MAX {
+            return Err(self.table_error("grid", format!("{cells} cells, at most {CELLS_MAX} fit")));
+        }
+        if t.torque.len() != cells {
+            return Err(self.table_error("torque", format!("{} values, the grid needs {cells} (row-major)", t.torque.len())));
+        }
+        for (dst, src) in rt.torque.iter_mut().zip(&t.torque) {
+            *dst = *src as f32;
+        }
+        if let Some(s) = &t.sigma {
+            if s.len() != cells {
+                return Err(self.table_error("sigma", format!("{} values, the grid needs {cells}", s.len())));
+            }
+            for (dst, src) in rt.sigma.iter_mut().zip(s) {
+                *dst = *src as f32;
+            }
+            rt.has_sigma = true;
+        }
+        rt.n_axes = n as u8;
+        Ok(rt)
+    }
+
+    /// The validated parameter set; errors name the TOML key (and its line when set in the file).
+    pub fn param_set(&self) -> Result<ParamSet, ModelError> {
+        let raw = self.raw_params()?;
+        params::check(&raw).map_err(|e| self.param_error(e))
+    }
+
+    /// A model file holding `raw`: sections whose values all equal the defaults are left out
+    /// (for the model terms that means "all zero"); `other_columns` names slots 1..=3 of the
+    /// gravity table's axis sources (missing names become `q_other<slot>`).
+    pub fn from_raw(raw: &RawParams, name: Option<&str>, other_columns: &[String]) -> ModelFile {
+        let mut mf = ModelFile::empty("(generated)");
+        mf.name = name.map(str::to_string);
+        let sections = section_order();
+        for s in sections {
+            let descs: Vec<&ParamDesc> = PARAMS.iter().filter(|d| d.section == s).collect();
+            let differs = descs.iter().any(|d| raw.get(d.id).to_bits() != d.default.to_bits());
+            let has_table = s == "gravity_table" && raw.table.n_axes > 0;
+            if differs || has_table {
+                for d in descs {
+                    mf.set(d.id, f32_to_f64_shortest(raw.get(d.id)), None);
+                }
+            }
+        }
+        let t = &raw.table;
+        if t.n_axes > 0 {
+            let n = (t.n_axes as usize).min(AXES_MAX);
+            let cells = t.cells().min(CELLS_MAX);
+            let axes = t
+                .axis_source
+                .iter()
+                .take(n)
+                .map(|&s| match s {
+                    0 => "q".to_string(),
+                    s => other_columns.get(s as usize - 1).cloned().unwrap_or_else(|| format!("q_other{s}")),
+                })
+                .collect();
+            let grid = (0..n)
+                .map(|a| {
+                    let p = t.points.get(a).copied().unwrap_or(0) as usize;
+                    t.grid.get(a).map(|g| g.iter().take(p).map(|&x| f32_to_f64_shortest(x)).collect()).unwrap_or_default()
+                })
+                .collect();
+            let torque = t.torque.iter().take(cells).map(|&x| f32_to_f64_shortest(x)).collect();
+            let sigma = t.has_sigma.then(|| t.sigma.iter().take(cells).map(|&x| f32_to_f64_shortest(x)).collect());
+            mf.table = Some(TableSpec { axes, grid, torque, sigma });
+        }
+        mf
+    }
+
+    /// TOML text in the spec's layout, units as comments; reads back to the same values.
+    pub fn to_toml_string(&self) -> String {
+        let mut out = String::new();
+        if let Some(n) = &self.name {
+            let _ = writeln!(out, "name = {}", toml_string(n));
+        }
+        for s in section_order() {
+            let descs: Vec<&ParamDesc> =
+                PARAMS.iter().filter(|d| d.section == s && self.explicit(d.id).is_some()).collect();
+            let table = if s == "gravity_table" { self.table.as_ref() } else { None };
+            if descs.is_empty() && table.is_none() {
+                continue;
+            }
+            let _ = writeln!(out, "\n[{s}]");
+            if let Some(t) = table {
+                let axes: Vec<String> = t.axes.iter().map(|a| toml_string(a)).collect();
+                let _ = writeln!(out, "axes = [{}]", axes.join(", "));
+                let rows: Vec<String> = t.grid.iter().map(|g| format!("[{}]", num_list(g))).collect();
+                let _ = writeln!(out, "grid = [{}]  # rad", rows.join(", "));
+                let _ = writeln!(out, "torque = [{}]  # N·m, row-major", num_list(&t.torque));
+                if let Some(sg) = &t.sigma {
+                    let _ = writeln!(out, "sigma = [{}]  # N·m", num_list(sg));
+                }
+            }
+            for d in descs {
+                let v = self.explicit(d.id).unwrap_or(0.0);
+                let _ = writeln!(out, "{} = {}  # {}", d.key, toml_num(v), d.unit);
+            }
+        }
+        out
+    }
+}
+
+/// TOML sections in `PARAMS` order (gravity_table included).
+fn section_order() -> Vec<&'static str> {
+    let mut v: Vec<&'static str> = Vec::new();
+    for d in PARAMS.iter() {
+        if !v.contains(&d.section) {
+            v.push(d.section);
+        }
+    }
+    if !v.contains(&"gravity_table") {
+        v.push("gravity_table");
+    }
+    v
+}
+
+/// The f64 whose shortest decimal is the f32's shortest decimal, so `1.894f32` prints as
+/// `1.894` and reads back to the same f32.
+fn f32_to_f64_shortest(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(f64::from(x))
+}
+
+fn toml_num(v: f64) -> String {
+    if v.is_finite() {
+        let s = format!("{v:?}");
+        // `{:?}` always shows a decimal point or exponent, so TOML reads a float.
+        s
+    } else if v.is_nan() {
+        "nan".into()
+    } else if v > 0.0 {
+        "inf".into()
+    } else {
+        "-inf".into()
+    }
+}
+
+fn num_list(v: &[f64]) -> String {
+    v.iter().map(|&x| toml_num(x)).collect::<Vec<_>>().join(", ")
+}
+
+fn toml_string(s: &str) -> String {
+    toml::Value::String(s.to_string()).to_string()
+}
