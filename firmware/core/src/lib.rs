@@ -16,5 +16,7 @@ pub mod fixed;
 pub mod math;
 pub mod model;
 pub mod params;
+pub mod safety;
+pub mod store;
 pub mod table;
 pub mod vectors;
