@@ -145,7 +145,9 @@ impl JointLog {
                 return Err(LogError::DuplicateColumn { file: file.to_string(), column: name.clone() });
             }
             if let Some(k) = KNOWN.iter().position(|k| k == name) {
-                known_present[k] = true;
+                if let Some(f) = known_present.get_mut(k) {
+                    *f = true;
+                }
                 slots.push(Slot::Known(k));
             } else if name.len() > 2 && name.starts_with("q_") {
                 slots.push(Slot::Other(log.others.len()));
@@ -156,7 +158,7 @@ impl JointLog {
             }
         }
         for (k, req) in [(0usize, "t"), (1, "q")] {
-            if !known_present[k] {
+            if !known_present.get(k).copied().unwrap_or(false) {
                 return Err(LogError::MissingColumn { file: file.to_string(), column: req });
             }
         }
@@ -225,9 +227,8 @@ impl JointLog {
             }
             // Time check right away so the error names this line.
             if let Some(tcol) = known.first() {
-                let n = tcol.len();
-                if n >= 2 {
-                    let (prev, t) = (tcol[n - 2], tcol[n - 1]);
+                if let [.., prev, t] = tcol.as_slice() {
+                    let (prev, t) = (*prev, *t);
                     if t <= prev {
                         return Err(LogError::TimeNotIncreasing { file: file.to_string(), line: line_no, t, prev });
                     }

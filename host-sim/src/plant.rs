@@ -181,6 +181,9 @@ struct PlantTable {
 }
 
 impl PlantTable {
+    // Indexing is in bounds: the table's shape (axes = grid rows, ≥ 2 points each, values =
+    // product of points) was validated when the file was read (ModelFile::raw_table + check).
+    #[allow(clippy::indexing_slicing)]
     fn eval(values: &[f64], grid: &[Vec<f64>], x: &[f64]) -> f64 {
         // Multilinear interpolation: sum over the 2^n corners of the cell containing x.
         let n = grid.len();

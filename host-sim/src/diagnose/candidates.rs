@@ -1,0 +1,495 @@
+//! The candidate terms of torque mode: every effect of the vocabulary as regressor columns added
+//! to the model's own (refittable) terms, with the same parametrisation as host-sim's plant
+//! effect sections (see [`crate::effects`]) so a fitted candidate is a plant section as it is.
+//!
+//! The model's prediction of `d = u − tau` splits into a part linear in the model's coefficients
+//! (`J·q̈`, `a·q̇|q̇|`, `b·q̇`, `c·sgn(q̇)`, the weight as `α·sin(s·q) + β·cos(s·q)` at the model's
+//! `s`, `k·q`, a constant for `c0 − k·q0`) and a fixed rest (gravity table, rounding of the f32
+//! core): `y = d − rest` is what every fit explains. A term the model does not have (its value
+//! is 0) is not refitted: `parameters` means "the model's own terms with other values".
+//!
+//! Effects with a shape parameter (Stribeck speed, ripple period, cable engagement, backlash
+//! width, delay, thermal time constant) have it searched on a grid over a thinned training set,
+//! then refined by golden section; the amplitudes are linear and solved exactly each time.
+
+use super::fit::{golden, Gram};
+
+/// The log columns and derived series one torque-mode diagnosis works on.
+#[derive(Clone, Debug)]
+pub struct Data {
+    pub n: usize,
+    pub t: Vec<f64>,
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub u: Vec<f64>,
+    /// `d − rest`, what the linear part explains
+    pub y: Vec<f64>,
+    pub temp: Option<Vec<f64>>,
+    /// median sample interval, s
+    pub dt: f64,
+    /// the model's sign band (rad/s) and `sgn(q̇)` with it
+    pub band: f64,
+    pub sgn: Vec<f64>,
+    /// the model's spring rest angle (centre of a backlash dead zone)
+    pub q0: f64,
+}
+
+/// Where a thermal candidate reads its temperature.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ThermSrc {
+    /// the log's `temp` column, centred on `mean`
+    Temp { mean: f64 },
+    /// no `temp`: a first-order warm-up `1 − e^(−(t−t0)/tau)` as a stand-in, centred on `mean`
+    Time { tau: f64, t0: f64, mean: f64 },
+}
+
+/// One regressor column.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Col {
+    Qdd,
+    QdAbsQd,
+    Qd,
+    Sgn,
+    SinSq(f64),
+    CosSq(f64),
+    Q,
+    DeadZone { q0: f64, w: f64 },
+    Const,
+    Stribeck(f64),
+    AbsSgn,
+    LoadSgn,
+    Thermal { a: f64, b: f64, c: f64, src: ThermSrc },
+    RipSin(f64),
+    RipCos(f64),
+    Cable { engage: f64, width: f64 },
+}
+
+impl Col {
+    #[inline]
+    pub fn eval(&self, d: &Data, i: usize) -> f64 {
+        let qd = d.qd[i];
+        match *self {
+            Col::Qdd => d.qdd[i],
+            Col::QdAbsQd => qd * qd.abs(),
+            Col::Qd => qd,
+            Col::Sgn => d.sgn[i],
+            Col::SinSq(s) => (s * d.q[i]).sin(),
+            Col::CosSq(s) => (s * d.q[i]).cos(),
+            Col::Q => d.q[i],
+            Col::DeadZone { q0, w } => crate::effects::dead_zone(d.q[i] - q0, w),
+            Col::Const => 1.0,
+            Col::Stribeck(v) => {
+                let r = qd / v;
+                (-r * r).exp() * d.sgn[i]
+            }
+            Col::AbsSgn => d.sgn[i].abs(),
+            Col::LoadSgn => d.u[i].abs() * d.sgn[i],
+            Col::Thermal { a, b, c, src } => {
+                let f = a * qd * qd.abs() + b * qd + c * d.sgn[i];
+                let temp = match src {
+                    ThermSrc::Temp { mean } => d.temp.as_ref().map(|t| t[i]).unwrap_or(mean) - mean,
+                    ThermSrc::Time { tau, t0, mean } => 1.0 - (-(d.t[i] - t0) / tau).exp() - mean,
+                };
+                f * temp
+            }
+            Col::RipSin(p) => (std::f64::consts::TAU * d.q[i] / p).sin(),
+            Col::RipCos(p) => (std::f64::consts::TAU * d.q[i] / p).cos(),
+            Col::Cable { engage, width } => {
+                crate::effects::cable_spring(&crate::effects::CableSpring { k: 1.0, engage, width }, d.q[i])
+            }
+        }
+    }
+}
+
+/// The effect kinds of torque mode, in the spec's vocabulary order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kind {
+    Stribeck,
+    Asymmetric,
+    Load,
+    Thermal,
+    Ripple,
+    Cable,
+    Backlash,
+    Delay,
+    Dry,
+}
+
+impl Kind {
+    pub const ALL: [Kind; 9] =
+        [Kind::Stribeck, Kind::Asymmetric, Kind::Load, Kind::Thermal, Kind::Ripple, Kind::Cable, Kind::Backlash, Kind::Delay, Kind::Dry];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Stribeck => "stribeck",
+            Kind::Asymmetric => "asymmetric_friction",
+            Kind::Load => "load_dependent_friction",
+            Kind::Thermal => "thermal_drift",
+            Kind::Ripple => "position_ripple",
+            Kind::Cable => "cable_spring",
+            Kind::Backlash => "backlash",
+            Kind::Delay => "delay",
+            Kind::Dry => "dry_friction",
+        }
+    }
+}
+
+/// A fitted-shape effect (its linear amplitudes come from the joint solve).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Effect {
+    Stribeck { speed: f64 },
+    Asymmetric,
+    Load,
+    Thermal { a: f64, b: f64, c: f64, src: ThermSrc },
+    Ripple { period: f64 },
+    Cable { engage: f64, width: f64 },
+    Backlash { width: f64 },
+    /// lag in samples (fractional)
+    Delay { lag: f64 },
+    Dry,
+}
+
+impl Effect {
+    pub fn kind(&self) -> Kind {
+        match self {
+            Effect::Stribeck { .. } => Kind::Stribeck,
+            Effect::Asymmetric => Kind::Asymmetric,
+            Effect::Load => Kind::Load,
+            Effect::Thermal { .. } => Kind::Thermal,
+            Effect::Ripple { .. } => Kind::Ripple,
+            Effect::Cable { .. } => Kind::Cable,
+            Effect::Backlash { .. } => Kind::Backlash,
+            Effect::Delay { .. } => Kind::Delay,
+            Effect::Dry => Kind::Dry,
+        }
+    }
+
+    /// Extra columns (backlash and delay change the base instead).
+    pub fn cols(&self) -> Vec<Col> {
+        match *self {
+            Effect::Stribeck { speed } => vec![Col::Stribeck(speed)],
+            Effect::Asymmetric => vec![Col::AbsSgn],
+            Effect::Load => vec![Col::LoadSgn],
+            Effect::Thermal { a, b, c, src } => vec![Col::Thermal { a, b, c, src }],
+            Effect::Ripple { period } => vec![Col::RipSin(period), Col::RipCos(period)],
+            Effect::Cable { engage, width } => vec![Col::Cable { engage, width }],
+            Effect::Backlash { .. } | Effect::Delay { .. } => vec![],
+            Effect::Dry => vec![Col::Sgn],
+        }
+    }
+}
+
+/// The model's own refittable terms and their values in the model file.
+#[derive(Clone, Debug)]
+pub struct Base {
+    pub cols: Vec<Col>,
+    pub beta0: Vec<f64>,
+}
+
+/// A full design: base columns (possibly with the spring replaced by a dead zone), the effect
+/// columns, and the lag applied to `u`.
+#[derive(Clone, Debug)]
+pub struct Design {
+    pub cols: Vec<Col>,
+    pub lag: f64,
+    /// per effect of the spec: the range of its columns
+    pub spans: Vec<(usize, usize)>,
+}
+
+impl Design {
+    pub fn new(base: &Base, effects: &[Effect]) -> Design {
+        let mut cols = base.cols.clone();
+        let mut lag = 0.0;
+        for e in effects {
+            match *e {
+                Effect::Backlash { width } => {
+                    for c in cols.iter_mut() {
+                        if let Col::Q = c {
+                            *c = Col::DeadZone { q0: 0.0, w: width };
+                        }
+                    }
+                }
+                Effect::Delay { lag: l } => lag = l,
+                _ => {}
+            }
+        }
+        let mut spans = Vec::new();
+        for e in effects {
+            let s = cols.len();
+            cols.extend(e.cols());
+            spans.push((s, cols.len()));
+        }
+        Design { cols, lag, spans }
+    }
+
+    /// Fills `x` with the row of sample `i` and returns its target.
+    #[inline]
+    pub fn row(&self, d: &Data, i: usize, x: &mut [f64]) -> f64 {
+        for (xk, c) in x.iter_mut().zip(&self.cols) {
+            *xk = match c {
+                Col::DeadZone { w, .. } => crate::effects::dead_zone(d.q[i] - d.q0, *w),
+                _ => c.eval(d, i),
+            };
+        }
+        self.target(d, i)
+    }
+
+    #[inline]
+    pub fn target(&self, d: &Data, i: usize) -> f64 {
+        if self.lag == 0.0 {
+            return d.y[i];
+        }
+        // Sensors lag the actuator: the logged state belongs with u at t − lag.
+        let pos = i as f64 - self.lag;
+        let u_then = if pos <= 0.0 {
+            d.u[0]
+        } else {
+            let k = pos.floor() as usize;
+            let f = pos - k as f64;
+            let a = d.u[k.min(d.n - 1)];
+            let b = d.u[(k + 1).min(d.n - 1)];
+            a + f * (b - a)
+        };
+        d.y[i] + u_then - d.u[i]
+    }
+
+    pub fn gram(&self, d: &Data, idx: &[u32]) -> Gram {
+        let p = self.cols.len();
+        let mut g = Gram::new(p);
+        let mut x = vec![0.0; p];
+        for &i in idx {
+            let y = self.row(d, i as usize, &mut x);
+            g.add(&x, y);
+        }
+        g
+    }
+
+    /// Training RSS on `idx`.
+    pub fn rss(&self, d: &Data, idx: &[u32]) -> f64 {
+        self.gram(d, idx).solve().1
+    }
+}
+
+/// Every `stride`-th index so at most `max` remain.
+pub fn thin_idx(idx: &[u32], max: usize) -> Vec<u32> {
+    let stride = idx.len().div_ceil(max.max(1)).max(1);
+    idx.iter().step_by(stride).copied().collect()
+}
+
+fn quantile(mut v: Vec<f64>, p: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+/// Searches an effect's shape parameter on the thinned training set `idx`, given the effects
+/// already chosen; `None` when the effect cannot apply to this model/log (e.g. dry friction in
+/// a model that has a Coulomb term, backlash without a spring, thermal without friction).
+pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32]) -> Option<Effect> {
+    let with = |e: Effect| -> Vec<Effect> {
+        let mut v = chosen.to_vec();
+        v.push(e);
+        v
+    };
+    let rss_of = |e: Effect| Design::new(base, &with(e)).rss(d, idx);
+    let has = |c: Col| base.cols.contains(&c);
+    // Search in log space over [lo, hi]: a grid, then golden section around the best point.
+    let log_search = |lo: f64, hi: f64, k: usize, make: &dyn Fn(f64) -> Effect| -> Effect {
+        let (l0, l1) = (lo.ln(), hi.ln());
+        let pts: Vec<f64> = (0..k).map(|j| l0 + (l1 - l0) * j as f64 / (k - 1) as f64).collect();
+        let vals: Vec<f64> = pts.iter().map(|&x| rss_of(make(x.exp()))).collect();
+        let best = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
+        let a = pts[best.saturating_sub(1)];
+        let b = pts[(best + 1).min(k - 1)];
+        let (x, _) = golden(a, b, 18, |x| rss_of(make(x.exp())));
+        make(x.exp())
+    };
+    match kind {
+        Kind::Stribeck => {
+            if !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)) {
+                // Stribeck is a rise above a Coulomb level; without one, dry friction comes first.
+            }
+            let aq: Vec<f64> = idx.iter().map(|&i| d.qd[i as usize].abs()).collect();
+            let v95 = quantile(aq, 0.95).max(1e-3);
+            let lo = (0.5 * d.band).max(1e-4).min(0.05 * v95);
+            Some(log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v }))
+        }
+        Kind::Asymmetric => Some(Effect::Asymmetric),
+        Kind::Load => Some(Effect::Load),
+        Kind::Dry => (!has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry))).then_some(Effect::Dry),
+        Kind::Thermal => {
+            // The shape of the friction that scales: the model's friction refitted first.
+            let g = Design::new(base, chosen).gram(d, idx);
+            let (beta, _) = g.solve();
+            let coef = |c: Col| base.cols.iter().position(|x| *x == c).map(|k| beta[k]).unwrap_or(0.0);
+            let (a, b, c) = (coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
+            if a == 0.0 && b == 0.0 && c == 0.0 {
+                return None;
+            }
+            match &d.temp {
+                Some(tp) => {
+                    let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
+                    Some(Effect::Thermal { a, b, c, src: ThermSrc::Temp { mean } })
+                }
+                None => {
+                    let (t0, t1) = (d.t[0], d.t[d.n - 1]);
+                    let span = (t1 - t0).max(1e-6);
+                    let mk = |tau: f64| {
+                        let mean = idx.iter().map(|&i| 1.0 - (-(d.t[i as usize] - t0) / tau).exp()).sum::<f64>()
+                            / idx.len().max(1) as f64;
+                        Effect::Thermal { a, b, c, src: ThermSrc::Time { tau, t0, mean } }
+                    };
+                    Some(log_search(0.05 * span, 20.0 * span, 12, &mk))
+                }
+            }
+        }
+        Kind::Ripple => {
+            // Periodogram of the current residual binned over q, then refinement of the best
+            // peaks on the real criterion.
+            let des = Design::new(base, chosen);
+            let (beta, _) = des.gram(d, idx).solve();
+            let qs: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
+            let qmin = qs.iter().copied().fold(f64::INFINITY, f64::min);
+            let qmax = qs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let range = qmax - qmin;
+            if !(range > 1e-3) {
+                return None;
+            }
+            let nb = 4096usize;
+            let mut sum = vec![0.0; nb];
+            let mut cnt = vec![0.0; nb];
+            let mut x = vec![0.0; des.cols.len()];
+            for &i in idx {
+                let y = des.row(d, i as usize, &mut x);
+                let r = y - x.iter().zip(&beta).map(|(a, b)| a * b).sum::<f64>();
+                let b = (((d.q[i as usize] - qmin) / range * nb as f64) as usize).min(nb - 1);
+                sum[b] += r;
+                cnt[b] += 1.0;
+            }
+            let centres: Vec<(f64, f64, f64)> = (0..nb)
+                .filter(|&b| cnt[b] > 0.0)
+                .map(|b| (qmin + (b as f64 + 0.5) * range / nb as f64, sum[b] / cnt[b], cnt[b]))
+                .collect();
+            let p_min = (8.0 * range / nb as f64).max(2e-3);
+            let p_max = range / 3.0;
+            if p_max <= p_min {
+                return None;
+            }
+            // Frequencies (cycles/rad) on a grid 4× finer than 1/range.
+            let (f_lo, f_hi) = (1.0 / p_max, 1.0 / p_min);
+            let df = 0.25 / range;
+            let nf = ((f_hi - f_lo) / df).ceil() as usize + 1;
+            let mut power: Vec<(f64, f64)> = Vec::with_capacity(nf);
+            for k in 0..nf {
+                let f = f_lo + k as f64 * df;
+                let w = std::f64::consts::TAU * f;
+                let (mut s, mut c, mut ww) = (0.0, 0.0, 0.0);
+                for &(qc, m, n) in &centres {
+                    let (sn, cs) = (w * qc).sin_cos();
+                    s += n * m * sn;
+                    c += n * m * cs;
+                    ww += n;
+                }
+                power.push((f, (s * s + c * c) / ww.max(1.0)));
+            }
+            // The three strongest local maxima, refined by golden section in frequency.
+            let mut peaks: Vec<(f64, f64)> = (1..power.len().saturating_sub(1))
+                .filter(|&k| power[k].1 >= power[k - 1].1 && power[k].1 >= power[k + 1].1)
+                .map(|k| power[k])
+                .collect();
+            peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let mut best: Option<(f64, f64)> = None;
+            for &(f, _) in peaks.iter().take(3) {
+                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f }));
+                if best.map(|(_, rb)| r < rb).unwrap_or(true) {
+                    best = Some((fx, r));
+                }
+            }
+            best.map(|(f, _)| Effect::Ripple { period: 1.0 / f })
+        }
+        Kind::Cable => {
+            let qs: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
+            let mut sorted = qs.clone();
+            sorted.sort_by(|a, b| a.total_cmp(b));
+            let qat = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
+            let width = 0.01;
+            let k = 40;
+            let pts: Vec<f64> = (0..k).map(|j| qat(0.02 + 0.9 * j as f64 / (k - 1) as f64)).collect();
+            let vals: Vec<f64> = pts.iter().map(|&e| rss_of(Effect::Cable { engage: e, width })).collect();
+            let b = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
+            let (lo, hi) = (pts[b.saturating_sub(1)], pts[(b + 1).min(k - 1)]);
+            let (e, _) = golden(lo, hi, 20, |e| rss_of(Effect::Cable { engage: e, width }));
+            Some(Effect::Cable { engage: e, width })
+        }
+        Kind::Backlash => {
+            if !has(Col::Q) || chosen.iter().any(|e| matches!(e, Effect::Backlash { .. })) {
+                return None;
+            }
+            let qs: Vec<f64> = idx.iter().map(|&i| (d.q[i as usize] - d.q0).abs()).collect();
+            let reach = quantile(qs, 0.9).max(1e-3);
+            Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
+        }
+        Kind::Delay => {
+            if chosen.iter().any(|e| matches!(e, Effect::Delay { .. })) {
+                return None;
+            }
+            // Integer lags up to 100 ms (at most 200 samples), then a parabola through the best
+            // three for the fractional part.
+            let max_lag = ((0.1 / d.dt).round() as usize).clamp(3, 200);
+            let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
+            let b = vals.iter().enumerate().skip(1).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(1);
+            let lag = if b + 1 <= max_lag {
+                let (y0, y1, y2) = (vals[b - 1], vals[b], vals[b + 1]);
+                let den = y0 - 2.0 * y1 + y2;
+                let off = if den > 0.0 { (0.5 * (y0 - y2) / den).clamp(-0.5, 0.5) } else { 0.0 };
+                b as f64 + off
+            } else {
+                b as f64
+            };
+            Some(Effect::Delay { lag })
+        }
+    }
+}
+
+/// The model's refittable terms from its parameter values.
+pub fn base_from_model(m: &crate::model_file::ModelFile) -> Base {
+    use joint_core::params::ParamId as P;
+    let v = |id| m.value(id);
+    let mut cols = Vec::new();
+    let mut beta0 = Vec::new();
+    let mut push = |c: Col, b: f64| {
+        cols.push(c);
+        beta0.push(b);
+    };
+    if v(P::InertiaJ) != 0.0 {
+        push(Col::Qdd, v(P::InertiaJ));
+    }
+    if v(P::FrictionA) != 0.0 {
+        push(Col::QdAbsQd, v(P::FrictionA));
+    }
+    let bt = v(P::FrictionB) + v(P::SpringB);
+    if bt != 0.0 {
+        push(Col::Qd, bt);
+    }
+    if v(P::FrictionC) != 0.0 {
+        push(Col::Sgn, v(P::FrictionC));
+    }
+    let amp = v(P::WeightAmplitude);
+    if amp != 0.0 {
+        let (s, phi) = (v(P::WeightS), v(P::WeightPhi));
+        // A·sin(s·q + φ) = A·cos φ·sin(s·q) + A·sin φ·cos(s·q)
+        push(Col::SinSq(s), amp * phi.cos());
+        push(Col::CosSq(s), amp * phi.sin());
+    }
+    let k = v(P::SpringK);
+    if k != 0.0 {
+        push(Col::Q, k);
+    }
+    if v(P::OffsetC0) != 0.0 || k != 0.0 {
+        push(Col::Const, v(P::OffsetC0) - k * v(P::SpringQ0));
+    }
+    Base { cols, beta0 }
+}

@@ -1,0 +1,263 @@
+//! Held-out scoring, the significance test and forward selection (torque mode).
+//!
+//! Split: the log is cut into 20 equal contiguous blocks; blocks 3, 6, 9, 13, 16 and 19 (every
+//! block whose index mod 10 is 2, 5 or 8, i.e. 30 %) are held out and spread over the whole run,
+//! so every scenario and every part of a warm-up is in both parts. A guard of up to 50 samples
+//! on each side of a held-out block is dropped from training so filters and lags cannot leak.
+//! No fit ever reads a held-out sample: shapes are searched and amplitudes solved on training
+//! samples only; held-out samples are only scored.
+//!
+//! Test: each held-out block is cut into 5 sub-blocks (30 units). For a candidate against its
+//! reference (the refitted model for an effect, the file's model for `parameters`) the per-unit
+//! difference of mean squared residuals is tested with a one-sided t-test (29 df); units are long
+//! compared with the residual's correlation time, which a per-sample F-test would ignore. A
+//! candidate is significant when p < α/m (α = 1 %, m = number of candidates, Bonferroni) and it
+//! lowers the held-out MSE by at least 2 % (smaller gains are not worth a model change).
+
+use super::candidates::{search, Base, Data, Design, Effect, Kind};
+
+/// How the samples were split.
+#[derive(Clone, Debug)]
+pub struct Split {
+    pub train: Vec<u32>,
+    pub holdout: Vec<u32>,
+    /// test unit of each held-out sample (parallel to `holdout`)
+    pub unit: Vec<u16>,
+    pub n_units: usize,
+    pub blocks: usize,
+    pub guard: usize,
+}
+
+pub const ALPHA: f64 = 0.01;
+pub const MIN_GAIN: f64 = 0.02;
+
+pub fn make_split(n: usize) -> Split {
+    let blocks = 20usize;
+    let held = |b: usize| matches!(b % 10, 2 | 5 | 8);
+    let len = n.div_ceil(blocks).max(1);
+    let guard = (len / 10).min(50);
+    let subs = 5usize;
+    let mut train = Vec::with_capacity(n);
+    let mut holdout = Vec::with_capacity(n * 3 / 10 + 1);
+    let mut unit = Vec::with_capacity(n * 3 / 10 + 1);
+    let mut unit_of_block = 0usize;
+    let mut last_block = usize::MAX;
+    for i in 0..n {
+        let b = i / len;
+        let off = i % len;
+        if held(b) {
+            if b != last_block {
+                last_block = b;
+                if !holdout.is_empty() {
+                    unit_of_block += subs;
+                }
+            }
+            holdout.push(i as u32);
+            unit.push((unit_of_block + (off * subs / len).min(subs - 1)) as u16);
+        } else {
+            let near_next = held(b + 1) && len - off <= guard;
+            let near_prev = b > 0 && held(b - 1) && off < guard;
+            if !(near_next || near_prev) {
+                train.push(i as u32);
+            }
+        }
+    }
+    let n_units = if holdout.is_empty() { 0 } else { unit_of_block + subs };
+    Split { train, holdout, unit, n_units, blocks, guard }
+}
+
+/// A model scored on the held-out samples.
+#[derive(Clone, Debug)]
+pub struct Scored {
+    pub effects: Vec<Effect>,
+    pub design: Design,
+    pub beta: Vec<f64>,
+    pub sse: f64,
+    pub n: usize,
+    pub unit_sse: Vec<f64>,
+    pub unit_n: Vec<f64>,
+    pub regime_sse: Vec<f64>,
+    pub regime_n: Vec<f64>,
+}
+
+impl Scored {
+    pub fn mse(&self) -> f64 {
+        self.sse / self.n.max(1) as f64
+    }
+    pub fn rmse(&self) -> f64 {
+        self.mse().sqrt()
+    }
+}
+
+/// Residual of sample `i` under `design`·`beta`.
+#[inline]
+pub fn residual_at(d: &Data, des: &Design, beta: &[f64], i: usize, x: &mut [f64]) -> f64 {
+    let y = des.row(d, i, x);
+    y - x.iter().zip(beta).map(|(a, b)| a * b).sum::<f64>()
+}
+
+pub fn score(d: &Data, des: Design, beta: Vec<f64>, effects: Vec<Effect>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+    let mut x = vec![0.0; des.cols.len()];
+    let mut unit_sse = vec![0.0; split.n_units];
+    let mut unit_n = vec![0.0; split.n_units];
+    let mut regime_sse = vec![0.0; n_regimes];
+    let mut regime_n = vec![0.0; n_regimes];
+    let mut sse = 0.0;
+    for (k, &i) in split.holdout.iter().enumerate() {
+        let r = residual_at(d, &des, &beta, i as usize, &mut x);
+        let r2 = r * r;
+        sse += r2;
+        let u = split.unit[k] as usize;
+        unit_sse[u] += r2;
+        unit_n[u] += 1.0;
+        let mut b = bits[i as usize];
+        while b != 0 {
+            let j = b.trailing_zeros() as usize;
+            if j < n_regimes {
+                regime_sse[j] += r2;
+                regime_n[j] += 1.0;
+            }
+            b &= b - 1;
+        }
+    }
+    Scored { effects, design: des, beta, sse, n: split.holdout.len(), unit_sse, unit_n, regime_sse, regime_n }
+}
+
+/// Fits `effects` on the training indices `fit_idx` and scores it.
+pub fn fit_and_score(d: &Data, base: &Base, effects: &[Effect], fit_idx: &[u32], split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+    let des = Design::new(base, effects);
+    let (beta, _) = des.gram(d, fit_idx).solve();
+    score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
+}
+
+/// One-sided test that `cand` beats `reference` on held-out data: (t, p, relative MSE gain).
+pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
+    let diffs: Vec<f64> = reference
+        .unit_sse
+        .iter()
+        .zip(&cand.unit_sse)
+        .zip(&reference.unit_n)
+        .filter(|(_, &n)| n > 0.0)
+        .map(|((a, b), n)| (a - b) / n)
+        .collect();
+    let gain = 1.0 - cand.mse() / reference.mse().max(1e-300);
+    let m = diffs.len() as f64;
+    if m < 3.0 {
+        return (0.0, 1.0, gain);
+    }
+    let mean = diffs.iter().sum::<f64>() / m;
+    let var = diffs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (m - 1.0);
+    let t = if var > 0.0 { mean / (var / m).sqrt() } else if mean > 0.0 { f64::INFINITY } else { 0.0 };
+    (t, super::fit::student_t_sf(t, m - 1.0), gain)
+}
+
+/// One candidate's outcome against its reference.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub name: &'static str,
+    pub scored: Scored,
+    pub t: f64,
+    pub p: f64,
+    pub gain: f64,
+    pub significant: bool,
+}
+
+/// Everything the selection found.
+#[derive(Clone, Debug)]
+pub struct Selection {
+    pub m0: Scored,
+    pub refit: Outcome,
+    /// every effect candidate (on top of the refit), unordered
+    pub candidates: Vec<Outcome>,
+    /// forward selection, in order
+    pub chosen: Vec<Outcome>,
+    pub alpha_each: f64,
+}
+
+/// Searches and scores every applicable kind on top of `chosen`, in parallel.
+fn try_kinds(
+    kinds: &[Kind],
+    d: &Data,
+    base: &Base,
+    chosen: &[Effect],
+    grid_idx: &[u32],
+    fit_idx: &[u32],
+    split: &Split,
+    bits: &[u32],
+    n_regimes: usize,
+) -> Vec<Scored> {
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8);
+    let work = |k: Kind| -> Option<Scored> {
+        let e = search(k, d, base, chosen, grid_idx)?;
+        let mut eff = chosen.to_vec();
+        eff.push(e);
+        Some(fit_and_score(d, base, &eff, fit_idx, split, bits, n_regimes))
+    };
+    if threads == 1 || kinds.len() < 2 {
+        return kinds.iter().filter_map(|&k| work(k)).collect();
+    }
+    let mut out: Vec<Option<Scored>> = vec![None; kinds.len()];
+    std::thread::scope(|s| {
+        let chunks: Vec<_> = out.chunks_mut(kinds.len().div_ceil(threads)).zip(kinds.chunks(kinds.len().div_ceil(threads))).collect();
+        for (slot, ks) in chunks {
+            let work = &work;
+            s.spawn(move || {
+                for (o, &k) in slot.iter_mut().zip(ks) {
+                    *o = work(k);
+                }
+            });
+        }
+    });
+    out.into_iter().flatten().collect()
+}
+
+/// The whole torque-mode selection. `floor` = noise floor (N·m); selection stops there.
+pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usize, floor: f64, max_effects: usize) -> Selection {
+    // Fits read at most 250 000 training rows, grids 40 000 (every k-th sample).
+    let fit_idx = super::candidates::thin_idx(&split.train, 250_000);
+    let grid_idx = super::candidates::thin_idx(&split.train, 40_000);
+    let m0 = score(d, Design::new(base, &[]), base.beta0.clone(), vec![], split, bits, n_regimes);
+    let m_tests = (Kind::ALL.len() + 1) as f64;
+    let alpha_each = ALPHA / m_tests;
+    let refit_s = fit_and_score(d, base, &[], &fit_idx, split, bits, n_regimes);
+    let (t, p, gain) = compare(&m0, &refit_s);
+    let refit = Outcome { name: "parameters", scored: refit_s, t, p, gain, significant: p < alpha_each && gain >= MIN_GAIN };
+
+    let outcome = |reference: &Scored, s: Scored| {
+        let (t, p, gain) = compare(reference, &s);
+        let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
+        Outcome { name, scored: s, t, p, gain, significant: p < alpha_each && gain >= MIN_GAIN }
+    };
+    let first = try_kinds(&Kind::ALL, d, base, &[], &grid_idx, &fit_idx, split, bits, n_regimes);
+    let candidates: Vec<Outcome> = first.into_iter().map(|s| outcome(&refit.scored, s)).collect();
+
+    let mut chosen: Vec<Outcome> = Vec::new();
+    let best_first = candidates
+        .iter()
+        .filter(|o| o.significant)
+        .min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()))
+        .cloned();
+    if let Some(b) = best_first {
+        chosen.push(b);
+        while chosen.len() < max_effects {
+            let Some(cur) = chosen.last() else { break };
+            if cur.scored.rmse() <= 1.1 * floor {
+                break;
+            }
+            let effects = cur.scored.effects.clone();
+            let kinds: Vec<Kind> = Kind::ALL.iter().copied().filter(|k| !effects.iter().any(|e| e.kind() == *k)).collect();
+            let next = try_kinds(&kinds, d, base, &effects, &grid_idx, &fit_idx, split, bits, n_regimes);
+            let cur_s = cur.scored.clone();
+            let best = next
+                .into_iter()
+                .map(|s| outcome(&cur_s, s))
+                .filter(|o| o.significant)
+                .min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
+            match best {
+                Some(o) => chosen.push(o),
+                None => break,
+            }
+        }
+    }
+    Selection { m0, refit, candidates, chosen, alpha_each }
+}
