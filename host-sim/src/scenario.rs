@@ -21,6 +21,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::plant::Operator;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
+/// 1/s: position correction of the sweep's velocity command.
+const SWEEP_POS_GAIN: f64 = 2.0;
 
 /// The scenario names `--scenario` accepts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -135,6 +137,7 @@ pub struct Sweep {
     v: f64,
     t_acc: f64,
     t_flat: f64,
+    q0: f64,
     active: bool,
 }
 
@@ -156,6 +159,7 @@ impl Sweep {
             (v, v / a, 0.0)
         };
         self.t0 = t;
+        self.q0 = q;
         self.v = v;
         self.t_acc = t_acc;
         self.t_flat = t_flat;
@@ -167,14 +171,20 @@ impl Sweep {
             self.plan(t, q);
         }
         let tau = t - self.t0;
-        let v = if tau < self.t_acc {
-            self.v * tau / self.t_acc
-        } else if tau < self.t_acc + self.t_flat {
-            self.v
+        let (ta, tf, v) = (self.t_acc, self.t_flat, self.v);
+        // Planned velocity and distance of the trapezoid at stroke time tau.
+        let (vel, dist) = if tau < ta {
+            (v * tau / ta, 0.5 * v * tau * tau / ta)
+        } else if tau < ta + tf {
+            (v, 0.5 * v * ta + v * (tau - ta))
         } else {
-            self.v * (2.0 * self.t_acc + self.t_flat - tau).max(0.0) / self.t_acc
+            let r = (2.0 * ta + tf - tau).max(0.0);
+            (v * r / ta, v * (ta + tf) - 0.5 * v * r * r / ta)
         };
-        self.dir * v
+        // A gentle position correction keeps the stroke inside the range although the velocity
+        // loop lags; at constant speed it is near zero, so the friction data stay clean.
+        let q_plan = self.q0 + self.dir * dist;
+        self.dir * vel + SWEEP_POS_GAIN * (q_plan - q)
     }
 }
 
@@ -207,6 +217,7 @@ impl Scenario {
                     v: 0.0,
                     t_acc: 1.0,
                     t_flat: 0.0,
+                    q0: q,
                     active: false,
                 })
             }
