@@ -8,7 +8,9 @@
 //! - [`cli`]: the `jointctl` subcommands, one module each.
 
 pub mod cli;
+pub mod diagnose;
 pub mod effects;
+pub mod identify;
 pub mod log;
 pub mod model_file;
 pub mod plant;

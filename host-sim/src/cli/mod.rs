@@ -4,6 +4,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod diagnose;
+pub mod identify;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -26,11 +28,15 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     Simulate(simulate::SimulateArgs),
+    Diagnose(diagnose::DiagnoseArgs),
+    Identify(identify::IdentifyArgs),
 }
 
 /// Runs the parsed command; errors carry the file/key/row/column they concern.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(args) => simulate::run(&args),
+        Command::Diagnose(args) => diagnose::run(&args),
+        Command::Identify(args) => identify::run(&args),
     }
 }

@@ -121,7 +121,7 @@ pub fn points(logs: &[(&Prepared, &[Segment])], accel: Option<(&[Vec<f64>], f64)
                 acc[b][off + 2] += p.qd_f[i].abs();
             }
         }
-        let (_, p0) = logs[pos.log];
+        let (p0, _) = logs[pos.log];
         for a in acc {
             if a[1] < 3.0 || a[4] < 3.0 {
                 continue;

@@ -1,0 +1,488 @@
+//! The validation report (trunk paper §3.5): how well the identified model predicts torque it
+//! was not fitted to.
+//!
+//! The data are cut into blocks of [`BLOCK_S`] seconds; every fourth block is held out, the
+//! model is identified again on the other three quarters, and that refit is scored on the
+//! held-out blocks: RMSE and Pearson r² per term (friction points, static poses, the filtered
+//! inertia equation) and overall (the measured disturbance `d = u − tau` of every held-out
+//! sample against the model's prediction). The model written to the TOML is the fit on all
+//! data; the refit exists only to be scored honestly. The spring's scores are in-sample (its
+//! free oscillation is one stretch that cannot be split without losing the initial state).
+//!
+//! Plots are plain SVG written here (no plotting crate): dots for measurements, lines for the
+//! model.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::segments::SegKind;
+use super::{friction_torque, inertia, spring, Data, IdentifyError, Identified, Options, Quiet};
+
+/// Length of a hold-out block, s.
+pub const BLOCK_S: f64 = 4.0;
+
+/// One score.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Score {
+    pub what: String,
+    pub n: usize,
+    pub rmse: f64,
+    pub r2: f64,
+    pub unit: &'static str,
+    /// true when scored on held-out data
+    pub held_out: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Report {
+    pub block_s: f64,
+    /// why the hold-out refit failed, if it did (scores are then absent)
+    pub refit_error: Option<String>,
+    pub scores: Vec<Score>,
+}
+
+fn held_out(data: &Data, log: usize, t: f64) -> bool {
+    let t0 = data.prepared.get(log).and_then(|p| p.t.first().copied()).unwrap_or(0.0);
+    ((t - t0) / BLOCK_S).floor() as i64 % 4 == 3
+}
+
+/// RMSE of `pred − meas` and the squared Pearson correlation.
+pub fn rmse_r2(meas: &[f64], pred: &[f64]) -> (f64, f64) {
+    let n = meas.len().min(pred.len());
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let nf = n as f64;
+    let (mut se, mut sx, mut sy) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        se += (pred[i] - meas[i]).powi(2);
+        sx += meas[i];
+        sy += pred[i];
+    }
+    let (mx, my) = (sx / nf, sy / nf);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (dx, dy) = (meas[i] - mx, pred[i] - my);
+        sxy += dx * dy;
+        sxx += dx * dx;
+        syy += dy * dy;
+    }
+    let r2 = if sxx > 0.0 && syy > 0.0 { sxy * sxy / (sxx * syy) } else { f64::NAN };
+    ((se / nf).sqrt(), r2)
+}
+
+fn score(what: &str, meas: &[f64], pred: &[f64], unit: &'static str, held_out: bool) -> Score {
+    let (rmse, r2) = rmse_r2(meas, pred);
+    Score { what: what.to_string(), n: meas.len(), rmse, r2, unit, held_out }
+}
+
+/// Model prediction of d at sample i of log `li` (friction at the filtered velocity, q̈ from
+/// the inertia data's filtered acceleration).
+fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i: usize) -> f64 {
+    let p = &data.prepared[li];
+    let (q, v) = (p.q[i], p.qd_f[i]);
+    let mut d = id.c0.unwrap_or(0.0);
+    if let Some(f) = &id.friction {
+        d += friction_torque(f, v, id.v_band);
+    }
+    if let Some(w) = &id.weight {
+        d += w.weight(q);
+    }
+    if let (Some(inr), Some(acc)) = (&id.inertia, acc) {
+        d += inr.j * acc[li][i];
+    }
+    if let Some(s) = &id.spring {
+        if let (Some(k), Some(st)) = (s.k, &s.stat) {
+            let h = 0.5 * st.dead_zone;
+            let x = q - st.q0;
+            d += k * if x > h { x - h } else if x < -h { x + h } else { 0.0 };
+        }
+        if let Some(b) = s.b {
+            d += b * p.qd[i];
+        }
+    }
+    d
+}
+
+/// Refits on the training blocks and scores the refit on the held-out blocks.
+pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report, IdentifyError> {
+    let mut rep = Report { block_s: BLOCK_S, refit_error: None, scores: Vec::new() };
+    let train = |li: usize, t: f64| !held_out(data, li, t);
+    let refit = match super::identify_data(data, &Options { terms: full.terms.clone(), ..opts.clone() }, &train, &Quiet) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            rep.refit_error = Some(e.to_string());
+            None
+        }
+    };
+    if let Some(r) = &refit {
+        if let (Some(f), Some(ff)) = (&r.friction, &full.friction) {
+            let pts: Vec<_> = ff.points.iter().filter(|p| held_out(data, p.log, p.t)).collect();
+            let meas: Vec<f64> = pts.iter().map(|p| p.f).collect();
+            let pred: Vec<f64> = pts.iter().map(|p| f.eval(p.v)).collect();
+            rep.scores.push(score("friction (± plateau points)", &meas, &pred, "N·m", true));
+        }
+        if let Some(w) = &r.weight {
+            let poses: Vec<_> = full.poses.iter().filter(|p| held_out(data, p.log, p.t)).collect();
+            let meas: Vec<f64> = poses.iter().map(|p| p.d).collect();
+            let pred: Vec<f64> = poses.iter().map(|p| w.curve(p.q)).collect();
+            rep.scores.push(score("static (weight + offset, poses)", &meas, &pred, "N·m", true));
+        }
+        let w = r.weight.clone();
+        let fr = r.friction.clone();
+        let c0s = r.weight.as_ref().map_or(r.c0.unwrap_or(0.0), |w| w.c0);
+        let band = r.v_band;
+        let model = |q: f64, v: f64| fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q));
+        let dat = inertia::data(&data.pairs(), &model, opts.accel_cutoff, opts.v_min_inertia);
+        if let Some(inr) = &r.inertia {
+            let (mut meas, mut pred) = (Vec::new(), Vec::new());
+            for (li, ((acc, y), mask)) in dat.acc.iter().zip(&dat.y).zip(&dat.mask).enumerate() {
+                let p = &data.prepared[li];
+                for i in 0..acc.len() {
+                    if mask[i] && held_out(data, li, p.t[i]) {
+                        meas.push(y[i]);
+                        pred.push(inr.j * acc[i] + inr.dc0);
+                    }
+                }
+            }
+            rep.scores.push(score("inertia (filtered eq. 5 residual torque)", &meas, &pred, "N·m", true));
+        }
+        if data.has_torque() {
+            let (mut meas, mut pred) = (Vec::new(), Vec::new());
+            for (li, p) in data.prepared.iter().enumerate() {
+                let Some(d) = &p.d else { continue };
+                for i in 0..p.len() {
+                    if held_out(data, li, p.t[i]) {
+                        meas.push(d[i]);
+                        pred.push(predict(r, data, Some(&dat.acc), li, i));
+                    }
+                }
+            }
+            rep.scores.push(score("overall (d = u − tau, every held-out sample)", &meas, &pred, "N·m", true));
+        }
+    }
+    if let Some(s) = &full.spring {
+        if let Some(f) = &s.free {
+            if let Some((p, seg)) = free_stretch(data, opts, f) {
+                let mut sim = vec![0.0; seg.1 - seg.0];
+                let tt: Vec<f64> = p.t[seg.0..seg.1].iter().map(|t| t - f.t0).collect();
+                let w = s.stat.as_ref().map_or(0.0, |s| s.dead_zone);
+                spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
+                rep.scores.push(score("spring free oscillation (angle, in-sample)", &p.q[seg.0..seg.1], &sim, "rad", false));
+            }
+        }
+    }
+    Ok(rep)
+}
+
+fn free_stretch<'a>(data: &'a Data, _opts: &Options, f: &spring::FreeFit) -> Option<(&'a super::segments::Prepared, (usize, usize))> {
+    data.prepared.iter().find_map(|p| {
+        let s = p.t.iter().position(|&t| t == f.t0)?;
+        let e = p.t.iter().position(|&t| t == f.t1)? + 1;
+        (e > s).then_some((p, (s, e)))
+    })
+}
+
+/// Human summary of the identified terms (and the scores).
+pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
+    let mut s = String::new();
+    if let Some(f) = &id.friction {
+        let _ = writeln!(s, "friction   a = {:.4} [{:.4}, {:.4}] N·m·s²/rad²", f.a, f.ci95[0].0, f.ci95[0].1);
+        let _ = writeln!(s, "           b = {:.4} [{:.4}, {:.4}] N·m·s/rad", f.b, f.ci95[1].0, f.ci95[1].1);
+        let _ = writeln!(s, "           c = {:.4} [{:.4}, {:.4}] N·m   ({} points, {} rejected, 95 % CI)", f.c, f.ci95[2].0, f.ci95[2].1, f.points.len(), f.weights.iter().filter(|w| **w == 0.0).count());
+    }
+    if let Some(w) = &id.weight {
+        let _ = writeln!(
+            s,
+            "weight     amplitude = {:.4} N·m, s = {:.4}{}, phi = {:.4} rad   ({} poses, RMS {:.4} N·m)",
+            w.amplitude,
+            w.s,
+            if w.s_fixed { " (fixed: arc too short)" } else { "" },
+            w.phi,
+            id.poses.len(),
+            w.rms
+        );
+    }
+    if let Some(i) = &id.inertia {
+        let _ = writeln!(s, "inertia    j = {:.4} [{:.4}, {:.4}] kg·m²   ({} samples, {} Hz zero-phase)", i.j, i.ci95[0].0, i.ci95[0].1, i.n, i.cutoff_hz);
+    }
+    if let Some(c0) = id.c0 {
+        let _ = writeln!(s, "offset     c0 = {c0:.4} N·m");
+    }
+    if let Some(sp) = &id.spring {
+        if let Some(st) = &sp.stat {
+            let _ = writeln!(
+                s,
+                "spring     k = {:.4} N·m/rad (branches {:.4}/{:.4}), q0 = {:.4} rad, dead zone {:.4} rad",
+                st.k, st.k_pos, st.k_neg, st.q0, st.dead_zone
+            );
+        }
+        if let Some(f) = &sp.free {
+            let _ = writeln!(s, "free       ω_n = {:.4} rad/s, ζ = {:.4}, angle RMS {:.5} rad over {} samples", f.omega_n, f.zeta, f.rms, f.n);
+        }
+        if let (Some(j), Some(b)) = (sp.j, sp.b) {
+            let _ = writeln!(s, "           j = {j:.5} kg·m², b = {b:.5} N·m·s/rad");
+        }
+    }
+    for n in &id.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    if let Some(r) = rep {
+        if let Some(e) = &r.refit_error {
+            let _ = writeln!(s, "validation: the hold-out refit failed ({e})");
+        }
+        for sc in &r.scores {
+            let _ = writeln!(
+                s,
+                "validation {}: RMSE {:.4} {}, r² {:.4} ({} {})",
+                sc.what,
+                sc.rmse,
+                sc.unit,
+                sc.r2,
+                sc.n,
+                if sc.held_out { "held-out" } else { "in-sample" }
+            );
+        }
+    }
+    s
+}
+
+/// One series of a plot.
+pub struct Series<'a> {
+    pub name: &'a str,
+    pub points: Vec<(f64, f64)>,
+    pub line: bool,
+    pub color: &'a str,
+}
+
+fn nice_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let span = (hi - lo).max(1e-12);
+    let raw = span / 5.0;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| span / s <= 6.0).unwrap_or(10.0 * mag);
+    let mut v = Vec::new();
+    let mut x = (lo / step).ceil() * step;
+    while x <= hi + 1e-9 * step {
+        v.push(x);
+        x += step;
+    }
+    v
+}
+
+/// An SVG plot of the series (640×400).
+pub fn svg_plot(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) -> String {
+    let (w, h, ml, mr, mt, mb) = (640.0, 400.0, 70.0, 20.0, 40.0, 50.0);
+    let all = series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| x.is_finite() && y.is_finite());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for (x, y) in all {
+        x0 = x0.min(*x);
+        x1 = x1.max(*x);
+        y0 = y0.min(*y);
+        y1 = y1.max(*y);
+    }
+    if !x0.is_finite() {
+        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    }
+    if x1 - x0 < 1e-12 {
+        x1 = x0 + 1.0;
+    }
+    let pad = 0.05 * (y1 - y0).max(1e-9);
+    let (y0, y1) = (y0 - pad, y1 + pad);
+    let sx = |x: f64| ml + (x - x0) / (x1 - x0) * (w - ml - mr);
+    let sy = |y: f64| h - mb - (y - y0) / (y1 - y0) * (h - mt - mb);
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = write!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = write!(s, r#"<text x="{}" y="22" text-anchor="middle" font-size="14">{}</text>"#, w / 2.0, esc(title));
+    let _ = write!(s, r##"<rect x="{ml}" y="{mt}" width="{}" height="{}" fill="none" stroke="#444"/>"##, w - ml - mr, h - mt - mb);
+    for t in nice_ticks(x0, x1) {
+        let _ = write!(s, r##"<line x1="{0:.1}" x2="{0:.1}" y1="{1}" y2="{2}" stroke="#ddd"/><text x="{0:.1}" y="{3}" text-anchor="middle">{4}</text>"##, sx(t), mt, h - mb, h - mb + 16.0, fmt_tick(t));
+    }
+    for t in nice_ticks(y0, y1) {
+        let _ = write!(s, r##"<line x1="{0}" x2="{1}" y1="{2:.1}" y2="{2:.1}" stroke="#ddd"/><text x="{3}" y="{4:.1}" text-anchor="end">{5}</text>"##, ml, w - mr, sy(t), ml - 6.0, sy(t) + 4.0, fmt_tick(t));
+    }
+    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, (ml + w - mr) / 2.0, h - 12.0, esc(xlabel));
+    let _ = write!(s, r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#, (mt + h - mb) / 2.0, esc(ylabel));
+    for (k, se) in series.iter().enumerate() {
+        if se.line {
+            let mut d = String::new();
+            for (i, (x, y)) in se.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).enumerate() {
+                let _ = write!(d, "{}{:.1},{:.1} ", if i == 0 { "M" } else { "L" }, sx(*x), sy(*y));
+            }
+            let _ = write!(s, r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.5"/>"#, se.color);
+        } else {
+            for (x, y) in se.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
+                let _ = write!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="2.2" fill="{}"/>"#, sx(*x), sy(*y), se.color);
+            }
+        }
+        let ly = mt + 14.0 + 16.0 * k as f64;
+        let _ = write!(s, r#"<rect x="{}" y="{}" width="10" height="10" fill="{}"/><text x="{}" y="{}">{}</text>"#, ml + 10.0, ly - 9.0, se.color, ml + 26.0, ly, esc(se.name));
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn fmt_tick(t: f64) -> String {
+    let s = format!("{t:.4}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.to_string() }
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn subsample<T: Copy>(v: &[T], max: usize) -> Vec<T> {
+    let stride = (v.len() / max.max(1)).max(1);
+    v.iter().step_by(stride).copied().collect()
+}
+
+/// Writes report.md, report.json and the SVG plots into `dir` (created if needed).
+pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let mut plots: Vec<(&str, String)> = Vec::new();
+    if let Some(f) = &id.friction {
+        let vmax = f.points.iter().fold(0.0f64, |m, p| m.max(p.v)) * 1.05;
+        let curve: Vec<(f64, f64)> = (0..=100).map(|k| k as f64 * vmax / 100.0).map(|v| (v, f.eval(v))).collect();
+        let (kept, rej): (Vec<_>, Vec<_>) = f.points.iter().zip(&f.weights).partition(|(_, w)| **w > 0.0);
+        plots.push((
+            "friction.svg",
+            svg_plot(
+                "Friction: (d₊ − d₋)/2 on matched plateaus",
+                "speed |q̇| (rad/s)",
+                "friction torque (N·m)",
+                &[
+                    Series { name: "plateau points", points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(), line: false, color: "#1f77b4" },
+                    Series { name: "rejected (bisquare weight 0)", points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(), line: false, color: "#d62728" },
+                    Series { name: "a·v² + b·v + c", points: curve, line: true, color: "#111" },
+                ],
+            ),
+        ));
+    }
+    if let Some(w) = &id.weight {
+        let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+        let curve: Vec<(f64, f64)> = (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
+        plots.push((
+            "static.svg",
+            svg_plot(
+                "Static poses: weight + offset",
+                "q (rad)",
+                "torque (N·m)",
+                &[
+                    Series { name: "poses", points: id.poses.iter().map(|p| (p.q, p.d)).collect(), line: false, color: "#1f77b4" },
+                    Series { name: "C_w0·sin(s·q + φ) + C_0", points: curve, line: true, color: "#111" },
+                ],
+            ),
+        ));
+    }
+    // Overall: measured d and the prediction of the full model over the first torque log.
+    if let Some((li, p)) = data.prepared.iter().enumerate().find(|(_, p)| p.d.is_some()) {
+        if let Some(d) = &p.d {
+            let fr = id.friction.clone();
+            let w = id.weight.clone();
+            let c0s = id.weight.as_ref().map_or(id.c0.unwrap_or(0.0), |w| w.c0);
+            let band = id.v_band;
+            let model = |q: f64, v: f64| fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q));
+            let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
+            let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
+            let idx: Vec<usize> = subsample(&(0..p.len()).collect::<Vec<_>>(), 4000);
+            let meas: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], d[i])).collect();
+            let pred: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], predict(id, data, Some(&dat.acc), li, i))).collect();
+            plots.push((
+                "overall.svg",
+                svg_plot(
+                    "Disturbance d = u − tau: measured and model",
+                    "t (s)",
+                    "d (N·m)",
+                    &[
+                        Series { name: "measured", points: meas, line: true, color: "#9ecae1" },
+                        Series { name: "model", points: pred, line: true, color: "#111" },
+                    ],
+                ),
+            ));
+            if let Some(inr) = &id.inertia {
+                let idx: Vec<usize> = (0..p.len()).filter(|&i| dat.mask[li][i]).collect();
+                let idx = subsample(&idx, 3000);
+                let pts: Vec<(f64, f64)> = idx.iter().map(|&i| (dat.acc[li][i], dat.y[li][i])).collect();
+                let (a0, a1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
+                plots.push((
+                    "inertia.svg",
+                    svg_plot(
+                        "Inertia: d − friction − weight against q̈ (filtered)",
+                        "q̈ (rad/s²)",
+                        "torque (N·m)",
+                        &[
+                            Series { name: "moving samples", points: pts, line: false, color: "#1f77b4" },
+                            Series { name: "J·q̈ + ΔC_0", points: vec![(a0, inr.j * a0 + inr.dc0), (a1, inr.j * a1 + inr.dc0)], line: true, color: "#111" },
+                        ],
+                    ),
+                ));
+            }
+        }
+    }
+    if let Some(sp) = &id.spring {
+        if let Some(st) = &sp.stat {
+            let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+            let h = 0.5 * st.dead_zone;
+            let curve: Vec<(f64, f64)> = (0..=200)
+                .map(|k| q0 + (q1 - q0) * k as f64 / 200.0)
+                .map(|q| {
+                    let x = q - st.q0;
+                    (q, st.k * if x > h { x - h } else if x < -h { x + h } else { 0.0 })
+                })
+                .collect();
+            plots.push((
+                "spring_static.svg",
+                svg_plot(
+                    "Spring: static torque against angle",
+                    "q (rad)",
+                    "torque (N·m)",
+                    &[
+                        Series { name: "poses", points: id.poses.iter().map(|p| (p.q, p.d)).collect(), line: false, color: "#1f77b4" },
+                        Series { name: "K·dz(q − q0)", points: curve, line: true, color: "#111" },
+                    ],
+                ),
+            ));
+        }
+        if let Some(f) = &sp.free {
+            if let Some((p, (s, e))) = free_stretch(data, &Options::default(), f) {
+                let tt: Vec<f64> = p.t[s..e].iter().map(|t| t - f.t0).collect();
+                let mut sim = vec![0.0; e - s];
+                let w = sp.stat.as_ref().map_or(0.0, |s| s.dead_zone);
+                spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
+                let idx = subsample(&(0..e - s).collect::<Vec<_>>(), 3000);
+                plots.push((
+                    "spring_free.svg",
+                    svg_plot(
+                        "Free oscillation: logged and simulated angle",
+                        "t (s)",
+                        "q (rad)",
+                        &[
+                            Series { name: "logged", points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(), line: false, color: "#1f77b4" },
+                            Series { name: "fitted model", points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(), line: true, color: "#111" },
+                        ],
+                    ),
+                ));
+            }
+        }
+    }
+    let mut md = String::from("# Identification report\n\n```\n");
+    md.push_str(&summary_text(id, Some(rep)));
+    md.push_str("```\n\n");
+    let _ = writeln!(md, "Hold-out: every 4th block of {BLOCK_S} s is left out of a refit and used to score it.\n");
+    md.push_str("| score | n | RMSE | r² | data |\n|---|---|---|---|---|\n");
+    for s in &rep.scores {
+        let _ = writeln!(md, "| {} | {} | {:.4} {} | {:.4} | {} |", s.what, s.n, s.rmse, s.unit, s.r2, if s.held_out { "held-out" } else { "in-sample" });
+    }
+    md.push('\n');
+    for (name, svg) in &plots {
+        std::fs::write(dir.join(name), svg)?;
+        let _ = writeln!(md, "![{name}]({name})\n");
+    }
+    std::fs::write(dir.join("report.md"), md)?;
+    let json = serde_json::json!({ "report": rep, "identified": id, "segments": data.segments.iter().map(|s| s.iter().filter(|s| s.kind != SegKind::Motion).count()).collect::<Vec<_>>() });
+    std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&json).unwrap_or_default())
+}
