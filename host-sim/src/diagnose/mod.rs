@@ -1,0 +1,761 @@
+//! The sim-to-real gap (issue 6): where it lies, which effect causes it, how far it shrinks.
+//!
+//! `diagnose` compares a joint log with a model. Torque mode (log with `u` and `tau`) works
+//! sample by sample on `d = u − tau`; trajectory mode (no torques) integrates the model and
+//! compares angles ([`trajectory`]). In both, every fit reads training samples only and every
+//! number called "held-out" comes from samples no fit has seen (see [`select`] for the split and
+//! the test). The JSON follows spec §3 and only adds optional fields.
+//!
+//! Modules: [`regimes`] tags samples, [`candidates`] builds the effect terms, [`fit`] holds the
+//! numerics, [`select`] scores and selects, [`resid`] the correlation evidence, [`trajectory`]
+//! the simulation mode, [`report_html`] the HTML report, [`bench`] the withheld-effect bench.
+
+// pub mod bench;
+pub mod candidates;
+pub mod fit;
+pub mod regimes;
+pub mod report_html;
+pub mod resid;
+pub mod select;
+pub mod trajectory;
+
+use std::collections::BTreeMap;
+
+use joint_core::params::ParamId;
+use serde::Serialize;
+
+use crate::log::{JointLog, LogMode};
+use crate::model_file::ModelFile;
+use candidates::{base_from_model, Base, Col, Data, Effect, ThermSrc};
+use regimes::Regimes;
+use select::{Outcome, Scored, Selection, Split};
+
+/// Why a diagnosis could not run (the log and model parsed, but do not fit together).
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DiagError {
+    #[error("{0}")]
+    Input(String),
+}
+
+/// Settings of one diagnosis.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// at most this many effects reported by forward selection
+    pub max_effects: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options { max_effects: 3 }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitInfo {
+    pub method: &'static str,
+    pub train: usize,
+    pub holdout: usize,
+    /// optional: how the blocks were laid out
+    pub blocks: usize,
+    pub held_blocks: Vec<usize>,
+    pub guard_samples: usize,
+    pub test_units: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Gap {
+    pub rmse: f64,
+    pub holdout_rmse: f64,
+    pub noise_floor: f64,
+    pub unit: &'static str,
+    /// optional: the held-out RMSE after the selected effects is within 10 % of the floor
+    pub at_noise_floor: bool,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RegimeOut {
+    pub name: String,
+    pub family: &'static str,
+    #[serde(rename = "where")]
+    pub where_: String,
+    pub share: f64,
+    pub rmse: f64,
+    pub samples: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RegimeShrink {
+    pub name: String,
+    pub holdout_rmse_before: f64,
+    pub holdout_rmse_after: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct EffectOut {
+    pub effect: String,
+    pub holdout_rmse_before: f64,
+    pub holdout_rmse_after: f64,
+    pub shrink: f64,
+    pub significant: bool,
+    pub params: BTreeMap<String, f64>,
+    /// optional: what the candidate was tested against ("model" or "parameters")
+    pub reference: &'static str,
+    pub t_stat: f64,
+    pub p_value: f64,
+    /// optional: relative held-out MSE gain over the reference
+    pub gain: f64,
+    pub regimes: Vec<RegimeShrink>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Verdict {
+    pub effect: String,
+    pub holdout_rmse_before: f64,
+    pub holdout_rmse_after: f64,
+    pub shrink: f64,
+    /// optional: all effects forward selection kept, in order
+    pub effects: Vec<String>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Step {
+    pub effect: String,
+    pub params: BTreeMap<String, f64>,
+    pub holdout_rmse_after: f64,
+    pub shrink: f64,
+    pub p_value: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Resid {
+    pub input: Vec<&'static str>,
+    pub autocorrelation_before: resid::Correlation,
+    pub autocorrelation_after: resid::Correlation,
+    pub xcorr_before: Vec<resid::Correlation>,
+    pub xcorr_after: Vec<resid::Correlation>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct TestInfo {
+    pub method: &'static str,
+    pub alpha: f64,
+    pub alpha_each: f64,
+    pub min_gain: f64,
+}
+
+/// The diagnosis report (spec §3 plus optional fields).
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub mode: &'static str,
+    pub samples: usize,
+    pub split: SplitInfo,
+    pub gap: Gap,
+    pub regimes: Vec<RegimeOut>,
+    pub effects: Vec<EffectOut>,
+    pub verdict: Verdict,
+    pub selected: Vec<Step>,
+    pub refit: BTreeMap<String, BTreeMap<String, f64>>,
+    pub test: TestInfo,
+    pub resid: Option<Resid>,
+    pub unknown_columns: Vec<String>,
+}
+
+/// Thinned series for the HTML plots.
+#[derive(Clone, Debug, Default)]
+pub struct PlotData {
+    pub t: Vec<f64>,
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    /// measured quantity (d − rest in torque mode, q in trajectory mode)
+    pub measured: Vec<f64>,
+    pub before: Vec<f64>,
+    pub after: Vec<f64>,
+    /// speed regime index per point (0 static, 1 low, 2 high)
+    pub speed_regime: Vec<u8>,
+    pub held: Vec<bool>,
+    pub unit: &'static str,
+    pub measured_label: &'static str,
+}
+
+/// A diagnosis: the report, the model text `--emit-model` writes, and plot data.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    pub report: Report,
+    pub emitted_model: String,
+    pub plots: PlotData,
+}
+
+/// Runs the diagnosis in the mode the log's columns give.
+pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Diagnosis, DiagError> {
+    let params = model.param_set().map_err(|e| DiagError::Input(e.to_string()))?;
+    let others = model.other_columns();
+    for o in &others {
+        if log.other(o).is_none() {
+            return Err(DiagError::Input(format!(
+                "the model's gravity table uses column `{o}`, which the log does not have (columns: {})",
+                log.column_names().join(", ")
+            )));
+        }
+    }
+    if log.len() < 100 {
+        return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least 100", log.len())));
+    }
+    match log.mode() {
+        LogMode::Torque => torque_mode(log, model, &params, &others, opts),
+        LogMode::Trajectory => trajectory::diagnose(log, model, &params, opts),
+    }
+}
+
+pub(crate) fn median_dt(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).step_by((t.len() / 20_000).max(1)).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 1e-3;
+    }
+    let k = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m
+}
+
+/// Central-difference derivative on the sample times (one-sided at the ends).
+pub(crate) fn derivative(t: &[f64], x: &[f64]) -> Vec<f64> {
+    let n = x.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+            if b > a {
+                (x[b] - x[a]) / (t[b] - t[a])
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// Centred moving average over `2h+1` samples (zero phase).
+pub(crate) fn smooth(x: &[f64], h: usize) -> Vec<f64> {
+    let n = x.len();
+    if h == 0 || n == 0 {
+        return x.to_vec();
+    }
+    let mut pre = vec![0.0; n + 1];
+    for i in 0..n {
+        pre[i + 1] = pre[i] + x[i];
+    }
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(h), (i + h + 1).min(n));
+            (pre[b] - pre[a]) / (b - a) as f64
+        })
+        .collect()
+}
+
+/// q̇ and q̈ from the log, derived when absent (q̈ smoothed over ±5 ms).
+pub(crate) fn velocities(log: &JointLog, dt: f64) -> (Vec<f64>, Vec<f64>) {
+    let qd = match &log.qd {
+        Some(v) => v.clone(),
+        None => derivative(&log.t, &log.q),
+    };
+    let qdd = match &log.qdd {
+        Some(v) => v.clone(),
+        None => smooth(&derivative(&log.t, &qd), ((0.005 / dt).round() as usize).max(1)),
+    };
+    (qd, qdd)
+}
+
+/// Robust white-noise level of a residual from its second differences (smooth parts cancel,
+/// sparse jumps are ignored by the median).
+pub fn noise_floor(r: &[f64]) -> f64 {
+    if r.len() < 3 {
+        return 0.0;
+    }
+    let stride = (r.len() / 200_000).max(1);
+    let mut v: Vec<f64> = (1..r.len() - 1).step_by(stride).map(|i| (r[i + 1] - 2.0 * r[i] + r[i - 1]).abs()).collect();
+    let k = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m / (0.674_489_75 * 6f64.sqrt())
+}
+
+fn torque_mode(
+    log: &JointLog,
+    model: &ModelFile,
+    params: &joint_core::params::ParamSet,
+    others: &[String],
+    opts: &Options,
+) -> Result<Diagnosis, DiagError> {
+    let n = log.len();
+    let dt = median_dt(&log.t);
+    let (qd, qdd) = velocities(log, dt);
+    let mut full = JointLog { t: log.t.clone(), q: log.q.clone(), qd: Some(qd), qdd: Some(qdd), ..JointLog::default() };
+    full.others = others.iter().filter_map(|o| log.other(o).map(|v| (o.clone(), v.to_vec()))).collect();
+    let pred0 = crate::sim::predicted(&full, params, others)
+        .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
+    let (u, tau) = match (&log.u, &log.tau) {
+        (Some(u), Some(t)) => (u.clone(), t),
+        _ => return Err(DiagError::Input("torque mode needs `u` and `tau`".into())),
+    };
+    let base = base_from_model(model);
+    let band = model.value(ParamId::FrictionVBand);
+    let qd = full.qd.take().unwrap_or_default();
+    let qdd = full.qdd.take().unwrap_or_default();
+    let sgn: Vec<f64> = qd.iter().map(|&v| sgn_band(v, band)).collect();
+    let mut data = Data {
+        n,
+        t: full.t,
+        q: full.q,
+        qd,
+        qdd,
+        u,
+        y: Vec::new(),
+        temp: log.temp.clone(),
+        dt,
+        band,
+        sgn,
+        q0: model.value(ParamId::SpringQ0),
+    };
+    // y = d − (prediction − linear part at the model's values): the rest the fits keep fixed.
+    let des0 = candidates::Design::new(&base, &[]);
+    let mut x = vec![0.0; des0.cols.len()];
+    let mut y = Vec::with_capacity(n);
+    let mut r0 = Vec::with_capacity(n);
+    data.y = vec![0.0; n];
+    for i in 0..n {
+        des0.row(&data, i, &mut x);
+        let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
+        let d = data.u[i] - tau[i];
+        y.push(d - (pred0[i] - lin));
+        r0.push(d - pred0[i]);
+    }
+    data.y = y;
+    let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
+    let split = select::make_split(n);
+    if split.train.len() < 30 || split.holdout.len() < 30 {
+        return Err(DiagError::Input("too few samples for a training/held-out split".into()));
+    }
+    let floor = noise_floor(&r0);
+    let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
+    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, log);
+    let final_s = sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
+    let emitted_model = emit_model(model, &base, final_s, &data);
+    let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
+    Ok(Diagnosis { report, emitted_model, plots })
+}
+
+pub(crate) fn sgn_band(v: f64, band: f64) -> f64 {
+    if band > 0.0 {
+        (v / band).clamp(-1.0, 1.0)
+    } else if v > 0.0 {
+        1.0
+    } else if v < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+fn coef(s: &Scored, c: Col) -> Option<f64> {
+    s.design.cols.iter().position(|x| *x == c).map(|k| s.beta[k])
+}
+
+/// The section parameters of effect `k` of a scored model (same names as the plant sections).
+pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, f64> {
+    let mut p = BTreeMap::new();
+    let Some(e) = s.effects.get(k) else { return p };
+    let (a, b) = s.design.spans.get(k).copied().unwrap_or((0, 0));
+    let beta = |j: usize| s.beta.get(a + j).copied().unwrap_or(0.0);
+    let mut put = |k: &str, v: f64| {
+        p.insert(k.to_string(), v);
+    };
+    match *e {
+        Effect::Stribeck { speed } => {
+            put("level", beta(0));
+            put("speed", speed);
+        }
+        Effect::Asymmetric => put("delta", beta(0)),
+        Effect::Load => put("mu", beta(0)),
+        Effect::Thermal { src, .. } => {
+            put("coefficient", beta(0));
+            match src {
+                ThermSrc::Temp { mean } => put("t_ref", mean),
+                ThermSrc::Time { tau, mean, .. } => {
+                    put("time_constant", tau);
+                    put("t_ref", mean);
+                }
+            }
+        }
+        Effect::Ripple { period } => {
+            let (bs, bc) = (beta(0), beta(1));
+            put("amplitude", bs.hypot(bc));
+            put("period", period);
+            put("phase", bc.atan2(bs));
+        }
+        Effect::Cable { engage, width } => {
+            put("k", beta(0));
+            put("engage", engage);
+            put("width", width);
+        }
+        Effect::Backlash { width } => {
+            put("width", width);
+            if let Some(k) = s.design.cols.iter().position(|c| matches!(c, Col::DeadZone { .. })) {
+                put("spring_k", s.beta[k]);
+            }
+        }
+        Effect::Delay { lag } => put("seconds", lag * d.dt),
+        Effect::Dry => put("c", beta(0)),
+    }
+    let _ = b;
+    p
+}
+
+/// The model's own terms at a scored model's values, by TOML section and key.
+fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<String, f64>> {
+    let mut out: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
+    let mut put = |sec: &str, k: &str, v: f64| {
+        out.entry(sec.to_string()).or_default().insert(k.to_string(), v);
+    };
+    let v = |id| model.value(id);
+    if let Some(j) = coef(s, Col::Qdd) {
+        put("inertia", "j", j);
+    }
+    if let Some(a) = coef(s, Col::QdAbsQd) {
+        put("friction", "a", a);
+    }
+    if let Some(bt) = coef(s, Col::Qd) {
+        if v(ParamId::FrictionB) != 0.0 || v(ParamId::SpringB) == 0.0 {
+            put("friction", "b", bt - v(ParamId::SpringB));
+        } else {
+            put("spring", "b", bt);
+        }
+    }
+    if let Some(c) = coef(s, Col::Sgn) {
+        put("friction", "c", c);
+    }
+    let ws = v(ParamId::WeightS);
+    if let (Some(bs), Some(bc)) = (coef(s, Col::SinSq(ws)), coef(s, Col::CosSq(ws))) {
+        put("weight", "amplitude", bs.hypot(bc));
+        put("weight", "phi", bc.atan2(bs));
+    }
+    let dz = s.design.cols.iter().position(|c| matches!(c, Col::DeadZone { .. })).map(|k| s.beta[k]);
+    let k_new = coef(s, Col::Q).or(dz);
+    if let Some(k) = k_new {
+        put("spring", "k", k);
+    }
+    if let Some(cst) = coef(s, Col::Const) {
+        let k = k_new.unwrap_or(0.0);
+        let shift = if dz.is_some() { 0.0 } else { k * v(ParamId::SpringQ0) };
+        if v(ParamId::OffsetC0) != 0.0 || k == 0.0 {
+            put("offset", "c0", cst + shift);
+        } else {
+            // No offset in the model: the constant moves the spring's rest angle.
+            put("spring", "q0", if dz.is_some() { v(ParamId::SpringQ0) - cst / k } else { -cst / k });
+        }
+    }
+    out
+}
+
+fn effect_out(o: &Outcome, reference: &'static str, m0: &Scored, regimes: &Regimes, d: &Data, model: &ModelFile) -> EffectOut {
+    let before = m0.rmse();
+    let after = o.scored.rmse();
+    let params = if o.scored.effects.is_empty() {
+        refit_values(model, &o.scored)
+            .into_iter()
+            .flat_map(|(s, kv)| kv.into_iter().map(move |(k, v)| (format!("{s}.{k}"), v)))
+            .collect()
+    } else {
+        effect_params(&o.scored, o.scored.effects.len() - 1, d)
+    };
+    EffectOut {
+        effect: o.name.to_string(),
+        holdout_rmse_before: before,
+        holdout_rmse_after: after,
+        shrink: shrink(before, after),
+        significant: o.significant,
+        params,
+        reference,
+        t_stat: finite_or(o.t, 1e9),
+        p_value: o.p,
+        gain: o.gain,
+        regimes: regime_shrinks(m0, &o.scored, regimes),
+    }
+}
+
+fn finite_or(x: f64, big: f64) -> f64 {
+    if x.is_finite() {
+        x
+    } else if x > 0.0 {
+        big
+    } else {
+        -big
+    }
+}
+
+pub(crate) fn shrink(before: f64, after: f64) -> f64 {
+    if before > 0.0 {
+        1.0 - after / before
+    } else {
+        0.0
+    }
+}
+
+fn regime_shrinks(m0: &Scored, s: &Scored, regimes: &Regimes) -> Vec<RegimeShrink> {
+    regimes
+        .defs
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| m0.regime_n[*j] > 0.0)
+        .map(|(j, r)| RegimeShrink {
+            name: r.name.clone(),
+            holdout_rmse_before: (m0.regime_sse[j] / m0.regime_n[j]).sqrt(),
+            holdout_rmse_after: (s.regime_sse[j] / s.regime_n[j].max(1.0)).sqrt(),
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn build_report(
+    mode: &'static str,
+    d: &Data,
+    base: &Base,
+    model: &ModelFile,
+    regimes: &Regimes,
+    split: &Split,
+    sel: &Selection,
+    r0: &[f64],
+    floor: f64,
+    log: &JointLog,
+) -> Report {
+    let _ = base;
+    let nreg = regimes.defs.len();
+    let mut sse = vec![0.0; nreg];
+    let mut cnt = vec![0usize; nreg];
+    let mut total = 0.0;
+    for (i, r) in r0.iter().enumerate() {
+        let r2 = r * r;
+        total += r2;
+        let mut b = regimes.bits[i];
+        while b != 0 {
+            let j = b.trailing_zeros() as usize;
+            sse[j] += r2;
+            cnt[j] += 1;
+            b &= b - 1;
+        }
+    }
+    let regimes_out: Vec<RegimeOut> = regimes
+        .defs
+        .iter()
+        .enumerate()
+        .map(|(j, r)| RegimeOut {
+            name: r.name.clone(),
+            family: r.family,
+            where_: r.where_.clone(),
+            share: if total > 0.0 { sse[j] / total } else { 0.0 },
+            rmse: if cnt[j] > 0 { (sse[j] / cnt[j] as f64).sqrt() } else { 0.0 },
+            samples: cnt[j],
+        })
+        .collect();
+    let before = sel.m0.rmse();
+    let mut effects: Vec<EffectOut> = vec![effect_out(&sel.refit, "model", &sel.m0, regimes, d, model)];
+    effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
+    effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
+    let selected: Vec<Step> = sel
+        .chosen
+        .iter()
+        .map(|o| Step {
+            effect: o.name.to_string(),
+            params: effect_params(&o.scored, o.scored.effects.len() - 1, d),
+            holdout_rmse_after: o.scored.rmse(),
+            shrink: shrink(before, o.scored.rmse()),
+            p_value: o.p,
+        })
+        .collect();
+    let (vname, vafter) = match sel.chosen.first() {
+        Some(o) => (o.name.to_string(), o.scored.rmse()),
+        None if sel.refit.significant => ("parameters".to_string(), sel.refit.scored.rmse()),
+        None => ("none".to_string(), before),
+    };
+    let final_s = sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
+    let verdict = Verdict {
+        effect: vname.clone(),
+        holdout_rmse_before: before,
+        holdout_rmse_after: vafter,
+        shrink: shrink(before, vafter),
+        effects: if sel.chosen.is_empty() { vec![vname] } else { sel.chosen.iter().map(|o| o.name.to_string()).collect() },
+    };
+    // resid evidence on the first contiguous stretch of held-out samples (at most 100 000).
+    let resid = {
+        let mut idx: Vec<usize> = Vec::new();
+        for &i in split.holdout.iter().take(100_000) {
+            idx.push(i as usize);
+        }
+        let mut x0 = vec![0.0; sel.m0.design.cols.len()];
+        let mut x1 = vec![0.0; final_s.design.cols.len()];
+        let rb: Vec<f64> = idx.iter().map(|&i| select::residual_at(d, &sel.m0.design, &sel.m0.beta, i, &mut x0)).collect();
+        let ra: Vec<f64> = idx.iter().map(|&i| select::residual_at(d, &final_s.design, &final_s.beta, i, &mut x1)).collect();
+        let qd: Vec<f64> = idx.iter().map(|&i| d.qd[i]).collect();
+        let u: Vec<f64> = idx.iter().map(|&i| d.u[i]).collect();
+        let lag = ((0.1 / d.dt).round() as usize).clamp(10, 100);
+        Some(Resid {
+            input: vec!["qd", "u"],
+            autocorrelation_before: resid::xcorr(&rb, &rb, lag, true),
+            autocorrelation_after: resid::xcorr(&ra, &ra, lag, true),
+            xcorr_before: vec![resid::xcorr(&rb, &qd, lag, false), resid::xcorr(&rb, &u, lag, false)],
+            xcorr_after: vec![resid::xcorr(&ra, &qd, lag, false), resid::xcorr(&ra, &u, lag, false)],
+        })
+    };
+    let final_rmse = final_s.rmse();
+    Report {
+        mode,
+        samples: d.n,
+        split: SplitInfo {
+            method: "interleaved_blocks",
+            train: split.train.len(),
+            holdout: split.holdout.len(),
+            blocks: split.blocks,
+            held_blocks: (0..split.blocks).filter(|b| matches!(b % 10, 2 | 5 | 8)).map(|b| b + 1).collect(),
+            guard_samples: split.guard,
+            test_units: split.n_units,
+        },
+        gap: Gap {
+            rmse: (total / d.n as f64).sqrt(),
+            holdout_rmse: before,
+            noise_floor: floor,
+            unit: "N·m",
+            at_noise_floor: final_rmse <= 1.1 * floor,
+        },
+        regimes: regimes_out,
+        effects,
+        verdict,
+        selected,
+        refit: refit_values(model, if sel.refit.significant || !sel.chosen.is_empty() { final_s } else { &sel.m0 }),
+        test: TestInfo {
+            method: "one-sided t-test on the held-out MSE difference over 30 held-out sub-blocks, Bonferroni over candidates, plus a 2 % minimum gain",
+            alpha: select::ALPHA,
+            alpha_each: sel.alpha_each,
+            min_gain: select::MIN_GAIN,
+        },
+        resid,
+        unknown_columns: log.unknown.clone(),
+    }
+}
+
+fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Split) -> PlotData {
+    let stride = (d.n / 4000).max(1);
+    let mut held = vec![false; d.n];
+    for &i in &split.holdout {
+        held[i as usize] = true;
+    }
+    let mut p = PlotData { unit: "N·m", measured_label: "d − rest (N·m)", ..PlotData::default() };
+    let mut x0 = vec![0.0; m0.design.cols.len()];
+    let mut x1 = vec![0.0; fin.design.cols.len()];
+    for i in (0..d.n).step_by(stride) {
+        let y = m0.design.target(d, i);
+        let rb = select::residual_at(d, &m0.design, &m0.beta, i, &mut x0);
+        let ra = select::residual_at(d, &fin.design, &fin.beta, i, &mut x1);
+        p.t.push(d.t[i]);
+        p.q.push(d.q[i]);
+        p.qd.push(d.qd[i]);
+        p.measured.push(y);
+        p.before.push(rb);
+        p.after.push(ra);
+        let b = regimes.bits[i];
+        p.speed_regime.push(if b & 1 != 0 { 0 } else if b & 2 != 0 { 1 } else { 2 });
+        p.held.push(held[i]);
+    }
+    p
+}
+
+/// The model TOML with the final model's refitted values and its effect sections, in the plant
+/// file's section names, so `jointctl simulate --plant` runs it.
+fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String {
+    let _ = base;
+    let mut mf = model.clone();
+    let vals = refit_values(model, fin);
+    for (sec, kv) in &vals {
+        for (k, v) in kv {
+            if let Some(desc) = joint_core::params::PARAMS.iter().find(|p| p.section == sec && p.key == k) {
+                // Keep the file loadable: the table forbids negative coefficients.
+                let v = v.clamp(f64::from(desc.min), f64::from(desc.max));
+                mf.set(desc.id, v, None);
+            }
+        }
+    }
+    let mut out = String::from("# written by `jointctl diagnose --emit-model`: the model refitted on the training part of the log,\n# plus the selected effects as plant sections (readable by `jointctl simulate --plant`).\n");
+    out.push_str(&mf.to_toml_string());
+    for k in 0..fin.effects.len() {
+        out.push_str(&effect_section(fin, k, d));
+    }
+    out
+}
+
+fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
+    use std::fmt::Write as _;
+    let p = effect_params(s, k, d);
+    let g = |key: &str| p.get(key).copied().unwrap_or(0.0);
+    let Some(e) = s.effects.get(k) else { return String::new() };
+    let mut o = String::new();
+    let _ = writeln!(o, "\n[{}]", e.kind().name());
+    match *e {
+        Effect::Stribeck { .. } => {
+            let _ = writeln!(o, "level = {:?}\nspeed = {:?}", g("level"), g("speed"));
+        }
+        Effect::Asymmetric => {
+            let _ = writeln!(o, "delta = {:?}", g("delta"));
+        }
+        Effect::Load => {
+            let _ = writeln!(o, "mu = {:?}", g("mu").max(0.0));
+        }
+        Effect::Thermal { src, .. } => {
+            let (t_amb, rise, tc, log_temp) = match src {
+                ThermSrc::Temp { .. } => {
+                    let (a, r, tc) = fit_warmup(d);
+                    (a, r, tc, true)
+                }
+                // Without a temp column the drift is expressed on a virtual 1 °C warm-up.
+                ThermSrc::Time { tau, .. } => (0.0, 1.0, tau, false),
+            };
+            let _ = writeln!(
+                o,
+                "coefficient = {:?}\nt_ambient = {:?}\nrise = {:?}\ntime_constant = {:?}\nt_ref = {:?}\nlog_temp = {}",
+                g("coefficient"),
+                t_amb,
+                rise,
+                tc,
+                g("t_ref"),
+                log_temp
+            );
+        }
+        Effect::Ripple { .. } => {
+            let _ = writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
+        }
+        Effect::Cable { .. } => {
+            let _ = writeln!(o, "k = {:?}\nengage = {:?}\nwidth = {:?}", g("k").max(0.0), g("engage"), g("width"));
+        }
+        Effect::Backlash { .. } => {
+            let _ = writeln!(o, "width = {:?}", g("width"));
+        }
+        Effect::Delay { .. } => {
+            let _ = writeln!(o, "seconds = {:?}", g("seconds").clamp(0.0, 1.0));
+        }
+        Effect::Dry => {
+            let _ = writeln!(o, "c = {:?}", g("c").max(0.0));
+        }
+    }
+    o
+}
+
+/// Fits `T(t) = t_ambient + rise·(1 − e^(−t/τ))` to the temp column (τ by golden section).
+fn fit_warmup(d: &Data) -> (f64, f64, f64) {
+    let Some(tp) = &d.temp else { return (0.0, 0.0, 1.0) };
+    let idx: Vec<usize> = (0..d.n).step_by((d.n / 20_000).max(1)).collect();
+    let span = (d.t[d.n - 1] - d.t[0]).max(1e-6);
+    let solve = |tau: f64| {
+        let mut g = fit::Gram::new(2);
+        for &i in &idx {
+            g.add(&[1.0, 1.0 - (-d.t[i] / tau).exp()], tp[i]);
+        }
+        g.solve()
+    };
+    let (lt, _) = fit::golden((0.01 * span).ln(), (100.0 * span).ln(), 40, |l| solve(l.exp()).1);
+    let tau = lt.exp();
+    let (b, _) = solve(tau);
+    (b[0], b[1], tau)
+}
