@@ -11,6 +11,7 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+pub mod canopen;
 pub mod control;
 pub mod fixed;
 pub mod math;

@@ -1,0 +1,23 @@
+//! A CiA 301 CANopen node for the joint, sans-IO: frames and time in, frames out.
+//!
+//! - [`frame`]: the classic CAN frame type (and how firmware converts from `embedded_can`);
+//! - [`od`]: the object dictionary, derived from [`crate::params::PARAMS`];
+//! - [`sdo`]: abort codes and SDO frame layouts (server here, client in host-sim);
+//! - [`pdo`]: the scaling of the process data;
+//! - [`node`]: the node itself — NMT, heartbeat, SDO, EMCY, PDOs, staged/committed parameters.
+//!
+//! We implement the subset ourselves rather than use zencan: zencan generates its object
+//! dictionary from a TOML at build time, while ours must come from the one parameter table in
+//! the core, with a staged/committed split and device-state checks it does not model.
+
+pub mod frame;
+pub mod node;
+pub mod od;
+pub mod pdo;
+pub mod sdo;
+
+pub use frame::CanFrame;
+pub use node::{
+    JointState, MemoryStorage, NmtState, NoStorage, Node, NodeConfig, ParamStorage, StorageError,
+};
+pub use sdo::Abort;

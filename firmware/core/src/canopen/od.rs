@@ -1,0 +1,584 @@
+//! The object dictionary: which (index, sub-index) pairs exist, their names, data types and
+//! access, all derived from constants here and from the one parameter table [`PARAMS`].
+//!
+//! The node ([`super::node`]) reads and writes values; this module only describes. The EDS
+//! generator of the host tool walks [`indices`] and [`sub_info`], so the EDS can never list an
+//! object the node does not serve, or miss one it does.
+//!
+//! Layout (CiA 301 communication area, then manufacturer objects from 0x2000):
+//! - `0x2000 + i`: scalar parameter `PARAMS[i]` (`friction_a` = 0x2000 …), REAL32, read/write
+//!   into the **staged** set; the range and safety flag come from the table;
+//! - `0x2100` gravity table shape (record of U8), `0x2101..=0x2103` grid/torque/sigma as
+//!   DOMAINs of little-endian f32 (segmented SDO);
+//! - `0x2200` commit (write 1: check the staged set and swap it in whole; write 0: discard the
+//!   staged changes), `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active;
+//! - `0x2300` joint state (PDO-mappable scaled integers), `0x2310` host command, `0x2311` the
+//!   other joints' angles (inputs of a multi-joint gravity table).
+
+use super::sdo::Abort;
+use crate::params::{ParamId, PARAMS, PARAM_COUNT};
+
+/// CiA 301 data types used here (the EDS `DataType` numbers).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u16)]
+pub enum DataType {
+    Boolean = 0x0001,
+    Integer16 = 0x0003,
+    Integer32 = 0x0004,
+    Unsigned8 = 0x0005,
+    Unsigned16 = 0x0006,
+    Unsigned32 = 0x0007,
+    Real32 = 0x0008,
+    VisibleString = 0x0009,
+    Domain = 0x000F,
+}
+
+impl DataType {
+    /// Size in bytes of a fixed-size type; `None` for strings and domains.
+    pub const fn size(self) -> Option<usize> {
+        match self {
+            DataType::Boolean | DataType::Unsigned8 => Some(1),
+            DataType::Integer16 | DataType::Unsigned16 => Some(2),
+            DataType::Integer32 | DataType::Unsigned32 | DataType::Real32 => Some(4),
+            DataType::VisibleString | DataType::Domain => None,
+        }
+    }
+}
+
+/// Access type as written in the EDS.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Access {
+    Const,
+    Ro,
+    Wo,
+    Rw,
+}
+
+impl Access {
+    pub const fn readable(self) -> bool {
+        !matches!(self, Access::Wo)
+    }
+    pub const fn writable(self) -> bool {
+        matches!(self, Access::Wo | Access::Rw)
+    }
+    /// EDS spelling.
+    pub const fn eds(self) -> &'static str {
+        match self {
+            Access::Const => "const",
+            Access::Ro => "ro",
+            Access::Wo => "wo",
+            Access::Rw => "rw",
+        }
+    }
+}
+
+/// Object code of an index (EDS `ObjectType`: 7 VAR, 8 ARRAY, 9 RECORD).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ObjectKind {
+    Var,
+    Array,
+    Record,
+}
+
+/// What a sub-index is, for the node's read/write dispatch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Key {
+    DeviceType,
+    ErrorRegister,
+    DeviceName,
+    SoftwareVersion,
+    /// sub-index 0 of an array/record: the highest sub-index, constant
+    Count(u8),
+    StoreAll,
+    RestoreAll,
+    ConsumerHeartbeat,
+    ProducerHeartbeat,
+    /// 1 vendor, 2 product, 3 revision, 4 serial
+    Identity(u8),
+    RpdoCobId(u8),
+    RpdoType(u8),
+    /// (pdo, sub 1..)
+    RpdoMap(u8, u8),
+    TpdoCobId(u8),
+    TpdoType(u8),
+    TpdoInhibit(u8),
+    TpdoEvent(u8),
+    TpdoMap(u8, u8),
+    Param(ParamId),
+    /// sub-index of 0x2100
+    TableShape(u8),
+    TableGrid,
+    TableTorque,
+    TableSigma,
+    Commit,
+    ErrorCode,
+    ErrorParam,
+    ErrorMessage,
+    ClearFaults,
+    Pending,
+    /// sub-index of 0x2300
+    JointState(u8),
+    AssistCmd,
+    /// 1..=3
+    OtherAngle(u8),
+}
+
+/// Everything known about one sub-index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubInfo {
+    pub index: u16,
+    pub sub: u8,
+    pub name: &'static str,
+    pub dtype: DataType,
+    pub access: Access,
+    /// may be mapped into a PDO
+    pub pdo: bool,
+    /// default value is `$NODEID + value` (COB-IDs)
+    pub node_relative: bool,
+    /// limits for the EDS (parameters only)
+    pub limits: Option<(f32, f32)>,
+    pub key: Key,
+}
+
+/// One index of the dictionary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectInfo {
+    pub index: u16,
+    pub name: &'static str,
+    pub kind: ObjectKind,
+    /// sub-indices that exist (sub 0 included for arrays/records)
+    pub subs: &'static [u8],
+}
+
+pub const DEVICE_TYPE: u16 = 0x1000;
+pub const ERROR_REGISTER: u16 = 0x1001;
+pub const DEVICE_NAME: u16 = 0x1008;
+pub const SOFTWARE_VERSION: u16 = 0x100A;
+pub const STORE_PARAMETERS: u16 = 0x1010;
+pub const RESTORE_DEFAULTS: u16 = 0x1011;
+pub const CONSUMER_HEARTBEAT: u16 = 0x1016;
+pub const PRODUCER_HEARTBEAT: u16 = 0x1017;
+pub const IDENTITY: u16 = 0x1018;
+pub const RPDO_COMM: u16 = 0x1400;
+pub const RPDO_MAP: u16 = 0x1600;
+pub const TPDO_COMM: u16 = 0x1800;
+pub const TPDO_MAP: u16 = 0x1A00;
+/// First scalar-parameter object; parameter `i` lives at `PARAM_BASE + i`.
+pub const PARAM_BASE: u16 = 0x2000;
+pub const TABLE_SHAPE: u16 = 0x2100;
+pub const TABLE_GRID: u16 = 0x2101;
+pub const TABLE_TORQUE: u16 = 0x2102;
+pub const TABLE_SIGMA: u16 = 0x2103;
+pub const COMMIT: u16 = 0x2200;
+pub const COMMIT_ERROR: u16 = 0x2201;
+pub const CLEAR_FAULTS: u16 = 0x2202;
+pub const PENDING: u16 = 0x2203;
+pub const JOINT_STATE: u16 = 0x2300;
+pub const HOST_COMMAND: u16 = 0x2310;
+pub const OTHER_ANGLES: u16 = 0x2311;
+
+/// Number of RPDOs: 1 = host command, 2..=4 = other joints' angles.
+pub const RPDO_COUNT: u8 = 4;
+/// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain.
+pub const TPDO_COUNT: u8 = 2;
+
+/// "save" in little-endian ASCII, the CiA 301 signature for 0x1010.
+pub const SAVE_SIGNATURE: u32 = 0x6576_6173;
+/// "load", the CiA 301 signature for 0x1011.
+pub const LOAD_SIGNATURE: u32 = 0x6461_6F6C;
+
+/// Sub-indices of 0x2300 (joint state), mapped into the TPDOs.
+pub const JS_Q: u8 = 1;
+pub const JS_QD: u8 = 2;
+pub const JS_TAU: u8 = 3;
+pub const JS_FAULTS: u8 = 4;
+pub const JS_QDD: u8 = 5;
+pub const JS_TAU_MEAS: u8 = 6;
+pub const JS_TEMP: u8 = 7;
+pub const JS_GAIN: u8 = 8;
+
+const JOINT_STATE_NAMES: [&str; 8] = [
+    "q",
+    "qd",
+    "tau_cmd",
+    "faults",
+    "qdd",
+    "tau_measured",
+    "temperature",
+    "gain_permille",
+];
+const SHAPE_NAMES: [&str; 10] = [
+    "n_axes",
+    "axis_source_0",
+    "axis_source_1",
+    "axis_source_2",
+    "axis_source_3",
+    "points_0",
+    "points_1",
+    "points_2",
+    "points_3",
+    "has_sigma",
+];
+const IDENTITY_NAMES: [&str; 4] = [
+    "vendor_id",
+    "product_code",
+    "revision_number",
+    "serial_number",
+];
+const MAP_NAMES: [&str; 4] = [
+    "mapped_object_1",
+    "mapped_object_2",
+    "mapped_object_3",
+    "mapped_object_4",
+];
+const OTHER_NAMES: [&str; 3] = ["other_angle_1", "other_angle_2", "other_angle_3"];
+const RPDO_NAMES: [&str; 4] = [
+    "rpdo1_communication",
+    "rpdo2_communication",
+    "rpdo3_communication",
+    "rpdo4_communication",
+];
+const RPDO_MAP_NAMES: [&str; 4] = [
+    "rpdo1_mapping",
+    "rpdo2_mapping",
+    "rpdo3_mapping",
+    "rpdo4_mapping",
+];
+const TPDO_NAMES: [&str; 2] = ["tpdo1_communication", "tpdo2_communication"];
+const TPDO_MAP_NAMES: [&str; 2] = ["tpdo1_mapping", "tpdo2_mapping"];
+
+/// Mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based). Static: the joint
+/// state needs no remapping, and a fixed layout keeps every master's decoding the EDS's.
+pub fn tpdo_mapping(n: u8) -> &'static [u32] {
+    const T1: [u32; 4] = [
+        map_entry(JOINT_STATE, JS_Q, 16),
+        map_entry(JOINT_STATE, JS_QD, 16),
+        map_entry(JOINT_STATE, JS_TAU, 16),
+        map_entry(JOINT_STATE, JS_FAULTS, 16),
+    ];
+    const T2: [u32; 4] = [
+        map_entry(JOINT_STATE, JS_QDD, 16),
+        map_entry(JOINT_STATE, JS_TAU_MEAS, 16),
+        map_entry(JOINT_STATE, JS_TEMP, 16),
+        map_entry(JOINT_STATE, JS_GAIN, 16),
+    ];
+    match n {
+        0 => &T1,
+        1 => &T2,
+        _ => &[],
+    }
+}
+
+/// Mapping of RPDO `n` (0-based): RPDO1 carries the host's assist command; RPDO2..4 each take
+/// the first 16 bits of a frame — point their COB-ID at another joint's TPDO1 (0x180 + id)
+/// and its `q` lands in the matching `others` slot. Extra bytes of a longer frame are ignored
+/// (CiA 301 allows a received PDO longer than its mapping).
+pub fn rpdo_mapping(n: u8) -> &'static [u32] {
+    const R1: [u32; 1] = [map_entry(HOST_COMMAND, 1, 16)];
+    const R2: [u32; 1] = [map_entry(OTHER_ANGLES, 1, 16)];
+    const R3: [u32; 1] = [map_entry(OTHER_ANGLES, 2, 16)];
+    const R4: [u32; 1] = [map_entry(OTHER_ANGLES, 3, 16)];
+    match n {
+        0 => &R1,
+        1 => &R2,
+        2 => &R3,
+        3 => &R4,
+        _ => &[],
+    }
+}
+
+const fn map_entry(index: u16, sub: u8, bits: u8) -> u32 {
+    ((index as u32) << 16) | ((sub as u32) << 8) | bits as u32
+}
+
+/// Every index of the dictionary, ascending.
+pub fn indices() -> impl Iterator<Item = u16> {
+    const LOW: [u16; 9] = [
+        DEVICE_TYPE,
+        ERROR_REGISTER,
+        DEVICE_NAME,
+        SOFTWARE_VERSION,
+        STORE_PARAMETERS,
+        RESTORE_DEFAULTS,
+        CONSUMER_HEARTBEAT,
+        PRODUCER_HEARTBEAT,
+        IDENTITY,
+    ];
+    const HIGH: [u16; 11] = [
+        TABLE_SHAPE,
+        TABLE_GRID,
+        TABLE_TORQUE,
+        TABLE_SIGMA,
+        COMMIT,
+        COMMIT_ERROR,
+        CLEAR_FAULTS,
+        PENDING,
+        JOINT_STATE,
+        HOST_COMMAND,
+        OTHER_ANGLES,
+    ];
+    LOW.into_iter()
+        .chain((0..RPDO_COUNT as u16).map(|n| RPDO_COMM + n))
+        .chain((0..RPDO_COUNT as u16).map(|n| RPDO_MAP + n))
+        .chain((0..TPDO_COUNT as u16).map(|n| TPDO_COMM + n))
+        .chain((0..TPDO_COUNT as u16).map(|n| TPDO_MAP + n))
+        .chain((0..PARAM_COUNT as u16).map(|i| PARAM_BASE + i))
+        .chain(HIGH)
+}
+
+const SUB0: &[u8] = &[0];
+const SUBS_1: &[u8] = &[0, 1];
+const SUBS_2: &[u8] = &[0, 1, 2];
+const SUBS_3: &[u8] = &[0, 1, 2, 3];
+const SUBS_4: &[u8] = &[0, 1, 2, 3, 4];
+const SUBS_8: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8];
+const SUBS_10: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
+const TPDO_COMM_SUBS: &[u8] = &[0, 1, 2, 3, 5];
+
+/// The object at `index`, if the dictionary has it.
+pub fn object_info(index: u16) -> Option<ObjectInfo> {
+    use ObjectKind::*;
+    let o = |name, kind, subs| {
+        Some(ObjectInfo {
+            index,
+            name,
+            kind,
+            subs,
+        })
+    };
+    match index {
+        DEVICE_TYPE => o("device_type", Var, SUB0),
+        ERROR_REGISTER => o("error_register", Var, SUB0),
+        DEVICE_NAME => o("manufacturer_device_name", Var, SUB0),
+        SOFTWARE_VERSION => o("manufacturer_software_version", Var, SUB0),
+        STORE_PARAMETERS => o("store_parameters", Array, SUBS_1),
+        RESTORE_DEFAULTS => o("restore_default_parameters", Array, SUBS_1),
+        CONSUMER_HEARTBEAT => o("consumer_heartbeat_time", Array, SUBS_1),
+        PRODUCER_HEARTBEAT => o("producer_heartbeat_time", Var, SUB0),
+        IDENTITY => o("identity", Record, SUBS_4),
+        i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => o(
+            RPDO_NAMES
+                .get((i - RPDO_COMM) as usize)
+                .copied()
+                .unwrap_or(""),
+            Record,
+            SUBS_2,
+        ),
+        i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
+            let n = (i - RPDO_MAP) as u8;
+            let subs = SUBS_4.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
+            o(
+                RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""),
+                Record,
+                subs,
+            )
+        }
+        i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => o(
+            TPDO_NAMES
+                .get((i - TPDO_COMM) as usize)
+                .copied()
+                .unwrap_or(""),
+            Record,
+            TPDO_COMM_SUBS,
+        ),
+        i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
+            let n = (i - TPDO_MAP) as u8;
+            let subs = SUBS_4.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
+            o(
+                TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""),
+                Record,
+                subs,
+            )
+        }
+        i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
+            let d = PARAMS.get((i - PARAM_BASE) as usize)?;
+            o(d.name, Var, SUB0)
+        }
+        TABLE_SHAPE => o("gravity_table_shape", Record, SUBS_10),
+        TABLE_GRID => o("gravity_table_grid", Var, SUB0),
+        TABLE_TORQUE => o("gravity_table_torque", Var, SUB0),
+        TABLE_SIGMA => o("gravity_table_sigma", Var, SUB0),
+        COMMIT => o("params_commit", Var, SUB0),
+        COMMIT_ERROR => o("params_commit_error", Record, SUBS_3),
+        CLEAR_FAULTS => o("clear_faults", Var, SUB0),
+        PENDING => o("params_pending", Var, SUB0),
+        JOINT_STATE => o("joint_state", Record, SUBS_8),
+        HOST_COMMAND => o("host_command", Record, SUBS_1),
+        OTHER_ANGLES => o("other_joint_angles", Array, SUBS_3),
+        _ => None,
+    }
+}
+
+/// The sub-index `sub` of `index`, or the abort a master gets for asking: object missing
+/// (0x06020000) or sub-index missing (0x06090011).
+pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
+    use Access::*;
+    use DataType::*;
+    let obj = object_info(index).ok_or(Abort::NoObject)?;
+    if !obj.subs.contains(&sub) {
+        return Err(Abort::NoSubIndex);
+    }
+    let mk = |name, dtype, access, key| SubInfo {
+        index,
+        sub,
+        name,
+        dtype,
+        access,
+        pdo: false,
+        node_relative: false,
+        limits: None,
+        key,
+    };
+    let highest = obj.subs.last().copied().unwrap_or(0);
+    if sub == 0 && obj.kind != ObjectKind::Var {
+        return Ok(mk(
+            "highest_sub_index",
+            Unsigned8,
+            Const,
+            Key::Count(highest),
+        ));
+    }
+    let idx_in = |base: u16| (index - base) as u8;
+    let info = match index {
+        DEVICE_TYPE => mk("device_type", Unsigned32, Const, Key::DeviceType),
+        ERROR_REGISTER => SubInfo {
+            pdo: true,
+            ..mk("error_register", Unsigned8, Ro, Key::ErrorRegister)
+        },
+        DEVICE_NAME => mk(
+            "manufacturer_device_name",
+            VisibleString,
+            Const,
+            Key::DeviceName,
+        ),
+        SOFTWARE_VERSION => mk(
+            "manufacturer_software_version",
+            VisibleString,
+            Const,
+            Key::SoftwareVersion,
+        ),
+        STORE_PARAMETERS => mk("save_all_parameters", Unsigned32, Rw, Key::StoreAll),
+        RESTORE_DEFAULTS => mk(
+            "restore_all_default_parameters",
+            Unsigned32,
+            Rw,
+            Key::RestoreAll,
+        ),
+        CONSUMER_HEARTBEAT => mk(
+            "consumer_heartbeat_time_1",
+            Unsigned32,
+            Rw,
+            Key::ConsumerHeartbeat,
+        ),
+        PRODUCER_HEARTBEAT => mk(
+            "producer_heartbeat_time",
+            Unsigned16,
+            Rw,
+            Key::ProducerHeartbeat,
+        ),
+        IDENTITY => {
+            let name = IDENTITY_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            mk(name, Unsigned32, Ro, Key::Identity(sub))
+        }
+        i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
+            let n = idx_in(RPDO_COMM);
+            match sub {
+                1 => SubInfo {
+                    node_relative: n == 0,
+                    ..mk("cob_id", Unsigned32, Rw, Key::RpdoCobId(n))
+                },
+                _ => mk("transmission_type", Unsigned8, Ro, Key::RpdoType(n)),
+            }
+        }
+        i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
+            let name = MAP_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            mk(name, Unsigned32, Ro, Key::RpdoMap(idx_in(RPDO_MAP), sub))
+        }
+        i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
+            let n = idx_in(TPDO_COMM);
+            match sub {
+                1 => SubInfo {
+                    node_relative: true,
+                    ..mk("cob_id", Unsigned32, Rw, Key::TpdoCobId(n))
+                },
+                2 => mk("transmission_type", Unsigned8, Rw, Key::TpdoType(n)),
+                3 => mk("inhibit_time", Unsigned16, Rw, Key::TpdoInhibit(n)),
+                _ => mk("event_timer", Unsigned16, Rw, Key::TpdoEvent(n)),
+            }
+        }
+        i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
+            let name = MAP_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            mk(name, Unsigned32, Ro, Key::TpdoMap(idx_in(TPDO_MAP), sub))
+        }
+        i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
+            let id = ParamId::from_index((i - PARAM_BASE) as usize).ok_or(Abort::NoObject)?;
+            let d = id.desc();
+            SubInfo {
+                limits: Some((d.min, d.max)),
+                ..mk(d.name, Real32, Rw, Key::Param(id))
+            }
+        }
+        TABLE_SHAPE => {
+            let name = SHAPE_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            mk(name, Unsigned8, Rw, Key::TableShape(sub))
+        }
+        TABLE_GRID => mk("gravity_table_grid", Domain, Rw, Key::TableGrid),
+        TABLE_TORQUE => mk("gravity_table_torque", Domain, Rw, Key::TableTorque),
+        TABLE_SIGMA => mk("gravity_table_sigma", Domain, Rw, Key::TableSigma),
+        COMMIT => mk("params_commit", Unsigned8, Wo, Key::Commit),
+        COMMIT_ERROR => match sub {
+            1 => mk("code", Unsigned8, Ro, Key::ErrorCode),
+            2 => mk("param_index", Unsigned16, Ro, Key::ErrorParam),
+            _ => mk("message", VisibleString, Ro, Key::ErrorMessage),
+        },
+        CLEAR_FAULTS => mk("clear_faults", Unsigned8, Wo, Key::ClearFaults),
+        PENDING => mk("params_pending", Unsigned8, Ro, Key::Pending),
+        JOINT_STATE => {
+            let name = JOINT_STATE_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            let dtype = if sub == JS_FAULTS || sub == JS_GAIN {
+                Unsigned16
+            } else {
+                Integer16
+            };
+            SubInfo {
+                pdo: true,
+                ..mk(name, dtype, Ro, Key::JointState(sub))
+            }
+        }
+        HOST_COMMAND => SubInfo {
+            pdo: true,
+            ..mk("assist_cmd", Integer16, Rw, Key::AssistCmd)
+        },
+        OTHER_ANGLES => {
+            let name = OTHER_NAMES
+                .get((sub as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or("");
+            SubInfo {
+                pdo: true,
+                ..mk(name, Integer16, Rw, Key::OtherAngle(sub))
+            }
+        }
+        _ => return Err(Abort::NoObject),
+    };
+    Ok(info)
+}
