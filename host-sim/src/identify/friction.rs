@@ -58,8 +58,13 @@ struct Plateau {
 }
 
 /// Friction points from the plateaus of all logs. `accel` gives, per log, the q̈ to take off
-/// with the inertia `j` (None: first pass, nothing taken off).
-pub fn points(logs: &[(&Prepared, &[Segment])], accel: Option<(&[Vec<f64>], f64)>) -> Vec<FrictionPoint> {
+/// with the inertia `j`; without it (first pass) only the samples of a plateau whose filtered
+/// |q̈| is below `strict.0 + strict.1·|q̇|` are used, so the unknown `J·q̈` stays negligible.
+pub fn points(
+    logs: &[(&Prepared, &[Segment])],
+    accel: Option<(&[Vec<f64>], f64)>,
+    strict: (f64, f64),
+) -> Vec<FrictionPoint> {
     let mut plateaus = Vec::new();
     for (li, (p, segs)) in logs.iter().enumerate() {
         if p.d.is_none() {
@@ -89,7 +94,7 @@ pub fn points(logs: &[(&Prepared, &[Segment])], accel: Option<(&[Vec<f64>], f64)
             let rel = (neg.speed - pos.speed).abs() / pos.speed.max(1e-9);
             let (lo, hi) = (pos.q_lo.max(neg.q_lo), pos.q_hi.min(neg.q_hi));
             let shorter = (pos.q_hi - pos.q_lo).min(neg.q_hi - neg.q_lo);
-            if rel > 0.10 || hi - lo < shorter / 3.0 || hi <= lo {
+            if rel > 0.10 || hi - lo < (shorter / 10.0).max(0.02) {
                 continue;
             }
             if best.as_ref().is_none_or(|(_, r)| rel < *r) {
@@ -109,6 +114,9 @@ pub fn points(logs: &[(&Prepared, &[Segment])], accel: Option<(&[Vec<f64>], f64)
             for i in pl.start..pl.end {
                 let q = p.q[i];
                 if q < lo || q > hi {
+                    continue;
+                }
+                if acc_col.is_none() && p.qdd_f[i].abs() > strict.0 + strict.1 * p.qd_f[i].abs() {
                     continue;
                 }
                 let b = (((q - lo) / w) as usize).min(nb - 1);

@@ -149,6 +149,7 @@ pub trait Progress {
 pub struct Quiet;
 impl Progress for Quiet {}
 
+#[derive(Debug)]
 /// The logs prepared and segmented once, shared by the full fit and the hold-out refit.
 pub struct Data {
     pub prepared: Vec<Prepared>,
@@ -240,7 +241,7 @@ pub fn identify_data(
         progress.stage(if round == 0 { "friction, weight, inertia" } else { "second round (J·q̈ removed)" }, round, total);
         if has(Term::Friction) {
             let accel = inertia_acc.as_ref().map(|(a, j)| (a.as_slice(), *j));
-            let pts = friction::points(&kept_pairs, accel);
+            let pts = friction::points(&kept_pairs, accel, (opts.segments.a_strict, opts.segments.a_strict_rel));
             let fit = friction::fit(&pts).ok_or_else(|| {
                 term_err(
                     "friction",

@@ -83,9 +83,13 @@ pub struct SegmentCfg {
     pub v_move: f64,
     /// rad/s: static below this
     pub v_static: f64,
-    /// rad/s²: flat velocity (plus `a_flat_rel`·|q̇|)
+    /// rad/s²: a plateau's velocity changes by less than this (plus `a_flat_rel`·|q̇|); loose,
+    /// because the second friction pass takes `J·q̈` off
     pub a_flat: f64,
     pub a_flat_rel: f64,
+    /// rad/s² (plus `a_strict_rel`·|q̇|): the samples the first friction pass uses, before J is known
+    pub a_strict: f64,
+    pub a_strict_rel: f64,
     /// s
     pub min_plateau: f64,
     /// s
@@ -101,8 +105,10 @@ impl Default for SegmentCfg {
         SegmentCfg {
             v_move: 0.03,
             v_static: 0.02,
-            a_flat: 0.1,
-            a_flat_rel: 0.1,
+            a_flat: 0.3,
+            a_flat_rel: 0.5,
+            a_strict: 0.1,
+            a_strict_rel: 0.1,
             min_plateau: 0.25,
             min_static: 0.5,
             settle_share: 0.4,
