@@ -170,7 +170,7 @@ fn run() -> i32 {
         t2 - t1,
         tpi
     );
-    if !(tpi > 0.0) {
+    if !joint_core::math::is_finite(tpi) || tpi <= 0.0 {
         let _ = writeln!(out, "calibration failed: SysTick did not advance (is -icount set?)");
         return EXIT_CHECK_FAILED;
     }

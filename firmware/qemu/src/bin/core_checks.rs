@@ -62,7 +62,7 @@ fn run() -> i32 {
 
     // Fusion stays inside tau_model ± k·sigma_model however far the data is.
     let f = table::fuse(1.0, 0.3, 100.0, 0.01, 1.0);
-    check_that("fusion is clamped to the model band", f <= 1.3 && f >= 0.7, &mut out);
+    check_that("fusion is clamped to the model band", (0.7..=1.3).contains(&f), &mut out);
 
     // A bad input drives the command to zero, never NaN.
     let p = ParamSet::defaults();

@@ -1,0 +1,161 @@
+//! Thin hardware adapters for the B-G431B-ESC1, and what each one honestly does.
+//!
+//! - [`QeiEncoder`]: TIM4 in x4 quadrature mode on PB6/PB7 (the board's encoder/Hall
+//!   connector J8, A+ and B+), unwrapped to a joint angle with [`QuadratureUnwrap`].
+//!   No index pulse, no absolute reference: angle 0 is wherever the joint was at boot.
+//! - [`HBridgeTorque`]: TIM1 at 20 kHz, centre-aligned, complementary outputs with dead
+//!   time on phase legs U (PA8/PC13) and V (PA9/PA12), driven as a bipolar H-bridge for a
+//!   BRUSHED DC motor across U–V: duty_U = ½ + ½·x, duty_V = ½ − ½·x with
+//!   x = u_motor / `full_scale_nm`. This is open-loop voltage proportional to the torque
+//!   command: no current loop, no commutation. A BLDC motor needs a FOC current loop in
+//!   its place (not part of this firmware yet). Phase W stays off.
+//! - [`ParamFlash`]: the last flash pages (memory.x's PARAMS region) through embassy's
+//!   blocking flash driver, with bounds checks, for the core's power-loss-safe store.
+//!
+//! Pin choices follow ST's UM2516 (B-G431B-ESC1 user manual); check them against the
+//! board revision's schematic before driving a motor.
+
+use embassy_stm32::flash::{Blocking, Error as FlashError, Flash};
+use embassy_stm32::peripherals::{TIM1, TIM4};
+use embassy_stm32::timer::complementary_pwm::ComplementaryPwm;
+use embassy_stm32::timer::qei::Qei;
+use embassy_stm32::timer::Channel;
+use firmware::io::{Encoder, EncoderError, QuadratureUnwrap, TorqueOutput};
+use joint_core::math;
+
+/// Quadrature encoder on TIM4.
+pub struct QeiEncoder {
+    qei: Qei<'static, TIM4>,
+    unwrap: QuadratureUnwrap,
+}
+
+impl QeiEncoder {
+    pub fn new(qei: Qei<'static, TIM4>, counts_per_motor_rev: u32, ratio: f32) -> Self {
+        let first = qei.count();
+        QeiEncoder { qei, unwrap: QuadratureUnwrap::new(first, counts_per_motor_rev, ratio) }
+    }
+}
+
+impl Encoder for QeiEncoder {
+    fn position(&mut self) -> Result<f32, EncoderError> {
+        // A bare A/B encoder has no fault signal; reading the counter cannot fail.
+        Ok(self.unwrap.update(self.qei.count()))
+    }
+}
+
+/// Brushed-DC H-bridge on TIM1 phases U and V (see the module doc for its limits).
+pub struct HBridgeTorque {
+    pwm: ComplementaryPwm<'static, TIM1>,
+    max_duty: u32,
+    /// Motor torque at 100 % duty, N·m (motor constant × stall current at supply voltage).
+    full_scale_nm: f32,
+    enabled: bool,
+}
+
+impl HBridgeTorque {
+    pub fn new(mut pwm: ComplementaryPwm<'static, TIM1>, full_scale_nm: f32) -> Self {
+        let max_duty = pwm.get_max_duty();
+        // ~500 ns dead time at 170 MHz timer clock (DTG = 85 counts), so the high and low
+        // switches of a leg never conduct together.
+        pwm.set_dead_time(85);
+        let mut s = HBridgeTorque { pwm, max_duty, full_scale_nm, enabled: false };
+        s.disable();
+        s
+    }
+
+    fn duty(&self, fraction: f32) -> u32 {
+        (math::clamp(fraction, 0.0, 1.0) * self.max_duty as f32) as u32
+    }
+}
+
+impl TorqueOutput for HBridgeTorque {
+    fn set_motor_torque(&mut self, u_motor: f32) {
+        let x = if math::is_finite(u_motor) && self.full_scale_nm > 0.0 {
+            math::clamp(u_motor / self.full_scale_nm, -1.0, 1.0)
+        } else {
+            0.0
+        };
+        let du = self.duty(0.5 + 0.5 * x);
+        let dv = self.duty(0.5 - 0.5 * x);
+        self.pwm.set_duty(Channel::Ch1, du);
+        self.pwm.set_duty(Channel::Ch2, dv);
+        if !self.enabled {
+            self.pwm.enable(Channel::Ch1);
+            self.pwm.enable(Channel::Ch2);
+            self.enabled = true;
+        }
+    }
+
+    fn disable(&mut self) {
+        self.pwm.set_duty(Channel::Ch1, 0);
+        self.pwm.set_duty(Channel::Ch2, 0);
+        self.pwm.disable(Channel::Ch1);
+        self.pwm.disable(Channel::Ch2);
+        self.pwm.disable(Channel::Ch3);
+        self.enabled = false;
+    }
+}
+
+extern "C" {
+    // From memory.x: the parameter region at the end of flash.
+    static __param_start: u8;
+    static __param_end: u8;
+}
+
+/// Start of the flash in the address map; embassy's flash driver takes offsets from here.
+const FLASH_BASE: u32 = 0x0800_0000;
+/// G431 page size (memory.x's `__param_page_size`).
+const PAGE: usize = 2048;
+
+/// The parameter pages, addressed from 0.
+pub struct ParamFlash {
+    flash: Flash<'static, Blocking>,
+    base: u32,
+    len: u32,
+}
+
+impl ParamFlash {
+    pub fn new(flash: Flash<'static, Blocking>) -> Self {
+        // Only the addresses of the linker symbols are taken, never their contents.
+        let (start, end) = (&raw const __param_start as u32, &raw const __param_end as u32);
+        ParamFlash { flash, base: start.wrapping_sub(FLASH_BASE), len: end.saturating_sub(start) }
+    }
+
+    pub fn region(&self) -> (u32, u32) {
+        (FLASH_BASE + self.base, self.len)
+    }
+
+    fn span(&self, offset: u32, len: usize) -> Result<u32, FlashError> {
+        let end = offset.checked_add(len as u32).ok_or(FlashError::Size)?;
+        if end > self.len {
+            return Err(FlashError::Size);
+        }
+        Ok(self.base + offset)
+    }
+}
+
+impl joint_core::store::Flash for ParamFlash {
+    type Error = FlashError;
+    const WRITE_SIZE: usize = 8;
+    const ERASE_SIZE: usize = PAGE;
+
+    fn capacity(&self) -> usize {
+        self.len as usize
+    }
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
+        let at = self.span(offset, bytes.len())?;
+        self.flash.blocking_read(at, bytes)
+    }
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
+        let a = self.span(from, 0)?;
+        let b = self.span(to, 0)?;
+        self.flash.blocking_erase(a, b)
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
+        let at = self.span(offset, bytes.len())?;
+        self.flash.blocking_write(at, bytes)
+    }
+}
