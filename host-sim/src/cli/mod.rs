@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod diagnose;
+pub mod diagnose_bench;
 pub mod identify;
 pub mod simulate;
 
@@ -29,6 +30,7 @@ pub struct Cli {
 pub enum Command {
     Simulate(simulate::SimulateArgs),
     Diagnose(diagnose::DiagnoseArgs),
+    DiagnoseBench(diagnose_bench::DiagnoseBenchArgs),
     Identify(identify::IdentifyArgs),
 }
 
@@ -37,6 +39,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(args) => simulate::run(&args),
         Command::Diagnose(args) => diagnose::run(&args),
+        Command::DiagnoseBench(args) => diagnose_bench::run(&args),
         Command::Identify(args) => identify::run(&args),
     }
 }

@@ -285,17 +285,129 @@ fn quantile(mut v: Vec<f64>, p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
+/// The current design evaluated once on the thinned training rows, so a grid point only costs
+/// the extra column(s): the Gram matrix is bordered instead of rebuilt (Frisch–Waugh in effect).
+pub struct GridCtx<'a> {
+    d: &'a Data,
+    idx: &'a [u32],
+    des: Design,
+    p: usize,
+    x: Vec<f64>,
+    g: Gram,
+}
+
+impl<'a> GridCtx<'a> {
+    pub fn new(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32]) -> GridCtx<'a> {
+        let des = Design::new(base, chosen);
+        let p = des.cols.len();
+        let mut x = vec![0.0; idx.len() * p];
+        let mut g = Gram::new(p);
+        for (r, &i) in idx.iter().enumerate() {
+            let row = &mut x[r * p..(r + 1) * p];
+            let y = des.row(d, i as usize, row);
+            g.add(row, y);
+        }
+        GridCtx { d, idx, des, p, x, g }
+    }
+
+    /// RSS with column `drop` removed, `extra` columns added and, if given, another target.
+    pub fn rss(&self, drop: Option<usize>, extra: &[Vec<f64>], y_alt: Option<&[f64]>) -> f64 {
+        let p = self.p;
+        let keep: Vec<usize> = (0..p).filter(|&j| Some(j) != drop).collect();
+        let pk = keep.len();
+        let q = pk + extra.len();
+        let mut g = Gram::new(q);
+        for (a, &ja) in keep.iter().enumerate() {
+            for (b, &jb) in keep.iter().enumerate().skip(a) {
+                let (lo, hi) = if ja <= jb { (ja, jb) } else { (jb, ja) };
+                g.g[a * q + b] = self.g.g[lo * p + hi];
+            }
+        }
+        let n = self.idx.len();
+        // cross products with the extra columns and the (possibly other) target
+        let mut xz = vec![0.0; p * extra.len()];
+        let mut xy_alt = vec![0.0; p];
+        let mut yy_alt = 0.0;
+        for r in 0..n {
+            let row = &self.x[r * p..(r + 1) * p];
+            for (e, z) in extra.iter().enumerate() {
+                let zr = z[r];
+                if zr != 0.0 {
+                    for j in 0..p {
+                        xz[e * p + j] += row[j] * zr;
+                    }
+                }
+            }
+            if let Some(ya) = y_alt {
+                let yr = ya[r];
+                for j in 0..p {
+                    xy_alt[j] += row[j] * yr;
+                }
+                yy_alt += yr * yr;
+            }
+        }
+        let y_of = |r: usize| match y_alt {
+            Some(ya) => ya[r],
+            None => self.des.target(self.d, self.idx[r] as usize),
+        };
+        for (e, z) in extra.iter().enumerate() {
+            for (a, &ja) in keep.iter().enumerate() {
+                g.g[a * q + pk + e] = xz[e * p + ja];
+            }
+            for (f, z2) in extra.iter().enumerate().skip(e) {
+                g.g[(pk + e) * q + pk + f] = z.iter().zip(z2).map(|(a, b)| a * b).sum();
+            }
+            g.b[pk + e] = (0..n).map(|r| z[r] * y_of(r)).sum();
+        }
+        for (a, &ja) in keep.iter().enumerate() {
+            g.b[a] = if y_alt.is_some() { xy_alt[ja] } else { self.g.b[ja] };
+        }
+        g.yy = if y_alt.is_some() { yy_alt } else { self.g.yy };
+        g.n = n;
+        g.solve().1
+    }
+
+    fn column(&self, c: Col) -> Vec<f64> {
+        self.idx.iter().map(|&i| c.eval(self.d, i as usize)).collect()
+    }
+
+    /// RSS of the current design plus effect `e`.
+    pub fn rss_effect(&self, e: &Effect) -> f64 {
+        match *e {
+            Effect::Backlash { width } => {
+                let drop = self.des.cols.iter().position(|c| matches!(c, Col::Q));
+                let z: Vec<f64> = self.idx.iter().map(|&i| crate::effects::dead_zone(self.d.q[i as usize] - self.d.q0, width)).collect();
+                self.rss(drop, &[z], None)
+            }
+            Effect::Delay { lag } => {
+                let mut des = self.des.clone();
+                des.lag = lag;
+                let y: Vec<f64> = self.idx.iter().map(|&i| des.target(self.d, i as usize)).collect();
+                self.rss(None, &[], Some(&y))
+            }
+            _ => {
+                let extra: Vec<Vec<f64>> = e.cols().into_iter().map(|c| self.column(c)).collect();
+                self.rss(None, &extra, None)
+            }
+        }
+    }
+}
+
 /// Searches an effect's shape parameter on the thinned training set `idx`, given the effects
-/// already chosen; `None` when the effect cannot apply to this model/log (e.g. dry friction in
-/// a model that has a Coulomb term, backlash without a spring, thermal without friction).
+/// already chosen; `None` when the effect cannot apply to this model/log (dry friction in a
+/// model that has a Coulomb term, backlash without a spring, thermal drift without friction).
 pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32]) -> Option<Effect> {
-    let with = |e: Effect| -> Vec<Effect> {
-        let mut v = chosen.to_vec();
-        v.push(e);
-        v
-    };
-    let rss_of = |e: Effect| Design::new(base, &with(e)).rss(d, idx);
     let has = |c: Col| base.cols.contains(&c);
+    let applicable = match kind {
+        Kind::Dry => !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)),
+        Kind::Backlash => has(Col::Q),
+        _ => true,
+    };
+    if !applicable || chosen.iter().any(|e| e.kind() == kind) {
+        return None;
+    }
+    let ctx = GridCtx::new(d, base, chosen, idx);
+    let rss_of = |e: Effect| ctx.rss_effect(&e);
     // Search in log space over [lo, hi]: a grid, then golden section around the best point.
     let log_search = |lo: f64, hi: f64, k: usize, make: &dyn Fn(f64) -> Effect| -> Effect {
         let (l0, l1) = (lo.ln(), hi.ln());
@@ -309,9 +421,6 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
     };
     match kind {
         Kind::Stribeck => {
-            if !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)) {
-                // Stribeck is a rise above a Coulomb level; without one, dry friction comes first.
-            }
             let aq: Vec<f64> = idx.iter().map(|&i| d.qd[i as usize].abs()).collect();
             let v95 = quantile(aq, 0.95).max(1e-3);
             let lo = (0.5 * d.band).max(1e-4).min(0.05 * v95);
@@ -319,12 +428,11 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
         }
         Kind::Asymmetric => Some(Effect::Asymmetric),
         Kind::Load => Some(Effect::Load),
-        Kind::Dry => (!has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry))).then_some(Effect::Dry),
+        Kind::Dry => Some(Effect::Dry),
         Kind::Thermal => {
             // The shape of the friction that scales: the model's friction refitted first.
-            let g = Design::new(base, chosen).gram(d, idx);
-            let (beta, _) = g.solve();
-            let coef = |c: Col| base.cols.iter().position(|x| *x == c).map(|k| beta[k]).unwrap_or(0.0);
+            let (beta, _) = ctx.g.solve();
+            let coef = |c: Col| ctx.des.cols.iter().position(|x| *x == c).map(|k| beta[k]).unwrap_or(0.0);
             let (a, b, c) = (coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
             if a == 0.0 && b == 0.0 && c == 0.0 {
                 return None;
@@ -349,8 +457,8 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
         Kind::Ripple => {
             // Periodogram of the current residual binned over q, then refinement of the best
             // peaks on the real criterion.
-            let des = Design::new(base, chosen);
-            let (beta, _) = des.gram(d, idx).solve();
+            let (beta, _) = ctx.g.solve();
+            let p = ctx.p;
             let qs: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
             let qmin = qs.iter().copied().fold(f64::INFINITY, f64::min);
             let qmax = qs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -358,15 +466,15 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
             if !(range > 1e-3) {
                 return None;
             }
-            let nb = 4096usize;
+            let nb = 2048usize;
             let mut sum = vec![0.0; nb];
             let mut cnt = vec![0.0; nb];
-            let mut x = vec![0.0; des.cols.len()];
-            for &i in idx {
-                let y = des.row(d, i as usize, &mut x);
-                let r = y - x.iter().zip(&beta).map(|(a, b)| a * b).sum::<f64>();
+            for (r, &i) in idx.iter().enumerate() {
+                let row = &ctx.x[r * p..(r + 1) * p];
+                let y = ctx.des.target(d, i as usize);
+                let res = y - row.iter().zip(&beta).map(|(a, b)| a * b).sum::<f64>();
                 let b = (((d.q[i as usize] - qmin) / range * nb as f64) as usize).min(nb - 1);
-                sum[b] += r;
+                sum[b] += res;
                 cnt[b] += 1.0;
             }
             let centres: Vec<(f64, f64, f64)> = (0..nb)
@@ -382,18 +490,18 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
             let (f_lo, f_hi) = (1.0 / p_max, 1.0 / p_min);
             let df = 0.25 / range;
             let nf = ((f_hi - f_lo) / df).ceil() as usize + 1;
+            let wsum: f64 = centres.iter().map(|c| c.2).sum();
             let mut power: Vec<(f64, f64)> = Vec::with_capacity(nf);
             for k in 0..nf {
                 let f = f_lo + k as f64 * df;
                 let w = std::f64::consts::TAU * f;
-                let (mut s, mut c, mut ww) = (0.0, 0.0, 0.0);
+                let (mut s, mut c) = (0.0, 0.0);
                 for &(qc, m, n) in &centres {
                     let (sn, cs) = (w * qc).sin_cos();
                     s += n * m * sn;
                     c += n * m * cs;
-                    ww += n;
                 }
-                power.push((f, (s * s + c * c) / ww.max(1.0)));
+                power.push((f, (s * s + c * c) / wsum.max(1.0)));
             }
             // The three strongest local maxima, refined by golden section in frequency.
             let mut peaks: Vec<(f64, f64)> = (1..power.len().saturating_sub(1))
@@ -411,8 +519,7 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
             best.map(|(f, _)| Effect::Ripple { period: 1.0 / f })
         }
         Kind::Cable => {
-            let qs: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
-            let mut sorted = qs.clone();
+            let mut sorted: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
             sorted.sort_by(|a, b| a.total_cmp(b));
             let qat = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
             let width = 0.01;
@@ -425,23 +532,17 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
             Some(Effect::Cable { engage: e, width })
         }
         Kind::Backlash => {
-            if !has(Col::Q) || chosen.iter().any(|e| matches!(e, Effect::Backlash { .. })) {
-                return None;
-            }
             let qs: Vec<f64> = idx.iter().map(|&i| (d.q[i as usize] - d.q0).abs()).collect();
             let reach = quantile(qs, 0.9).max(1e-3);
             Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
         }
         Kind::Delay => {
-            if chosen.iter().any(|e| matches!(e, Effect::Delay { .. })) {
-                return None;
-            }
             // Integer lags up to 100 ms (at most 200 samples), then a parabola through the best
             // three for the fractional part.
             let max_lag = ((0.1 / d.dt).round() as usize).clamp(3, 200);
             let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
             let b = vals.iter().enumerate().skip(1).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(1);
-            let lag = if b + 1 <= max_lag {
+            let lag = if b < max_lag {
                 let (y0, y1, y2) = (vals[b - 1], vals[b], vals[b + 1]);
                 let den = y0 - 2.0 * y1 + y2;
                 let off = if den > 0.0 { (0.5 * (y0 - y2) / den).clamp(-0.5, 0.5) } else { 0.0 };

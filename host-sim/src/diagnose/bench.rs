@@ -1,0 +1,301 @@
+//! `diagnose-bench`: logs whose effect is known but withheld from the model, diagnosed blind.
+//!
+//! Each case draws a joint (a rigid trunk-like joint; an elastic joint for backlash, which in
+//! torque mode only shows in a spring; a joint without Coulomb term for dry friction), sensor
+//! noise, the order and length of the scenarios, and the effect's size from ranges chosen so the
+//! effect's torque is comparable to or larger than the noise (an effect far below the noise is
+//! indistinguishable from `none`, and a bench full of them would measure nothing). The plant
+//! file gets the effect; the model file the diagnosis sees is the same joint without it. Case
+//! kinds cycle through `none`, `parameters` (the model's values off), every effect, and pairs,
+//! so any `--cases` ≥ 13 covers them all. The diagnosis gets only the log and the model: it does
+//! not know the case kind, the plant, or the noise.
+//!
+//! Scoring: a case is correct when the set of effects the diagnosis reports (forward selection,
+//! or `parameters`, or `none`) equals the withheld set. An over-claim is a `none` case reported
+//! as anything else.
+
+use std::collections::BTreeMap;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::log::JointLog;
+use crate::model_file::ModelFile;
+use crate::plant::PlantFile;
+use crate::scenario::ScenarioKind;
+use crate::sim::{simulate, SimConfig};
+
+/// Case kinds in the order they cycle.
+pub const KINDS: [&str; 13] = [
+    "none",
+    "stribeck",
+    "asymmetric_friction",
+    "load_dependent_friction",
+    "thermal_drift",
+    "position_ripple",
+    "cable_spring",
+    "backlash",
+    "delay",
+    "dry_friction",
+    "parameters",
+    "pair",
+    "none",
+];
+
+/// Effects that pairs are drawn from (each identifiable in torque mode on a rigid joint).
+const PAIRABLE: [&str; 6] = ["stribeck", "load_dependent_friction", "position_ripple", "cable_spring", "delay", "thermal_drift"];
+
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseResult {
+    pub case: usize,
+    pub truth: String,
+    pub predicted: String,
+    pub correct: bool,
+    pub joint: &'static str,
+    pub scenarios: String,
+    pub tau_noise: f64,
+    pub effect_sections: String,
+    pub holdout_rmse_before: f64,
+    /// shrink of what the diagnosis selected
+    pub shrink: f64,
+    /// shrink of the candidate carrying the true effect's name (single-effect cases)
+    pub true_shrink: Option<f64>,
+    pub seconds: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub cases: Vec<CaseResult>,
+    /// truth → predicted → count
+    pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+    pub accuracy: f64,
+    pub none_cases: usize,
+    pub overclaims: usize,
+    pub overclaim_rate: f64,
+    pub mean_shrink: f64,
+    pub mean_true_shrink: f64,
+}
+
+struct Joint {
+    name: &'static str,
+    model: String,
+    /// the plant's own parameters when they differ from the model's (`parameters` cases)
+    plant_model: Option<String>,
+    range: (f64, f64),
+}
+
+fn rigid(rng: &mut ChaCha8Rng, coulomb: bool) -> Joint {
+    let a = rng.random_range(0.3..1.0);
+    let b = rng.random_range(1.5..3.0);
+    let c = if coulomb { rng.random_range(0.6..1.4) } else { 0.0 };
+    let amp = rng.random_range(1.5..3.0);
+    let phi = rng.random_range(-0.1..0.1);
+    let j = rng.random_range(0.3..0.6);
+    let c0 = rng.random_range(-0.5..0.5);
+    let mut m = format!("[friction]\na = {a}\nb = {b}\n");
+    if coulomb {
+        m += &format!("c = {c}\n");
+    }
+    m += &format!("\n[weight]\namplitude = {amp}\ns = 0.802\nphi = {phi}\n\n[inertia]\nj = {j}\n\n[offset]\nc0 = {c0}\n");
+    Joint { name: if coulomb { "rigid" } else { "rigid_no_coulomb" }, model: m, plant_model: None, range: (0.0, 2.0) }
+}
+
+fn elastic(rng: &mut ChaCha8Rng) -> Joint {
+    let k = rng.random_range(6.0..12.0);
+    let kb = rng.random_range(0.03..0.08);
+    let j = rng.random_range(0.15..0.3);
+    let b = rng.random_range(0.3..0.8);
+    let c = rng.random_range(0.2..0.5);
+    let m = format!(
+        "[friction]\nb = {b}\nc = {c}\n\n[inertia]\nj = {j}\n\n[spring]\nk = {k}\nb = {kb}\nq0 = 0.0\n\n[offset]\nc0 = 0.1\n"
+    );
+    Joint { name: "elastic", model: m, plant_model: None, range: (-0.5, 0.5) }
+}
+
+/// The plant section of one effect with a drawn size.
+fn effect_section(kind: &str, rng: &mut ChaCha8Rng, range: (f64, f64), rate: f64) -> String {
+    match kind {
+        "stribeck" => format!("[stribeck]\nlevel = {}\nspeed = {}\n", rng.random_range(0.5..1.2), rng.random_range(0.02..0.08)),
+        "asymmetric_friction" => {
+            let s = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            format!("[asymmetric_friction]\ndelta = {}\n", s * rng.random_range(0.25..0.6))
+        }
+        "load_dependent_friction" => format!("[load_dependent_friction]\nmu = {}\n", rng.random_range(0.06..0.15)),
+        "thermal_drift" => format!(
+            "[thermal_drift]\ncoefficient = {}\nt_ambient = 25.0\nrise = {}\ntime_constant = {}\nt_ref = 25.0\n",
+            rng.random_range(0.008..0.02),
+            rng.random_range(20.0..30.0),
+            rng.random_range(5.0..15.0)
+        ),
+        "position_ripple" => format!(
+            "[position_ripple]\namplitude = {}\nperiod = {}\nphase = {}\n",
+            rng.random_range(0.2..0.5),
+            rng.random_range(0.02..0.1),
+            rng.random_range(-3.0..3.0)
+        ),
+        "cable_spring" => {
+            let e = range.0 + (range.1 - range.0) * rng.random_range(0.45..0.7);
+            format!("[cable_spring]\nk = {}\nengage = {e}\n", rng.random_range(3.0..8.0))
+        }
+        "backlash" => format!("[backlash]\nwidth = {}\n", rng.random_range(0.03..0.08)),
+        "delay" => {
+            // whole control ticks, 4…12 ms
+            let ticks = rng.random_range(4..=12) as f64;
+            format!("[delay]\nseconds = {}\n", ticks / rate)
+        }
+        "dry_friction" => format!("[dry_friction]\nc = {}\n", rng.random_range(0.4..1.0)),
+        _ => String::new(),
+    }
+}
+
+/// Builds and runs one case; `Err` only for a bench bug (a plant that does not parse).
+pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, JointLog, ModelFile), String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ case as u64);
+    let kind = KINDS[case % KINDS.len()];
+    let truth: Vec<String> = match kind {
+        "pair" => {
+            let a = rng.random_range(0..PAIRABLE.len());
+            let mut b = rng.random_range(0..PAIRABLE.len() - 1);
+            if b >= a {
+                b += 1;
+            }
+            let mut v = vec![PAIRABLE[a].to_string(), PAIRABLE[b].to_string()];
+            v.sort();
+            v
+        }
+        k => vec![k.to_string()],
+    };
+    let mut joint = match kind {
+        "backlash" => elastic(&mut rng),
+        "dry_friction" => rigid(&mut rng, false),
+        "none" if rng.random_bool(0.3) => elastic(&mut rng),
+        _ => rigid(&mut rng, true),
+    };
+    if kind == "parameters" {
+        // The plant's viscous and Coulomb levels and inertia differ from the model's.
+        let text = joint.model.clone();
+        let scale = |key: &str, f: f64, t: &str| -> String {
+            t.lines()
+                .map(|l| match l.strip_prefix(&format!("{key} = ")) {
+                    Some(v) => format!("{key} = {}", v.parse::<f64>().unwrap_or(0.0) * f),
+                    None => l.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+                + "\n"
+        };
+        let t = scale("b", rng.random_range(1.3..1.6), &text);
+        let t = scale("c", rng.random_range(0.5..0.75), &t);
+        joint.plant_model = Some(t);
+    }
+    let rate = 1000.0;
+    let tau_noise = rng.random_range(0.03..0.15);
+    let sensors = format!(
+        "[sensors]\nq_noise = 0.0001\nqd_noise = {}\nqdd_noise = {}\ntau_noise = {tau_noise}\nu_noise = 0.01\ntemp_noise = 0.05\n",
+        rng.random_range(0.001..0.004),
+        rng.random_range(0.1..0.6)
+    );
+    let effects: String = if kind == "none" || kind == "parameters" {
+        String::new()
+    } else {
+        truth.iter().map(|k| effect_section(k, &mut rng, joint.range, rate) + "\n").collect()
+    };
+    let orders = [
+        vec![ScenarioKind::Sweep, ScenarioKind::Poses, ScenarioKind::Hand],
+        vec![ScenarioKind::Hand, ScenarioKind::Sweep, ScenarioKind::Poses],
+        vec![ScenarioKind::Poses, ScenarioKind::Hand, ScenarioKind::Sweep],
+        vec![ScenarioKind::Sweep, ScenarioKind::Hand, ScenarioKind::Poses],
+    ];
+    let scenarios = orders[rng.random_range(0..orders.len())].clone();
+    let secs = seconds * rng.random_range(0.8..1.2);
+    let plant_text = format!(
+        "{}\n{effects}{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
+        joint.plant_model.as_ref().unwrap_or(&joint.model),
+        joint.range.0,
+        joint.range.1
+    );
+    let plant = PlantFile::parse(&plant_text, "bench-plant").map_err(|e| format!("case {case}: {e}\n{plant_text}"))?;
+    let model = ModelFile::parse(&joint.model, "bench-model").map_err(|e| format!("case {case}: {e}"))?;
+    let ctrl = model.param_set().map_err(|e| e.to_string())?;
+    let cfg = SimConfig {
+        scenarios: scenarios.clone(),
+        seconds: secs,
+        seed: seed ^ (case as u64).wrapping_mul(7919),
+        rate: Some(rate),
+        plant_rate: 10_000.0,
+        range: Some(joint.range),
+        free_start: None,
+        torque_columns: true,
+    };
+    let (log, _) = simulate(&plant, &ctrl, &cfg).map_err(|e| format!("case {case}: {e}"))?;
+    let t0 = std::time::Instant::now();
+    let d = super::diagnose(&log, &model, &super::Options::default()).map_err(|e| format!("case {case}: {e}"))?;
+    let seconds_taken = t0.elapsed().as_secs_f64();
+    let r = &d.report;
+    let mut predicted = r.verdict.effects.clone();
+    predicted.sort();
+    let truth_label = truth.join("+");
+    let pred_label = predicted.join("+");
+    let shrink = r.selected.last().map(|s| s.shrink).unwrap_or(r.verdict.shrink);
+    let true_shrink = if truth.len() == 1 && kind != "none" {
+        r.effects.iter().find(|e| e.effect == truth[0]).map(|e| e.shrink)
+    } else {
+        None
+    };
+    let res = CaseResult {
+        case,
+        correct: truth_label == pred_label,
+        truth: truth_label,
+        predicted: pred_label,
+        joint: joint.name,
+        scenarios: scenarios.iter().map(|s| format!("{s:?}").to_lowercase()).collect::<Vec<_>>().join(","),
+        tau_noise,
+        effect_sections: effects.replace('\n', " ").trim().to_string(),
+        holdout_rmse_before: r.verdict.holdout_rmse_before,
+        shrink,
+        true_shrink,
+        seconds: seconds_taken,
+    };
+    Ok((res, log, model))
+}
+
+/// Runs `cases` cases with `seed`; `seconds` per scenario (three scenarios per log).
+pub fn run(
+    cases: usize,
+    seed: u64,
+    seconds: f64,
+    dump: Option<&std::path::Path>,
+    mut progress: impl FnMut(&CaseResult),
+) -> Result<BenchReport, String> {
+    let mut out = Vec::with_capacity(cases);
+    for c in 0..cases {
+        let (r, log, model) = run_case(c, seed, seconds)?;
+        if let Some(dir) = dump {
+            log.write_file(&dir.join(format!("case-{c}.csv"))).map_err(|e| e.to_string())?;
+            let text = format!("# bench case {c}: withheld {} ({})\n{}", r.truth, r.effect_sections, model.to_toml_string());
+            std::fs::write(dir.join(format!("case-{c}.toml")), text).map_err(|e| e.to_string())?;
+        }
+        progress(&r);
+        out.push(r);
+    }
+    let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    for r in &out {
+        *confusion.entry(r.truth.clone()).or_default().entry(r.predicted.clone()).or_default() += 1;
+    }
+    let correct = out.iter().filter(|r| r.correct).count();
+    let none_cases = out.iter().filter(|r| r.truth == "none").count();
+    let overclaims = out.iter().filter(|r| r.truth == "none" && r.predicted != "none").count();
+    let eff: Vec<&CaseResult> = out.iter().filter(|r| r.true_shrink.is_some()).collect();
+    let mean = |v: Vec<f64>| if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 };
+    Ok(BenchReport {
+        accuracy: correct as f64 / out.len().max(1) as f64,
+        none_cases,
+        overclaims,
+        overclaim_rate: overclaims as f64 / none_cases.max(1) as f64,
+        mean_shrink: mean(eff.iter().map(|r| r.shrink).collect()),
+        mean_true_shrink: mean(eff.iter().filter_map(|r| r.true_shrink).collect()),
+        confusion,
+        cases: out,
+    })
+}
