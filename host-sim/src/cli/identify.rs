@@ -30,8 +30,8 @@ pub struct IdentifyArgs {
     pub logs: Vec<PathBuf>,
     /// Terms to identify, comma-separated: friction, weight, inertia, offset, spring
     /// [default: friction,weight,inertia,offset with torque logs, spring with trajectory logs]
-    #[arg(long, value_name = "LIST", value_parser = Term::parse_list)]
-    pub terms: Option<Vec<Term>>,
+    #[arg(long, value_name = "LIST")]
+    pub terms: Option<String>,
     /// Output model TOML; written only when identification succeeds
     #[arg(long, value_name = "MODEL.toml")]
     pub out: PathBuf,
@@ -77,8 +77,12 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
         // Errors name the file, line and column; nothing is written on error.
         logs.push(JointLog::read_file(path)?);
     }
+    let terms = match &a.terms {
+        Some(t) => Term::parse_list(t).map_err(|e| anyhow::anyhow!("--terms: {e}"))?,
+        None => Vec::new(),
+    };
     let opts = Options {
-        terms: a.terms.clone().unwrap_or_default(),
+        terms,
         windows: a.windows.clone(),
         accel_cutoff: a.accel_cutoff,
         name: a.name.clone(),

@@ -351,13 +351,13 @@ fn identify_spring(
     // The free oscillation: trajectory-mode logs, or any log with a `free` window.
     let has_free_window = opts.windows.iter().any(|w| w.kind == SegKind::Free);
     let mut free = None;
-    for p in &data.prepared {
+    for (li, p) in data.prepared.iter().enumerate() {
         if p.d.is_some() && !has_free_window {
             continue;
         }
         if let Some(seg) = segments::free_segment(p, &opts.windows) {
             let (q0, w) = stat.as_ref().map_or((None, 0.0), |s| (Some(s.q0), s.dead_zone));
-            free = spring::free_fit(p, &seg, q0, w);
+            free = spring::free_fit(p, li, &seg, q0, w);
             if free.is_some() {
                 break;
             }

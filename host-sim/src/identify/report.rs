@@ -176,11 +176,10 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
 }
 
 fn free_stretch<'a>(data: &'a Data, _opts: &Options, f: &spring::FreeFit) -> Option<(&'a super::segments::Prepared, (usize, usize))> {
-    data.prepared.iter().find_map(|p| {
-        let s = p.t.iter().position(|&t| t == f.t0)?;
-        let e = p.t.iter().position(|&t| t == f.t1)? + 1;
-        (e > s).then_some((p, (s, e)))
-    })
+    let p = data.prepared.get(f.log)?;
+    let s = p.t.partition_point(|&t| t < f.t0);
+    let e = p.t.partition_point(|&t| t <= f.t1);
+    (e > s).then_some((p, (s, e)))
 }
 
 /// Human summary of the identified terms (and the scores).

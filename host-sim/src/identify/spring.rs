@@ -89,7 +89,8 @@ pub struct FreeFit {
     /// RMS of the angle residual, rad
     pub rms: f64,
     pub n: usize,
-    /// first and last sample time of the fitted stretch
+    /// index of the log, first and last sample time of the fitted stretch
+    pub log: usize,
     pub t0: f64,
     pub t1: f64,
 }
@@ -134,7 +135,7 @@ pub fn simulate(t: &[f64], kj: f64, bj: f64, q0: f64, w: f64, x0: f64, v0: f64, 
 
 /// Fits the free oscillation of `seg` in `p` around rest angle `q0` (None: estimated too,
 /// from the last fifth of the stretch as a start) with dead zone `w`.
-pub fn free_fit(p: &Prepared, seg: &Segment, q0: Option<f64>, w: f64) -> Option<FreeFit> {
+pub fn free_fit(p: &Prepared, log: usize, seg: &Segment, q0: Option<f64>, w: f64) -> Option<FreeFit> {
     let t = &p.t[seg.start..seg.end];
     let q = &p.q[seg.start..seg.end];
     let n = t.len();
@@ -143,19 +144,28 @@ pub fn free_fit(p: &Prepared, seg: &Segment, q0: Option<f64>, w: f64) -> Option<
     }
     // Frequency guess from the zero crossings of the (filtered) velocity: two per period.
     let v = &p.qd_f[seg.start..seg.end];
-    let crossings: Vec<f64> =
-        v.windows(2).zip(t.windows(2)).filter(|(v, _)| v[0] * v[1] < 0.0).map(|(_, t)| t[0]).collect();
+    // Only while the oscillation is well above the velocity noise: once it has died, the noise
+    // crosses zero at random and would fake a high frequency.
+    let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let live = v.iter().rposition(|x| x.abs() > 0.1 * vmax).unwrap_or(n - 1) + 1;
+    let crossings: Vec<f64> = v[..live]
+        .windows(2)
+        .zip(t.windows(2))
+        .filter(|(v, _)| v[0] * v[1] < 0.0)
+        .map(|(_, t)| t[0])
+        .collect();
     let omega0 = if crossings.len() >= 3 {
         let span = crossings[crossings.len() - 1] - crossings[0];
         std::f64::consts::PI * (crossings.len() - 1) as f64 / span.max(1e-9)
     } else {
         std::f64::consts::TAU / (t[n - 1] - t[0]).max(1e-3)
     };
-    let (x0, v0) = (q[0], v[0]);
+    // The logged velocity (not the classification filter's, which attenuates the oscillation).
+    let (x0, v0) = (q[0], p.qd[seg.start]);
     let tail = &q[n - n / 5..];
     let q_rest = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
     let mut starts = Vec::new();
-    for f in [0.8, 1.0, 1.25] {
+    for f in [0.7, 0.85, 1.0, 1.15, 1.3] {
         for zeta in [0.02, 0.1, 0.3] {
             let wn = omega0 * f;
             let mut s = vec![wn * wn, 2.0 * zeta * wn, x0, v0];
@@ -167,15 +177,23 @@ pub fn free_fit(p: &Prepared, seg: &Segment, q0: Option<f64>, w: f64) -> Option<
     }
     let t0 = t[0];
     let tt: Vec<f64> = t.iter().map(|x| x - t0).collect();
-    let mut sim = vec![0.0; n];
-    let f = |pp: &[f64], r: &mut [f64]| {
-        let rest = q0.unwrap_or_else(|| pp.get(4).copied().unwrap_or(0.0));
-        simulate(&tt, pp[0], pp[1], rest, w, pp[2], pp[3], &mut sim);
-        for ((ri, s), q) in r.iter_mut().zip(&sim).zip(q) {
-            *ri = s - q;
+    let resid = |m: usize| {
+        let mut sim = vec![0.0; m];
+        let (tt, q) = (&tt[..m], &q[..m]);
+        move |pp: &[f64], r: &mut [f64]| {
+            let rest = q0.unwrap_or_else(|| pp.get(4).copied().unwrap_or(0.0));
+            simulate(tt, pp[0], pp[1], rest, w, pp[2], pp[3], &mut sim);
+            for ((ri, s), q) in r.iter_mut().zip(&sim).zip(q) {
+                *ri = s - q;
+            }
         }
     };
-    let fit = nls::multi_start(f, &starts, n, 100)?;
+    // Stage 1 on the first two periods, where a wrong frequency cannot yet hide behind a
+    // wrapped phase; stage 2 refines the best start on the whole stretch.
+    let period = std::f64::consts::TAU / omega0.max(1e-9);
+    let m1 = tt.partition_point(|&x| x < 2.0 * period).clamp(20.min(n), n);
+    let first = nls::multi_start(resid(m1), &starts, m1, 100)?;
+    let fit = nls::levenberg_marquardt(resid(n), &first.params, n, 100);
     let (kj, bj) = (fit.params[0], fit.params[1]);
     if !(kj > 0.0 && bj >= 0.0) {
         return None;
@@ -191,6 +209,7 @@ pub fn free_fit(p: &Prepared, seg: &Segment, q0: Option<f64>, w: f64) -> Option<
         zeta: bj / (2.0 * omega_n),
         rms: (fit.cost / n as f64).sqrt(),
         n,
+        log,
         t0,
         t1: t[n - 1],
     })
