@@ -6,7 +6,7 @@ use anyhow::Context;
 use clap::Args;
 
 use crate::identify::segments::Window;
-use crate::identify::{self, Options, Progress, Term};
+use crate::identify::{self, Method, Options, Progress, Term};
 use crate::log::{self, JointLog};
 
 /// Identify the joint model from logged tests and write the model TOML (ready for `push`).
@@ -42,7 +42,11 @@ pub struct IdentifyArgs {
     /// the automatic search for that kind; repeatable
     #[arg(long = "window", value_name = "START:END:KIND")]
     pub windows: Vec<Window>,
-    /// Zero-phase low-pass cut-off of the inertia fit, Hz
+    /// papers = the papers' procedures (plateaus, poses, motion); joint-ls = one least-squares
+    /// fit of all rigid terms on every sample, for logs without plateaus or poses
+    #[arg(long, value_enum, default_value_t = Method::Papers)]
+    pub method: Method,
+    /// Zero-phase low-pass cut-off of the inertia (and joint-ls) fit, Hz
     #[arg(long, value_name = "HZ", default_value_t = 5.0)]
     pub accel_cutoff: f64,
     /// Model name written to the TOML
@@ -82,6 +86,7 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     let opts = Options {
+        method: a.method,
         terms,
         windows: a.windows.clone(),
         accel_cutoff: a.accel_cutoff,

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 pub mod diagnose;
 pub mod diagnose_bench;
 pub mod identify;
+pub mod import;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -32,6 +33,7 @@ pub enum Command {
     Diagnose(diagnose::DiagnoseArgs),
     DiagnoseBench(diagnose_bench::DiagnoseBenchArgs),
     Identify(identify::IdentifyArgs),
+    Import(import::ImportArgs),
 }
 
 /// Runs the parsed command; errors carry the file/key/row/column they concern.
@@ -41,5 +43,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(args) => diagnose::run(&args),
         Command::DiagnoseBench(args) => diagnose_bench::run(&args),
         Command::Identify(args) => identify::run(&args),
+        Command::Import(args) => import::run(&args),
     }
 }

@@ -124,3 +124,105 @@ pub fn fit(dat: &InertiaData, fs: f64, cutoff: f64, keep: &dyn Fn(usize, usize) 
         cutoff_hz: cutoff,
     })
 }
+
+/// All rigid-joint terms in one least-squares fit on every sample (no plateaus or poses
+/// needed): `d = J·q̈ + a·q̇|q̇| + b·q̇ + c·sgn(q̇) + α·sin q + β·cos q + C_0`, every column and
+/// `d` through the same zero-phase low-pass. This is the regression the DFKI pendulum authors
+/// used on their swing-up run (with s = 1: the weight of a pendulum is `m·g·c·sin(q + φ)`,
+/// `C_w0 = √(α² + β²)`, `φ = atan2(β, α)`). Coefficients that the joint's parameter table
+/// requires ≥ 0 (a, b, c, J) and that come out negative are dropped and the rest refitted.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct JointLsFit {
+    pub j: f64,
+    pub a: f64,
+    pub b: f64,
+    pub c: f64,
+    pub alpha: f64,
+    pub beta: f64,
+    pub c0: f64,
+    /// standard errors (correlation-inflated) in the order j, a, b, c, α, β, C_0
+    pub se: [f64; 7],
+    /// RMS and r² of the filtered fit
+    pub rms: f64,
+    pub r2: f64,
+    pub n: usize,
+    pub cutoff_hz: f64,
+}
+
+pub fn joint_ls(logs: &[&Prepared], band: f64, cutoff: f64, keep: &dyn Fn(usize, usize) -> bool) -> Option<JointLsFit> {
+    let mut cols: [Vec<f64>; 7] = Default::default();
+    let mut y = Vec::new();
+    let mut tmp = Vec::new();
+    let mut buf = Vec::new();
+    let mut fs_min = f64::INFINITY;
+    for (li, p) in logs.iter().enumerate() {
+        let Some(d) = &p.d else { continue };
+        fs_min = fs_min.min(p.fs);
+        let n = p.len();
+        // Leave out the first and last half filter period (edge transients).
+        let h = ((0.5 * p.fs / cutoff).ceil() as usize).min(n / 4);
+        let sel: Vec<usize> = (h..n.saturating_sub(h)).filter(|&i| keep(li, i)).collect();
+        let acc = match &p.qdd_logged {
+            Some(a) => filter::filtfilt(a, cutoff, p.fs),
+            None => {
+                filter::filtfilt_into(&p.qd, cutoff, p.fs, &mut tmp);
+                filter::derivative(&p.t, &tmp)
+            }
+        };
+        let raw: [Box<dyn Fn(usize) -> f64>; 6] = [
+            Box::new(|i| p.qd[i] * p.qd[i].abs()),
+            Box::new(|i| p.qd[i]),
+            Box::new(|i| super::sign_band(p.qd_f[i], band)),
+            Box::new(|i| p.q[i].sin()),
+            Box::new(|i| p.q[i].cos()),
+            Box::new(|_| 1.0),
+        ];
+        cols[0].extend(sel.iter().map(|&i| acc[i]));
+        for (k, f) in raw.iter().enumerate() {
+            tmp.clear();
+            tmp.extend((0..n).map(f));
+            filter::filtfilt_into(&tmp, cutoff, p.fs, &mut buf);
+            cols[k + 1].extend(sel.iter().map(|&i| buf[i]));
+        }
+        filter::filtfilt_into(d, cutoff, p.fs, &mut buf);
+        y.extend(sel.iter().map(|&i| buf[i]));
+    }
+    if y.len() < 50 {
+        return None;
+    }
+    // Non-negative by the parameter table: J, a, b, c (indices 0..=3).
+    let mut active = [true; 7];
+    loop {
+        let idx: Vec<usize> = (0..7).filter(|&k| active[k]).collect();
+        let x: Vec<&[f64]> = idx.iter().map(|&k| cols[k].as_slice()).collect();
+        let lf = robust::ols(&x, &y)?;
+        if let Some(pos) = idx.iter().zip(&lf.beta).position(|(&k, b)| k <= 3 && *b < 0.0) {
+            active[idx[pos]] = false;
+            continue;
+        }
+        let mut beta = [0.0; 7];
+        let mut se = [0.0; 7];
+        let n_eff = (y.len() as f64 * (2.0 * cutoff / fs_min).min(1.0)).max(8.0);
+        let inflate = (y.len() as f64 / n_eff).sqrt();
+        for (j, &k) in idx.iter().enumerate() {
+            beta[k] = lf.beta[j];
+            se[k] = lf.se[j] * inflate;
+        }
+        let pred: Vec<f64> = (0..y.len()).map(|i| (0..7).map(|k| beta[k] * cols[k][i]).sum()).collect();
+        let (rms, r2) = super::report::rmse_r2(&y, &pred);
+        return Some(JointLsFit {
+            j: beta[0],
+            a: beta[1],
+            b: beta[2],
+            c: beta[3],
+            alpha: beta[4],
+            beta: beta[5],
+            c0: beta[6],
+            se,
+            rms,
+            r2,
+            n: y.len(),
+            cutoff_hz: cutoff,
+        });
+    }
+}

@@ -16,7 +16,7 @@
 
 pub mod filter;
 pub mod friction;
-// import
+pub mod import;
 pub mod inertia;
 pub mod nls;
 pub mod report;
@@ -67,9 +67,23 @@ impl Term {
     }
 }
 
+/// How the rigid-joint terms are found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// the papers' procedures: friction from plateaus, weight from poses, inertia and offset
+    /// from motion with both known
+    #[default]
+    Papers,
+    /// one least-squares fit of all rigid terms on every sample (for logs without plateaus or
+    /// poses, e.g. a swing-up run); the weight's s is fixed at 1
+    JointLs,
+}
+
 /// Settings of a run.
 #[derive(Clone, Debug)]
 pub struct Options {
+    pub method: Method,
     /// terms to identify (empty: friction, weight, inertia, offset for torque-mode logs,
     /// spring for trajectory-only logs)
     pub terms: Vec<Term>,
@@ -87,6 +101,7 @@ pub struct Options {
 impl Default for Options {
     fn default() -> Self {
         Options {
+            method: Method::Papers,
             terms: Vec::new(),
             windows: Vec::new(),
             segments: SegmentCfg::default(),
@@ -235,7 +250,12 @@ pub fn identify_data(
     if terms.iter().any(|t| torque_terms.contains(t)) && !data.has_torque() {
         return Err(term_err("friction/weight/inertia/offset", "need a torque-mode log (columns u and tau)"));
     }
+    if opts.method == Method::JointLs && terms.iter().any(|t| torque_terms.contains(t)) {
+        joint_ls_terms(data, opts, keep, &mut out)?;
+    }
     let total = 2 + u64::from(has(Term::Spring));
+    let papers = opts.method == Method::Papers;
+    let has = |t: Term| terms.contains(&t) && (papers || t == Term::Spring);
     let mut inertia_acc: Option<(Vec<Vec<f64>>, f64)> = None;
     for round in 0..2u64 {
         progress.stage(if round == 0 { "friction, weight, inertia" } else { "second round (J·q̈ removed)" }, round, total);
@@ -327,6 +347,65 @@ pub fn identify_data(
     }
     progress.stage("done", total, total);
     Ok(out)
+}
+
+fn joint_ls_terms(
+    data: &Data,
+    opts: &Options,
+    keep: &dyn Fn(usize, f64) -> bool,
+    out: &mut Identified,
+) -> Result<(), IdentifyError> {
+    let logs: Vec<&Prepared> = data.prepared.iter().collect();
+    let keep_i = |li: usize, i: usize| keep(li, data.prepared[li].t[i]);
+    let f = inertia::joint_ls(&logs, opts.v_band, opts.accel_cutoff, &keep_i)
+        .ok_or_else(|| term_err("joint-ls", "too few torque-mode samples (or a singular regression)"))?;
+    let has = |t: Term| out.terms.contains(&t);
+    let tq = robust::t_quantile_975(f.n as f64 * (2.0 * f.cutoff_hz / data.prepared[0].fs).min(1.0) - 7.0);
+    let ci = |k: usize, v: f64| (v - tq * f.se[k], v + tq * f.se[k]);
+    if has(Term::Friction) {
+        out.friction = Some(friction::FrictionFit {
+            a: f.a,
+            b: f.b,
+            c: f.c,
+            se: [f.se[1], f.se[2], f.se[3]],
+            ci95: [ci(1, f.a), ci(2, f.b), ci(3, f.c)],
+            sigma: f.rms,
+            points: Vec::new(),
+            weights: Vec::new(),
+        });
+    }
+    if has(Term::Weight) {
+        let amp = f.alpha.hypot(f.beta);
+        out.weight = Some(weight::WeightFit {
+            amplitude: amp,
+            s: 1.0,
+            phi: f.beta.atan2(f.alpha),
+            c0: 0.0,
+            fitted_offset: false,
+            se: vec![f.se[4].hypot(f.se[5]), 0.0, f.se[4].hypot(f.se[5]) / amp.max(1e-12)],
+            rms: f.rms,
+            s_fixed: true,
+        });
+    }
+    if has(Term::Inertia) {
+        out.inertia = Some(inertia::InertiaFit {
+            j: f.j,
+            dc0: 0.0,
+            se: [f.se[0], f.se[6]],
+            ci95: [ci(0, f.j), ci(6, f.c0)],
+            rms: f.rms,
+            n: f.n,
+            cutoff_hz: f.cutoff_hz,
+        });
+    }
+    if has(Term::Offset) {
+        out.c0 = Some(f.c0);
+    }
+    out.notes.push(format!(
+        "joint least squares on {} filtered samples ({} Hz): RMS {:.4} N·m, r² {:.4}",
+        f.n, f.cutoff_hz, f.rms, f.r2
+    ));
+    Ok(())
 }
 
 fn ffun_none(_: f64) -> f64 {
