@@ -238,7 +238,7 @@ mod tests {
         let e = convert(Format::DfkiPendulum, text, "x.csv", &ImportOpts::default()).unwrap_err();
         assert!(e.contains("line 2") && e.contains("`velocity`"), "{e}");
         let e = convert(Format::DfkiPendulum, "time,position\n0,1\n", "x.csv", &ImportOpts::default()).unwrap_err();
-        assert!(e.contains("`velocity`"), "{e}");
+        assert!(e.contains("line 1") && e.contains("is missing"), "{e}");
     }
 
     #[test]
