@@ -9,6 +9,16 @@ pub mod diagnose_bench;
 pub mod identify;
 pub mod import;
 pub mod simulate;
+pub mod bus_args;
+pub mod bus_budget;
+pub mod eds;
+pub mod log_can;
+pub mod pull;
+pub mod push;
+pub mod save;
+pub mod scan;
+pub mod sim_bus;
+pub mod watch;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -34,6 +44,16 @@ pub enum Command {
     DiagnoseBench(diagnose_bench::DiagnoseBenchArgs),
     Identify(identify::IdentifyArgs),
     Import(import::ImportArgs),
+    // CAN (issue 4)
+    Push(push::PushArgs),
+    Pull(pull::PullArgs),
+    Save(save::SaveArgs),
+    Scan(scan::ScanArgs),
+    Watch(watch::WatchArgs),
+    Log(log_can::LogArgs),
+    Sim(sim_bus::SimArgs),
+    Eds(eds::EdsArgs),
+    BusBudget(bus_budget::BusBudgetArgs),
 }
 
 /// Runs the parsed command; errors carry the file/key/row/column they concern.
@@ -44,5 +64,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::DiagnoseBench(args) => diagnose_bench::run(&args),
         Command::Identify(args) => identify::run(&args),
         Command::Import(args) => import::run(&args),
+        Command::Push(args) => push::run(&args),
+        Command::Pull(args) => pull::run(&args),
+        Command::Save(args) => save::run(&args),
+        Command::Scan(args) => scan::run(&args),
+        Command::Watch(args) => watch::run(&args),
+        Command::Log(args) => log_can::run(&args),
+        Command::Sim(args) => sim_bus::run(&args),
+        Command::Eds(args) => eds::run(&args),
+        Command::BusBudget(args) => bus_budget::run(&args),
     }
 }

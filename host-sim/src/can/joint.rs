@@ -1,0 +1,116 @@
+//! A simulated joint on a CAN bus: the core's CANopen [`Node`] (with its controller and
+//! watchdog) around host-sim's [`Plant`], ticking at 1 kHz. The same object serves the
+//! in-process [`super::sim_bus::SimBus`] (virtual time) and real buses in `jointctl sim`
+//! (wall-clock time), so any CANopen master can talk to the simulated joints.
+//!
+//! Without a plant file the joint is held at rest (q = q̇ = 0): the node, its parameters and
+//! its watchdog work, the telemetry is flat. With one, the plant is integrated at 10 kHz with
+//! the node's torque, and a gentle "operator" (a 20 N·m/rad, 2 N·m·s/rad impedance toward a
+//! 0.25 Hz, 0.4 rad sine) moves it so the telemetry shows motion.
+
+use super::sim_bus::SimDevice;
+use crate::model_file::ModelFile;
+use crate::plant::{Operator, Plant, PlantFile, State};
+use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
+use joint_core::canopen::CanFrame;
+use joint_core::params::{ParamId, RawParams};
+use std::path::PathBuf;
+
+/// Parameter storage of a simulated joint: in memory, or a model TOML file (the host-side
+/// stand-in for the board's flash).
+pub enum SimStorage {
+    Memory(MemoryStorage),
+    File(PathBuf),
+}
+
+impl ParamStorage for SimStorage {
+    fn save(&mut self, raw: &RawParams) -> Result<(), StorageError> {
+        match self {
+            SimStorage::Memory(m) => m.save(raw),
+            SimStorage::File(p) => {
+                let text = ModelFile::from_raw(raw, None, &[]).to_toml_string();
+                std::fs::write(p, text).map_err(|_| StorageError::Failed)
+            }
+        }
+    }
+    fn load(&mut self) -> Option<RawParams> {
+        match self {
+            SimStorage::Memory(m) => m.load(),
+            SimStorage::File(p) => ModelFile::read_file(p).ok()?.raw_params().ok(),
+        }
+    }
+    fn restore_defaults(&mut self) -> Result<(), StorageError> {
+        match self {
+            SimStorage::Memory(m) => m.restore_defaults(),
+            SimStorage::File(p) => match std::fs::remove_file(p) {
+                Ok(()) => Ok(()),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+                Err(_) => Err(StorageError::Failed),
+            },
+        }
+    }
+}
+
+const TICK_US: u64 = 1000;
+const PLANT_SUBSTEPS: u32 = 10;
+
+/// See the module documentation.
+pub struct JointSim {
+    pub node: Node<SimStorage>,
+    plant: Option<(Plant, State)>,
+    op: Operator,
+    last_us: Option<u64>,
+    qd_prev: f64,
+}
+
+impl JointSim {
+    pub fn new(node_id: u8, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
+        let node = Node::new(NodeConfig::new(node_id), storage, now_us);
+        let plant = plant.map(|pf| {
+            let limit = f64::from(node.params().get(ParamId::TorqueLimit));
+            (Plant::new(pf, 1.0e-3 / f64::from(PLANT_SUBSTEPS), limit.max(1.0)), State::default())
+        });
+        JointSim { node, plant, op: Operator { k: 20.0, b: 2.0, q_ref: 0.0, qd_ref: 0.0 }, last_us: None, qd_prev: 0.0 }
+    }
+
+    /// One control period at `now_us`: control step, plant, node timers.
+    pub fn step(&mut self, now_us: u64, out: &mut Vec<CanFrame>) {
+        let dt = self.last_us.map_or(TICK_US, |l| now_us.saturating_sub(l)).max(1) as f64 * 1e-6;
+        self.last_us = Some(now_us);
+        let (q, qd) = self.plant.as_ref().map_or((0.0, 0.0), |(_, x)| (x.q, x.qd));
+        let qdd = (qd - self.qd_prev) / dt;
+        self.qd_prev = qd;
+        let o = self.node.control(now_us, q as f32, qd as f32, qdd as f32, dt as f32);
+        if let Some((plant, x)) = self.plant.as_mut() {
+            let t = now_us as f64 * 1e-6;
+            let w = 2.0 * std::f64::consts::PI * 0.25;
+            self.op.q_ref = 0.4 * (w * t).sin();
+            self.op.qd_ref = 0.4 * w * (w * t).cos();
+            for k in 0..PLANT_SUBSTEPS {
+                *x = plant.step(t + f64::from(k) * plant.dt, x, f64::from(o.tau_out), &self.op, &[]);
+            }
+            if !x.q.is_finite() || !x.qd.is_finite() {
+                *x = State::default();
+            }
+            let tau_meas = -self.op.torque(x.q, x.qd);
+            self.node.set_measurements(tau_meas as f32, 30.0);
+        }
+        self.node.process(now_us, None, &mut |f| out.push(f));
+    }
+
+    pub fn receive(&mut self, now_us: u64, f: &CanFrame, out: &mut Vec<CanFrame>) {
+        self.node.process(now_us, Some(f), &mut |f| out.push(f));
+    }
+}
+
+impl SimDevice for JointSim {
+    fn on_frame(&mut self, t_us: u64, f: &CanFrame, out: &mut Vec<CanFrame>) {
+        self.receive(t_us, f, out);
+    }
+    fn tick(&mut self, t_us: u64, out: &mut Vec<CanFrame>) {
+        self.step(t_us, out);
+    }
+    fn period_us(&self) -> u64 {
+        TICK_US
+    }
+}

@@ -1,0 +1,275 @@
+//! The CANopen master side `jointctl` uses: SDO client (expedited and segmented), NMT,
+//! its own heartbeat (the joints' watchdogs need it), and a record of what it overheard
+//! (heartbeats, EMCYs, TPDOs) while waiting for answers.
+
+use super::{timing, Bus};
+use joint_core::canopen::node::{NmtState, DEFAULT_HOST_ID, EMCY_BASE, HEARTBEAT_BASE};
+use joint_core::canopen::sdo::{self, Abort};
+use joint_core::canopen::CanFrame;
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// Why an SDO transfer failed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SdoError {
+    #[error("node {node}: {index:04X}:{sub} aborted with 0x{code:08X} ({text})")]
+    Abort { node: u8, index: u16, sub: u8, code: u32, text: &'static str },
+    #[error("node {node}: {index:04X}:{sub}: no answer within {ms} ms")]
+    Timeout { node: u8, index: u16, sub: u8, ms: u64 },
+    #[error("node {node}: {index:04X}:{sub}: protocol error: {what}")]
+    Protocol { node: u8, index: u16, sub: u8, what: String },
+    #[error("bus: {0}")]
+    Io(String),
+}
+
+impl SdoError {
+    pub fn abort_code(&self) -> Option<u32> {
+        match self {
+            SdoError::Abort { code, .. } => Some(*code),
+            _ => None,
+        }
+    }
+}
+
+/// What the master last heard from a node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Seen {
+    pub state: Option<NmtState>,
+    pub last_us: u64,
+    pub heartbeats: u64,
+}
+
+/// See the module documentation.
+pub struct Master {
+    pub bus: Box<dyn Bus>,
+    pub host_id: u8,
+    /// own heartbeat period, µs (0 = none)
+    pub heartbeat_us: u64,
+    next_heartbeat_us: u64,
+    pub sdo_timeout: Duration,
+    pub seen: BTreeMap<u8, Seen>,
+    /// EMCYs overheard: (node, time µs, payload)
+    pub emcy: Vec<(u8, u64, Vec<u8>)>,
+    /// other frames overheard (TPDOs …), kept only when `keep_other`
+    pub other: Vec<(u64, CanFrame)>,
+    pub keep_other: bool,
+    /// SDO frames exchanged (requests and responses) and their bits on the wire
+    pub sdo_frames: u64,
+    pub sdo_bits: u64,
+}
+
+impl Master {
+    pub fn new(bus: Box<dyn Bus>) -> Master {
+        Master {
+            bus,
+            host_id: DEFAULT_HOST_ID,
+            heartbeat_us: 100_000,
+            next_heartbeat_us: 0,
+            sdo_timeout: Duration::from_millis(1000),
+            seen: BTreeMap::new(),
+            emcy: Vec::new(),
+            other: Vec::new(),
+            keep_other: false,
+            sdo_frames: 0,
+            sdo_bits: 0,
+        }
+    }
+
+    fn io(e: std::io::Error) -> SdoError {
+        SdoError::Io(e.to_string())
+    }
+
+    /// Send our heartbeat when due.
+    pub fn pump(&mut self) -> Result<(), SdoError> {
+        if self.heartbeat_us == 0 {
+            return Ok(());
+        }
+        let now = self.bus.now_us();
+        if now >= self.next_heartbeat_us {
+            if let Some(f) = CanFrame::new(HEARTBEAT_BASE + u16::from(self.host_id), &[0x05]) {
+                self.bus.send(&f).map_err(Self::io)?;
+            }
+            self.next_heartbeat_us = now + self.heartbeat_us;
+        }
+        Ok(())
+    }
+
+    /// Receive one frame (our heartbeat kept going meanwhile), recording what it says.
+    pub fn recv(&mut self, timeout: Duration) -> Result<Option<CanFrame>, SdoError> {
+        self.pump()?;
+        // Wait at most until our next heartbeat is due, so it keeps its period.
+        let slice = if self.heartbeat_us == 0 {
+            timeout
+        } else {
+            let left = self.next_heartbeat_us.saturating_sub(self.bus.now_us()).max(1);
+            timeout.min(Duration::from_micros(left))
+        };
+        let f = self.bus.recv(slice).map_err(Self::io)?;
+        if let Some(f) = &f {
+            self.observe(f);
+        }
+        Ok(f)
+    }
+
+    fn observe(&mut self, f: &CanFrame) {
+        let now = self.bus.now_us();
+        let id = f.id();
+        if (HEARTBEAT_BASE + 1..=HEARTBEAT_BASE + 127).contains(&id) && f.dlc() == 1 {
+            let node = (id - HEARTBEAT_BASE) as u8;
+            if node != self.host_id {
+                let e = self.seen.entry(node).or_insert(Seen { state: None, last_us: now, heartbeats: 0 });
+                e.state = f.data().first().and_then(|&b| NmtState::from_heartbeat_byte(b));
+                e.last_us = now;
+                e.heartbeats += 1;
+            }
+        } else if (EMCY_BASE + 1..=EMCY_BASE + 127).contains(&id) {
+            self.emcy.push(((id - EMCY_BASE) as u8, now, f.data().to_vec()));
+        } else if self.keep_other {
+            self.other.push((now, *f));
+        }
+    }
+
+    /// Listen for `d` (keeping our heartbeat going), recording what is heard.
+    pub fn listen(&mut self, d: Duration) -> Result<(), SdoError> {
+        let end = self.bus.now_us() + d.as_micros() as u64;
+        loop {
+            let now = self.bus.now_us();
+            if now >= end {
+                return Ok(());
+            }
+            self.recv(Duration::from_micros(end - now))?;
+        }
+    }
+
+    pub fn nmt(&mut self, node: u8, cs: u8) -> Result<(), SdoError> {
+        if let Some(f) = CanFrame::new(0, &[cs, node]) {
+            self.bus.send(&f).map_err(Self::io)?;
+        }
+        Ok(())
+    }
+
+    fn count(&mut self, f: &CanFrame) {
+        self.sdo_frames += 1;
+        self.sdo_bits += u64::from(timing::classic_bits(f.id(), f.data()));
+    }
+
+    /// One request, one response.
+    fn transact(&mut self, node: u8, index: u16, sub: u8, req: [u8; 8]) -> Result<[u8; 8], SdoError> {
+        let f = CanFrame::new(sdo::RX_BASE + u16::from(node), &req)
+            .ok_or_else(|| SdoError::Protocol { node, index, sub, what: "node id out of range".into() })?;
+        self.pump()?;
+        self.bus.send(&f).map_err(Self::io)?;
+        self.count(&f);
+        let start = self.bus.now_us();
+        let limit = self.sdo_timeout.as_micros() as u64;
+        let want = sdo::TX_BASE + u16::from(node);
+        loop {
+            let waited = self.bus.now_us().saturating_sub(start);
+            if waited >= limit {
+                return Err(SdoError::Timeout { node, index, sub, ms: limit / 1000 });
+            }
+            if let Some(r) = self.recv(Duration::from_micros(limit - waited))? {
+                if r.id() == want {
+                    self.count(&r);
+                    let mut d = [0u8; 8];
+                    for (x, y) in d.iter_mut().zip(r.data()) {
+                        *x = *y;
+                    }
+                    if d[0] == 0x80 {
+                        let code = u32::from_le_bytes([d[4], d[5], d[6], d[7]]);
+                        let text = Abort::from_code(code).map_or("unknown abort code", |a| a.describe());
+                        return Err(SdoError::Abort { node, index, sub, code, text });
+                    }
+                    return Ok(d);
+                }
+            }
+        }
+    }
+
+    fn abort(&mut self, node: u8, index: u16, sub: u8, a: Abort) {
+        if let Some(f) = CanFrame::new(sdo::RX_BASE + u16::from(node), &sdo::abort_payload(index, sub, a)) {
+            let _ = self.bus.send(&f);
+        }
+    }
+
+    /// SDO upload (read) of any length.
+    pub fn read(&mut self, node: u8, index: u16, sub: u8) -> Result<Vec<u8>, SdoError> {
+        let r = self.transact(node, index, sub, sdo::upload_request(index, sub))?;
+        let proto = |what: &str| SdoError::Protocol { node, index, sub, what: what.to_string() };
+        if r[0] >> 5 != 2 || u16::from_le_bytes([r[1], r[2]]) != index || r[3] != sub {
+            return Err(proto("unexpected response to upload request"));
+        }
+        if r[0] & 0x02 != 0 {
+            let n = if r[0] & 0x01 != 0 { 4 - ((r[0] >> 2) & 3) as usize } else { 4 };
+            return Ok(r[4..4 + n].to_vec());
+        }
+        let total = if r[0] & 0x01 != 0 { Some(u32::from_le_bytes([r[4], r[5], r[6], r[7]]) as usize) } else { None };
+        let mut out = Vec::with_capacity(total.unwrap_or(64));
+        let mut toggle = 0u8;
+        loop {
+            let s = self.transact(node, index, sub, [0x60 | (toggle << 4), 0, 0, 0, 0, 0, 0, 0])?;
+            if s[0] >> 5 != 0 || (s[0] >> 4) & 1 != toggle {
+                self.abort(node, index, sub, Abort::Toggle);
+                return Err(proto("bad upload segment (toggle or command)"));
+            }
+            let n = 7 - ((s[0] >> 1) & 7) as usize;
+            out.extend_from_slice(&s[1..1 + n]);
+            if s[0] & 1 != 0 {
+                break;
+            }
+            if out.len() > 1 << 20 {
+                self.abort(node, index, sub, Abort::TooLong);
+                return Err(proto("upload longer than 1 MiB"));
+            }
+            toggle ^= 1;
+        }
+        if total.is_some_and(|t| t != out.len()) {
+            return Err(proto("segmented upload length differs from the announced size"));
+        }
+        Ok(out)
+    }
+
+    /// SDO download (write): expedited up to 4 bytes, segmented above.
+    pub fn write(&mut self, node: u8, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoError> {
+        let proto = |what: &str| SdoError::Protocol { node, index, sub, what: what.to_string() };
+        if !data.is_empty() && data.len() <= 4 {
+            let r = self.transact(node, index, sub, sdo::expedited_download(index, sub, data))?;
+            if r[0] != 0x60 {
+                return Err(proto("unexpected response to download"));
+            }
+            return Ok(());
+        }
+        let r = self.transact(node, index, sub, sdo::segmented_download(index, sub, data.len() as u32))?;
+        if r[0] != 0x60 {
+            return Err(proto("unexpected response to download"));
+        }
+        let mut toggle = 0u8;
+        let chunks: Vec<&[u8]> = if data.is_empty() { vec![&[][..]] } else { data.chunks(7).collect() };
+        for (i, c) in chunks.iter().enumerate() {
+            let last = i + 1 == chunks.len();
+            let mut d = [0u8; 8];
+            d[0] = (toggle << 4) | (((7 - c.len()) as u8) << 1) | u8::from(last);
+            d[1..1 + c.len()].copy_from_slice(c);
+            let r = self.transact(node, index, sub, d)?;
+            if r[0] != 0x20 | (toggle << 4) {
+                self.abort(node, index, sub, Abort::Toggle);
+                return Err(proto("bad download segment response"));
+            }
+            toggle ^= 1;
+        }
+        Ok(())
+    }
+
+    pub fn read_u32(&mut self, node: u8, index: u16, sub: u8) -> Result<u32, SdoError> {
+        let v = self.read(node, index, sub)?;
+        let mut b = [0u8; 4];
+        for (x, y) in b.iter_mut().zip(&v) {
+            *x = *y;
+        }
+        Ok(u32::from_le_bytes(b))
+    }
+
+    pub fn read_string(&mut self, node: u8, index: u16, sub: u8) -> Result<String, SdoError> {
+        Ok(String::from_utf8_lossy(&self.read(node, index, sub)?).into_owned())
+    }
+}

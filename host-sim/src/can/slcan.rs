@@ -1,0 +1,162 @@
+//! Lawicel / slcan: CAN frames as ASCII lines over a serial port, as spoken by CANable,
+//! CANtact, USBtin and most USB–CAN adapters (and by python-can's `slcan` interface).
+//!
+//! `tIIILDD…\r` is a standard data frame (3 hex digits id, 1 digit length, 2 hex digits per
+//! byte); `T` extended, `r`/`R` remote frames (ignored: the node serves none). Commands
+//! (`S8\r` 1 Mbit/s, `O\r` open, `C\r` close, `V\r` version …) are answered with `\r` by an
+//! adapter; when the other end is another program on a `socat` pty pair the commands it sends
+//! are simply ignored here, and adapter acknowledgements (`z\r`, `\r`, BEL) are skipped when
+//! reading. A reader thread turns lines into frames, so `recv` can wait with a timeout.
+
+use super::Bus;
+use joint_core::canopen::CanFrame;
+use std::io::{Read, Write};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+/// `S` code of a bitrate.
+pub fn bitrate_code(bitrate: u32) -> Option<u8> {
+    match bitrate {
+        10_000 => Some(0),
+        20_000 => Some(1),
+        50_000 => Some(2),
+        100_000 => Some(3),
+        125_000 => Some(4),
+        250_000 => Some(5),
+        500_000 => Some(6),
+        800_000 => Some(7),
+        1_000_000 => Some(8),
+        _ => None,
+    }
+}
+
+/// The slcan line of a frame, `\r` included.
+pub fn encode(f: &CanFrame) -> String {
+    let mut s = format!("t{:03X}{}", f.id(), f.dlc());
+    for b in f.data() {
+        s.push_str(&format!("{b:02X}"));
+    }
+    s.push('\r');
+    s
+}
+
+/// A frame from one received line (without its `\r`); `None` for anything that is not a
+/// well-formed standard data frame (commands, acknowledgements, extended or remote frames,
+/// garbage). Trailing timestamp digits (`Z1` mode) are ignored.
+pub fn decode(line: &str) -> Option<CanFrame> {
+    let b = line.as_bytes();
+    if b.first() != Some(&b't') || b.len() < 5 {
+        return None;
+    }
+    let id = u16::from_str_radix(line.get(1..4)?, 16).ok()?;
+    let len = (*b.get(4)? as char).to_digit(10)? as usize;
+    if len > 8 {
+        return None;
+    }
+    let mut data = [0u8; 8];
+    for (k, d) in data.iter_mut().enumerate().take(len) {
+        *d = u8::from_str_radix(line.get(5 + 2 * k..7 + 2 * k)?, 16).ok()?;
+    }
+    CanFrame::new(id, data.get(..len)?)
+}
+
+/// An slcan adapter (or pty) as a [`Bus`].
+pub struct SlcanBus {
+    port: Box<dyn serialport::SerialPort>,
+    rx: Receiver<CanFrame>,
+    t0: Instant,
+    path: String,
+}
+
+impl SlcanBus {
+    pub fn open(path: &str, bitrate: u32) -> anyhow::Result<SlcanBus> {
+        let code = bitrate_code(bitrate).ok_or_else(|| anyhow::anyhow!("slcan: unsupported bitrate {bitrate}"))?;
+        let mut port = serialport::new(path, 115_200)
+            .timeout(Duration::from_millis(50))
+            .open()
+            .map_err(|e| anyhow::anyhow!("slcan: cannot open {path}: {e}"))?;
+        // Close (in case it was open), set the bitrate, open. An adapter answers each with \r;
+        // a peer program ignores them.
+        port.write_all(format!("C\rS{code}\rO\r").as_bytes()).map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
+        let mut reader = port.try_clone().map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = Vec::with_capacity(32);
+            let mut buf = [0u8; 256];
+            loop {
+                match reader.read(&mut buf) {
+                    Ok(0) => std::thread::sleep(Duration::from_millis(1)),
+                    Ok(n) => {
+                        for &c in buf.iter().take(n) {
+                            if c == b'\r' || c == b'\n' || c == 0x07 {
+                                if let Some(f) = std::str::from_utf8(&line).ok().and_then(decode) {
+                                    if tx.send(f).is_err() {
+                                        return;
+                                    }
+                                }
+                                line.clear();
+                            } else if line.len() < 64 {
+                                line.push(c);
+                            } else {
+                                // an endless line is garbage: drop it
+                                line.clear();
+                            }
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(_) => return,
+                }
+            }
+        });
+        Ok(SlcanBus { port, rx, t0: Instant::now(), path: path.to_string() })
+    }
+}
+
+impl Bus for SlcanBus {
+    fn send(&mut self, f: &CanFrame) -> std::io::Result<()> {
+        self.port.write_all(encode(f).as_bytes())
+    }
+
+    fn recv(&mut self, timeout: Duration) -> std::io::Result<Option<CanFrame>> {
+        match self.rx.recv_timeout(timeout) {
+            Ok(f) => Ok(Some(f)),
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => {
+                Err(std::io::Error::new(std::io::ErrorKind::BrokenPipe, format!("slcan: {} closed", self.path)))
+            }
+        }
+    }
+
+    fn now_us(&self) -> u64 {
+        self.t0.elapsed().as_micros() as u64
+    }
+
+    fn describe(&self) -> String {
+        format!("slcan on {}", self.path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn encode_decode_round_trip() {
+        let f = CanFrame::new(0x605, &[0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0]).unwrap();
+        let s = encode(&f);
+        assert_eq!(s, "t60584018100100000000\r");
+        assert_eq!(decode(s.trim_end_matches('\r')), Some(f));
+        assert_eq!(decode("t7050"), CanFrame::new(0x705, &[]));
+        assert_eq!(decode("t70517F"), CanFrame::new(0x705, &[0x7F]));
+    }
+
+    #[test]
+    fn garbage_lines_are_not_frames() {
+        for l in ["", "z", "S8", "O", "T12345678100", "r1230", "t12", "t1239", "t123200", "tXYZ0", "t12320G00"] {
+            assert_eq!(decode(l), None, "{l:?}");
+        }
+        // trailing timestamp is ignored
+        assert_eq!(decode("t12310012AB"), CanFrame::new(0x123, &[0x00]));
+    }
+}

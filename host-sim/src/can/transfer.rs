@@ -1,0 +1,220 @@
+//! Parameter sets over SDO: `push` (stage every value, read it back, commit as a whole,
+//! optionally save) and `pull` (read the set back into a `RawParams`).
+//!
+//! The push is one SDO transfer after another (CiA 301 allows one transfer per server at a
+//! time): scalar values are expedited (request + response, 2 frames each); the gravity table
+//! goes as its shape bytes and three segmented DOMAIN transfers. Nothing runs on the joint
+//! until the commit object is written, and the node checks the whole staged set then, so a
+//! push cut off anywhere before the commit leaves the old set running (the staged changes stay
+//! pending: `params_pending` = 1, discarded by the next push or by writing 0 to the commit
+//! object).
+
+use super::master::{Master, SdoError};
+use joint_core::canopen::node::NMT_PRE_OPERATIONAL;
+use joint_core::canopen::od;
+use joint_core::canopen::sdo::Abort;
+use joint_core::params::{ParamId, RawParams, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
+
+/// One step of a push, for progress bars.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Progress {
+    pub done: usize,
+    pub total: usize,
+    pub what: String,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PushOptions {
+    /// send NMT pre-operational first (needed to change safety-relevant parameters)
+    pub pre_operational: bool,
+    /// persist the committed set (0x1010 "save")
+    pub save: bool,
+}
+
+/// What a push did, with the figures for the performance check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PushReport {
+    pub sdo_transfers: usize,
+    pub frames: u64,
+    /// bits of those frames on the wire, stuffing and intermission included
+    pub bits: u64,
+    /// bus-clock time from the first request to the last response, µs
+    pub elapsed_us: u64,
+    pub saved: bool,
+}
+
+enum Op {
+    Write { index: u16, sub: u8, data: Vec<u8>, what: String, safety: bool },
+    Verify { index: u16, sub: u8, data: Vec<u8>, what: String },
+    Commit,
+    Save,
+}
+
+fn f32s(v: impl Iterator<Item = f32>) -> Vec<u8> {
+    v.flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn table_ops(t: &RawTable) -> Vec<(u16, u8, Vec<u8>, String)> {
+    let mut v = Vec::new();
+    let shape = |s: u8, b: u8, w: &str| (od::TABLE_SHAPE, s, vec![b], format!("gravity_table_shape.{w}"));
+    v.push(shape(1, t.n_axes, "n_axes"));
+    for a in 0..AXES_MAX {
+        v.push(shape(2 + a as u8, t.axis_source[a], &format!("axis_source_{a}")));
+        v.push(shape(6 + a as u8, t.points[a], &format!("points_{a}")));
+    }
+    v.push(shape(10, u8::from(t.has_sigma), "has_sigma"));
+    if t.n_axes > 0 {
+        let n = (t.n_axes as usize).min(AXES_MAX);
+        let cells = t.cells().min(CELLS_MAX);
+        v.push((od::TABLE_GRID, 0, f32s(t.grid.iter().take(n).flat_map(|r| r.iter().copied())), "gravity_table_grid".into()));
+        v.push((od::TABLE_TORQUE, 0, f32s(t.torque.iter().take(cells).copied()), "gravity_table_torque".into()));
+        if t.has_sigma {
+            v.push((od::TABLE_SIGMA, 0, f32s(t.sigma.iter().take(cells).copied()), "gravity_table_sigma".into()));
+        }
+    }
+    v
+}
+
+/// Push `raw` to `node`. `progress` is called after every SDO transfer.
+pub fn push(
+    m: &mut Master,
+    node: u8,
+    raw: &RawParams,
+    opts: PushOptions,
+    progress: &mut dyn FnMut(&Progress),
+) -> anyhow::Result<PushReport> {
+    let mut ops = Vec::new();
+    for d in PARAMS.iter() {
+        let data = raw.get(d.id).to_le_bytes().to_vec();
+        ops.push(Op::Write { index: od::PARAM_BASE + d.id.index() as u16, sub: 0, data, what: d.name.to_string(), safety: d.safety });
+    }
+    let table = table_ops(&raw.table);
+    for (index, sub, data, what) in &table {
+        ops.push(Op::Write { index: *index, sub: *sub, data: data.clone(), what: what.clone(), safety: false });
+    }
+    for d in PARAMS.iter() {
+        let data = raw.get(d.id).to_le_bytes().to_vec();
+        ops.push(Op::Verify { index: od::PARAM_BASE + d.id.index() as u16, sub: 0, data, what: d.name.to_string() });
+    }
+    for (index, sub, data, what) in table {
+        ops.push(Op::Verify { index, sub, data, what });
+    }
+    ops.push(Op::Commit);
+    if opts.save {
+        ops.push(Op::Save);
+    }
+
+    if opts.pre_operational {
+        m.nmt(node, NMT_PRE_OPERATIONAL)?;
+    }
+    let frames0 = m.sdo_frames;
+    let bits0 = m.sdo_bits;
+    let t0 = m.bus.now_us();
+    let total = ops.len();
+    let mut transfers = 0usize;
+    for (k, op) in ops.into_iter().enumerate() {
+        let what = match op {
+            Op::Write { index, sub, data, what, safety } => {
+                transfers += 1;
+                match m.write(node, index, sub, &data) {
+                    Ok(()) => {}
+                    Err(e) if safety && e.abort_code() == Some(Abort::DeviceState.code()) => {
+                        // Refused because the node is not pre-operational: fine if the value is
+                        // already the one we want (checked by the read-back), else say how.
+                        transfers += 1;
+                        let cur = m.read(node, index, sub)?;
+                        if cur != data {
+                            anyhow::bail!(
+                                "node {node}: {what} is safety-relevant and differs ({} → {}); it can only change in pre-operational: push again with --pre-operational",
+                                f32::from_le_bytes(cur.get(..4).and_then(|b| b.try_into().ok()).unwrap_or([0; 4])),
+                                f32::from_le_bytes(data.get(..4).and_then(|b| b.try_into().ok()).unwrap_or([0; 4]))
+                            );
+                        }
+                    }
+                    Err(e) => return Err(anyhow::anyhow!("staging {what}: {e}")),
+                }
+                what
+            }
+            Op::Verify { index, sub, data, what } => {
+                transfers += 1;
+                let back = m.read(node, index, sub).map_err(|e| anyhow::anyhow!("reading back {what}: {e}"))?;
+                if back != data {
+                    anyhow::bail!("node {node}: {what} reads back {back:02X?}, {data:02X?} was written");
+                }
+                what
+            }
+            Op::Commit => {
+                transfers += 1;
+                if let Err(e) = m.write(node, od::COMMIT, 0, &[1]) {
+                    let why = m.read_string(node, od::COMMIT_ERROR, 3).unwrap_or_default();
+                    anyhow::bail!("node {node} refused the parameter set, the old set stays in force: {why} ({e})");
+                }
+                "commit".to_string()
+            }
+            Op::Save => {
+                transfers += 1;
+                m.write(node, od::STORE_PARAMETERS, 1, &od::SAVE_SIGNATURE.to_le_bytes())
+                    .map_err(|e| anyhow::anyhow!("save: {e}"))?;
+                "save".to_string()
+            }
+        };
+        progress(&Progress { done: k + 1, total, what });
+    }
+    Ok(PushReport {
+        sdo_transfers: transfers,
+        frames: m.sdo_frames - frames0,
+        bits: m.sdo_bits - bits0,
+        elapsed_us: m.bus.now_us() - t0,
+        saved: opts.save,
+    })
+}
+
+fn f32_at(b: &[u8], i: usize) -> f32 {
+    b.get(4 * i..4 * i + 4).and_then(|s| s.try_into().ok()).map_or(0.0, f32::from_le_bytes)
+}
+
+/// Read the node's parameter set (the staged values, which equal the running ones unless
+/// `pending`). Returns the set and whether staged changes are pending.
+pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
+    let mut raw = RawParams::defaults();
+    for i in 0..PARAM_COUNT {
+        let Some(id) = ParamId::from_index(i) else { continue };
+        let b = m.read(node, od::PARAM_BASE + i as u16, 0)?;
+        raw.set(id, f32_at(&b, 0));
+    }
+    let mut t = RawTable::EMPTY;
+    let byte = |m: &mut Master, s: u8| -> Result<u8, SdoError> { Ok(m.read(node, od::TABLE_SHAPE, s)?.first().copied().unwrap_or(0)) };
+    t.n_axes = byte(m, 1)?;
+    if t.n_axes > 0 {
+        for a in 0..AXES_MAX {
+            t.axis_source[a] = byte(m, 2 + a as u8)?;
+            t.points[a] = byte(m, 6 + a as u8)?;
+        }
+        t.has_sigma = byte(m, 10)? == 1;
+        let g = m.read(node, od::TABLE_GRID, 0)?;
+        for a in 0..AXES_MAX {
+            for k in 0..AXIS_POINTS_MAX {
+                t.grid[a][k] = f32_at(&g, a * AXIS_POINTS_MAX + k);
+            }
+        }
+        let tq = m.read(node, od::TABLE_TORQUE, 0)?;
+        for (k, x) in t.torque.iter_mut().enumerate() {
+            *x = f32_at(&tq, k);
+        }
+        if t.has_sigma {
+            let s = m.read(node, od::TABLE_SIGMA, 0)?;
+            for (k, x) in t.sigma.iter_mut().enumerate() {
+                *x = f32_at(&s, k);
+            }
+        }
+    }
+    raw.table = t;
+    let pending = m.read(node, od::PENDING, 0)?.first().copied().unwrap_or(0) == 1;
+    Ok((raw, pending))
+}
+
+/// The wire-time minimum of a push's SDO frames at `bitrate`, µs.
+pub fn wire_minimum_us(r: &PushReport, bitrate: u32) -> f64 {
+    r.bits as f64 * 1e6 / f64::from(bitrate.max(1))
+}

@@ -1,0 +1,57 @@
+//! `jointctl pull`: read a joint's parameter set into a model TOML.
+
+use super::bus_args::{check_node, open_master, BusArgs};
+use crate::can::transfer;
+use crate::model_file::ModelFile;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Read a joint node's parameters (scalars and gravity table) into a model TOML.
+///
+/// Example:
+///   jointctl pull --node 5 --bus slcan:/dev/ttyACM0 --out joint5.toml
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+pub struct PullArgs {
+    #[arg(long)]
+    pub node: u8,
+    /// Model TOML to write
+    #[arg(long, value_name = "MODEL.toml")]
+    pub out: PathBuf,
+    /// `name` written into the model
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Names of the other joints' angle columns for gravity-table axes 1..=3 (`q_hip,q_knee`)
+    #[arg(long, value_delimiter = ',')]
+    pub others: Vec<String>,
+    /// Print one JSON object (the values) instead of the human summary
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub bus: BusArgs,
+}
+
+pub fn run(a: &PullArgs) -> anyhow::Result<()> {
+    check_node(a.node)?;
+    let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    let (raw, pending) = transfer::pull(&mut m, a.node)?;
+    if pending {
+        eprintln!("warning: node {} has staged changes not committed; the file holds the staged values", a.node);
+    }
+    let mf = ModelFile::from_raw(&raw, a.name.as_deref(), &a.others);
+    std::fs::write(&a.out, mf.to_toml_string()).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", a.out.display()))?;
+    if a.json {
+        let values: serde_json::Map<String, serde_json::Value> = joint_core::params::PARAMS
+            .iter()
+            .map(|d| (d.name.to_string(), serde_json::json!(raw.get(d.id))))
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"node": a.node, "out": a.out.display().to_string(), "pending": pending,
+                "table_axes": raw.table.n_axes, "values": values})
+        );
+    } else {
+        println!("pulled node {} into {}{}", a.node, a.out.display(), if pending { " (staged values)" } else { "" });
+    }
+    Ok(())
+}

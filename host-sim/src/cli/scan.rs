@@ -1,0 +1,55 @@
+//! `jointctl scan`: find the nodes on a bus by their heartbeats.
+
+use super::bus_args::{open_master, BusArgs};
+use clap::Args;
+use joint_core::canopen::od;
+use std::time::Duration;
+
+/// List the CANopen nodes on the bus (by heartbeat), with their NMT state, device name and
+/// identity.
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// How long to listen, seconds (heartbeats come every 0.1 s from our joints; other
+    /// devices often use 1 s)
+    #[arg(long, default_value_t = 1.5)]
+    pub seconds: f64,
+    /// Node ids of the simulated joints on --bus sim
+    #[arg(long = "sim-node", default_values_t = [1u8, 2])]
+    pub sim_nodes: Vec<u8>,
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub bus: BusArgs,
+}
+
+pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
+    let (mut m, _sim) = open_master(&a.bus, &a.sim_nodes)?;
+    m.listen(Duration::from_secs_f64(a.seconds.max(0.0)))?;
+    let mut rows = Vec::new();
+    let seen: Vec<(u8, _)> = m.seen.iter().map(|(k, v)| (*k, *v)).collect();
+    for (node, s) in seen {
+        let name = m.read_string(node, od::DEVICE_NAME, 0).ok();
+        let ident: Vec<Option<u32>> = (1..=4).map(|k| m.read_u32(node, od::IDENTITY, k).ok()).collect();
+        rows.push(serde_json::json!({
+            "node": node,
+            "state": s.state.map(|x| x.name()),
+            "heartbeats": s.heartbeats,
+            "device_name": name,
+            "vendor_id": ident[0], "product_code": ident[1], "revision": ident[2], "serial": ident[3],
+        }));
+    }
+    if a.json {
+        println!("{}", serde_json::json!({"bus": m.bus.describe(), "nodes": rows}));
+    } else {
+        println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", "node", "state", "name", "product", "revision");
+        for r in &rows {
+            let s = |k: &str| r[k].as_str().unwrap_or("?").to_string();
+            let h = |k: &str| r[k].as_u64().map_or("?".to_string(), |v| format!("0x{v:08X}"));
+            println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", r["node"], s("state"), s("device_name"), h("product_code"), h("revision"));
+        }
+        if rows.is_empty() {
+            println!("no node heard on {} in {:.1} s", m.bus.describe(), a.seconds);
+        }
+    }
+    Ok(())
+}

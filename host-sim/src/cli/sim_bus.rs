@@ -1,0 +1,132 @@
+//! `jointctl sim`: serve simulated joints (the core's CANopen node + host-sim's plant) on a
+//! real bus, so any CANopen master can talk to them.
+
+use crate::can::joint::{JointSim, SimStorage};
+use crate::can::{self, BusSpec};
+use crate::plant::PlantFile;
+use clap::Args;
+use joint_core::canopen::node::MemoryStorage;
+use joint_core::canopen::CanFrame;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Serve simulated joints on a CAN bus until stopped (Ctrl-C, SIGTERM or --seconds).
+///
+/// Each joint runs the firmware core's CANopen node, controller and watchdog at 1 kHz on the
+/// wall clock; with --plant the joint moves as that plant (else it is held at rest).
+///
+/// Example (a python-canopen master on the other end of a pty pair):
+///   socat -d -d pty,raw,echo=0,link=/tmp/canA pty,raw,echo=0,link=/tmp/canB &
+///   jointctl sim --bus slcan:/tmp/canB --node 5 --plant examples/plants/trunk-right.toml
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+pub struct SimArgs {
+    /// slcan:PATH[@BITRATE] or socketcan:IFACE
+    #[arg(long, value_name = "BUS")]
+    pub bus: BusSpec,
+    /// Node id of a simulated joint; repeat for several
+    #[arg(long = "node", required = true)]
+    pub nodes: Vec<u8>,
+    /// Plant TOML the joints move as (default: held at rest)
+    #[arg(long, value_name = "PLANT.toml")]
+    pub plant: Option<PathBuf>,
+    /// Stop after this many seconds
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Directory for the joints' stored parameters (node-N.toml), the stand-in for flash;
+    /// default: in memory
+    #[arg(long, value_name = "DIR")]
+    pub store_dir: Option<PathBuf>,
+    /// Print a JSON summary at the end
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: &SimArgs) -> anyhow::Result<()> {
+    for &n in &a.nodes {
+        super::bus_args::check_node(n)?;
+        if a.nodes.iter().filter(|&&m| m == n).count() > 1 {
+            anyhow::bail!("node id {n} given twice");
+        }
+    }
+    if a.bus == BusSpec::Sim {
+        anyhow::bail!("`jointctl sim` serves joints to other programs: give a real bus (slcan:PATH or socketcan:IFACE); the in-process bus is what push/pull/scan use with --bus sim");
+    }
+    let plant = a.plant.as_ref().map(|p| PlantFile::read_file(p)).transpose()?;
+    let mut bus = can::open(&a.bus)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))?;
+    }
+    let now0 = bus.now_us();
+    let mut joints: Vec<JointSim> = a
+        .nodes
+        .iter()
+        .map(|&n| {
+            let storage = match &a.store_dir {
+                Some(d) => SimStorage::File(d.join(format!("node-{n}.toml"))),
+                None => SimStorage::Memory(MemoryStorage::default()),
+            };
+            JointSim::new(n, plant.as_ref(), storage, now0)
+        })
+        .collect();
+    eprintln!(
+        "serving joint node(s) {:?} on {} (Ctrl-C to stop)",
+        a.nodes,
+        bus.describe()
+    );
+    let end_us = a.seconds.map(|s| now0 + (s * 1e6) as u64);
+    let mut next_tick = now0;
+    let (mut rx_frames, mut tx_frames) = (0u64, 0u64);
+    let mut out: Vec<(usize, CanFrame)> = Vec::new();
+    let mut buf = Vec::new();
+    while !stop.load(Ordering::SeqCst) {
+        let now = bus.now_us();
+        if end_us.is_some_and(|e| now >= e) {
+            break;
+        }
+        if now >= next_tick {
+            for (i, j) in joints.iter_mut().enumerate() {
+                j.step(now, &mut buf);
+                out.extend(buf.drain(..).map(|f| (i, f)));
+            }
+            next_tick += 1000;
+            if next_tick + 100_000 < now {
+                // fell far behind (suspended?): do not replay the backlog
+                next_tick = now + 1000;
+            }
+        } else if let Some(f) = bus.recv(Duration::from_micros(next_tick - now))? {
+            rx_frames += 1;
+            let t = bus.now_us();
+            for (i, j) in joints.iter_mut().enumerate() {
+                j.receive(t, &f, &mut buf);
+                out.extend(buf.drain(..).map(|f| (i, f)));
+            }
+        }
+        // Send, and let the other local joints hear it as they would on a wire.
+        while !out.is_empty() {
+            let batch: Vec<(usize, CanFrame)> = std::mem::take(&mut out);
+            for (src, f) in batch {
+                bus.send(&f)?;
+                tx_frames += 1;
+                let t = bus.now_us();
+                for (i, j) in joints.iter_mut().enumerate() {
+                    if i != src {
+                        j.receive(t, &f, &mut buf);
+                        out.extend(buf.drain(..).map(|f| (i, f)));
+                    }
+                }
+            }
+        }
+    }
+    let secs = (bus.now_us() - now0) as f64 * 1e-6;
+    if a.json {
+        println!("{}", serde_json::json!({"nodes": a.nodes, "seconds": secs, "frames_received": rx_frames, "frames_sent": tx_frames}));
+    } else {
+        eprintln!("stopped after {secs:.1} s: {rx_frames} frames received, {tx_frames} sent");
+    }
+    Ok(())
+}
