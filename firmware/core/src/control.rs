@@ -14,7 +14,23 @@
 use crate::math;
 use crate::model::INPUT_LIMITS;
 use crate::params::{ParamId, ParamSet};
-use crate::table::{self, AXES_MAX};
+use crate::table;
+
+/// Largest host assist command accepted as is, N·m (larger finite values are clamped to it).
+const CMD_MAX: f32 = 1.0e6;
+/// Longest step accepted, s; a longer or non-finite dt freezes the rate limiter for a step.
+const DT_MAX: f32 = 1.0;
+const Q_BITS: u32 = INPUT_LIMITS.q.to_bits();
+const QD_BITS: u32 = INPUT_LIMITS.qd.to_bits();
+const QDD_BITS: u32 = INPUT_LIMITS.qdd.to_bits();
+const CMD_BITS: u32 = CMD_MAX.to_bits();
+const DT_MAX_BITS: u32 = DT_MAX.to_bits();
+
+/// `|x| ≤ limit` for a positive finite limit given as bits; false for NaN and ±∞. Branch-free.
+#[inline(always)]
+fn within(x: f32, limit_bits: u32) -> bool {
+    (x.to_bits() & 0x7fff_ffff) <= limit_bits
+}
 
 /// What the joint is asked to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,15 +87,11 @@ pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
     if t.n_axes == 0 {
         return w;
     }
-    let mut x = [0.0f32; AXES_MAX];
-    for (axis, xi) in x.iter_mut().enumerate().take(t.n_axes as usize) {
-        let src = t.axis_source.get(axis).copied().unwrap_or(0) as usize;
-        *xi = if src == 0 { q } else { others.get(src - 1).copied().unwrap_or(0.0) };
-    }
-    let tau_t = table::interpolate(t, &t.torque, &x);
     let sigma_m = p.get(ParamId::TableSigmaModel);
-    if sigma_m > 0.0 {
-        let sigma_t = table::interpolate(t, &t.sigma, &x);
+    let fused = sigma_m > 0.0;
+    let [o0, o1, o2] = *others;
+    let (tau_t, sigma_t) = p.lut().eval_sources(t, &[q, o0, o1, o2], fused);
+    if fused {
         table::fuse(w, sigma_m, tau_t, sigma_t, p.get(ParamId::TableClampK))
     } else {
         w + tau_t
@@ -118,63 +130,97 @@ impl Controller {
 
     /// One control step of length `dt` seconds.
     pub fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
-        let finite = math::is_finite(inp.q)
+        let dt = if dt > 0.0 && within(dt, DT_MAX_BITS) { dt } else { 0.0 };
+        let limit = p.get(ParamId::TorqueLimit);
+
+        // Fast path: one integer compare per input proves it finite and inside the limits
+        // (|x|'s bit pattern orders like |x|, and NaN/∞ sort above every finite limit).
+        let [o0, o1, o2] = inp.others;
+        let in_range = within(inp.q, Q_BITS)
+            & within(inp.qd, QD_BITS)
+            & within(inp.qdd, QDD_BITS)
+            & within(o0, Q_BITS)
+            & within(o1, Q_BITS)
+            & within(o2, Q_BITS)
+            & within(inp.assist_cmd, CMD_BITS);
+        let sane = if in_range {
+            Some(*inp)
+        } else if math::is_finite(inp.q)
             && math::is_finite(inp.qd)
             && math::is_finite(inp.qdd)
             && math::is_finite(inp.assist_cmd)
-            && inp.others.iter().all(|&o| math::is_finite(o));
-        let dt = if math::is_finite(dt) && dt > 0.0 { math::clamp(dt, 0.0, 1.0) } else { 0.0 };
-        let limit = p.get(ParamId::TorqueLimit);
-
-        let mut out = Output { bad_input: !finite, ..Output::default() };
-        let target = if !finite {
-            self.integ = 0.0;
-            0.0
+            && inp.others.iter().all(|&o| math::is_finite(o))
+        {
+            let lim = &INPUT_LIMITS;
+            Some(Input {
+                q: math::clamp(inp.q, -lim.q, lim.q),
+                qd: math::clamp(inp.qd, -lim.qd, lim.qd),
+                qdd: math::clamp(inp.qdd, -lim.qdd, lim.qdd),
+                others: [
+                    math::clamp(o0, -lim.q, lim.q),
+                    math::clamp(o1, -lim.q, lim.q),
+                    math::clamp(o2, -lim.q, lim.q),
+                ],
+                assist_cmd: math::clamp(inp.assist_cmd, -CMD_MAX, CMD_MAX),
+            })
         } else {
-            let q = math::clamp(inp.q, -INPUT_LIMITS.q, INPUT_LIMITS.q);
-            let qd = math::clamp(inp.qd, -INPUT_LIMITS.qd, INPUT_LIMITS.qd);
-            let qdd = math::clamp(inp.qdd, -INPUT_LIMITS.qdd, INPUT_LIMITS.qdd);
-            let mut others = [0.0f32; 3];
-            for (o, i) in others.iter_mut().zip(inp.others.iter()) {
-                *o = math::clamp(*i, -INPUT_LIMITS.q, INPUT_LIMITS.q);
+            None
+        };
+
+        let mut out = Output { bad_input: sane.is_none(), ..Output::default() };
+        let target = match sane {
+            None => {
+                self.integ = 0.0;
+                0.0
             }
-            let assist_cmd = math::clamp(inp.assist_cmd, -limit, limit);
-            let c_c = disturbance(p, q, qd, qdd, &others);
-            out.c_c = c_c;
-            match mode {
-                Mode::Off => {
-                    self.integ = 0.0;
-                    0.0
-                }
-                Mode::Assist => {
-                    self.integ = 0.0;
-                    let assist = p.get(ParamId::AssistK) * q + assist_cmd;
-                    out.assist = assist;
-                    assist + p.get(ParamId::Fraction) * c_c
-                }
-                Mode::Velocity(v) => {
-                    let v = if math::is_finite(v) { math::clamp(v, -INPUT_LIMITS.qd, INPUT_LIMITS.qd) } else { 0.0 };
-                    let t = p.terms();
-                    let err = v - qd;
-                    // Anti-windup: the integrator alone can never ask for more than the limit.
-                    self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
-                    let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v);
-                    p.get(ParamId::VelKp) * err + self.integ + ff
-                }
-                Mode::Position(x) => {
-                    self.integ = 0.0;
-                    let x = if math::is_finite(x) { math::clamp(x, -INPUT_LIMITS.q, INPUT_LIMITS.q) } else { q };
-                    let t = p.terms();
-                    let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0);
-                    p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
+            Some(Input { q, qd, qdd, others, assist_cmd }) => {
+                let c_c = disturbance(p, q, qd, qdd, &others);
+                out.c_c = c_c;
+                match mode {
+                    Mode::Off => {
+                        self.integ = 0.0;
+                        0.0
+                    }
+                    Mode::Assist => {
+                        self.integ = 0.0;
+                        let assist = p.get(ParamId::AssistK) * q + assist_cmd;
+                        out.assist = assist;
+                        assist + p.get(ParamId::Fraction) * c_c
+                    }
+                    Mode::Velocity(v) => {
+                        let v = if math::is_finite(v) { math::clamp(v, -INPUT_LIMITS.qd, INPUT_LIMITS.qd) } else { 0.0 };
+                        let t = p.terms();
+                        let err = v - qd;
+                        // Anti-windup: the integrator alone can never ask for more than the limit.
+                        self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
+                        let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v);
+                        p.get(ParamId::VelKp) * err + self.integ + ff
+                    }
+                    Mode::Position(x) => {
+                        self.integ = 0.0;
+                        let x = if math::is_finite(x) { math::clamp(x, -INPUT_LIMITS.q, INPUT_LIMITS.q) } else { q };
+                        let t = p.terms();
+                        let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0);
+                        p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
+                    }
                 }
             }
         };
 
         let limited_target = math::clamp(target, -limit, limit);
         let step_max = p.get(ParamId::RateLimit) * dt;
-        let delta = math::clamp(limited_target - self.prev_tau, -step_max, step_max);
-        let tau = math::clamp(self.prev_tau + delta, -limit, limit);
+        // The previous output and the limited target both lie within ±limit, and a rate-limited
+        // step stops short of the target (rounding to nearest cannot cross a representable
+        // bound), so the result needs no second clamp.
+        let up = self.prev_tau + step_max;
+        let down = self.prev_tau - step_max;
+        let tau = if limited_target > up {
+            up
+        } else if limited_target < down {
+            down
+        } else {
+            limited_target
+        };
         out.limited = limited_target != target || tau != limited_target;
         self.prev_tau = tau;
         out.tau_out = tau;

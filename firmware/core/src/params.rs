@@ -11,7 +11,7 @@
 use crate::math;
 use crate::model::{Friction, Spring, Terms, Weight};
 pub use crate::table::RawTable;
-use crate::table::{self, TableError};
+use crate::table::{self, Lut, TableError};
 
 /// Identifier of a scalar parameter; its value is the index into [`PARAMS`] and into
 /// [`RawParams::values`], and the CANopen sub-index base of its manufacturer object.
@@ -298,6 +298,8 @@ pub struct ParamSet {
     terms: Terms,
     /// 1/(N − 1), precomputed for the control step
     inv_ratio_m1: f32,
+    /// the gravity table's precomputed lookup data
+    lut: Lut,
 }
 
 impl ParamSet {
@@ -318,6 +320,11 @@ impl ParamSet {
     #[inline]
     pub fn table(&self) -> &RawTable {
         &self.raw.table
+    }
+
+    #[inline]
+    pub fn lut(&self) -> &Lut {
+        &self.lut
     }
 
     #[inline]
@@ -362,7 +369,8 @@ fn build(raw: RawParams) -> ParamSet {
         c0: g(ParamId::OffsetC0),
     };
     let inv_ratio_m1 = 1.0 / (g(ParamId::Ratio) - 1.0);
-    ParamSet { raw, terms, inv_ratio_m1 }
+    let lut = Lut::new(&raw.table);
+    ParamSet { raw, terms, inv_ratio_m1, lut }
 }
 
 /// Validate a raw set. The first problem found is returned, scalar parameters in table order,

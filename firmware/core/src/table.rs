@@ -258,3 +258,194 @@ pub fn fuse(tau_model: f32, sigma_model: f32, tau_data: f32, sigma_data: f32, k:
     let band = math::abs(k * sigma_model);
     math::clamp(fused, tau_model - band, tau_model + band)
 }
+
+/// Per-table values precomputed at parameter check time so the control step's interpolation
+/// needs no search on uniform grids, no division, and one pass for torque and σ together.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lut {
+    n: u8,
+    /// where each axis reads its angle (copied from the table)
+    source: [u8; AXES_MAX],
+    points: [u8; AXES_MAX],
+    stride: [u16; AXES_MAX],
+    /// 1/(grid[i+1] − grid[i]) per cell and axis
+    inv_span: [[f32; AXIS_POINTS_MAX]; AXES_MAX],
+    /// 1/step for a uniform grid (the cell index is then computed, not searched), else 0
+    inv_step: [f32; AXES_MAX],
+}
+
+impl Default for Lut {
+    fn default() -> Self {
+        Lut {
+            n: 0,
+            source: [0; AXES_MAX],
+            points: [0; AXES_MAX],
+            stride: [0; AXES_MAX],
+            inv_span: [[0.0; AXIS_POINTS_MAX]; AXES_MAX],
+            inv_step: [0.0; AXES_MAX],
+        }
+    }
+}
+
+impl Lut {
+    /// Precompute for a table that passed [`validate`]; an invalid table gives an empty Lut.
+    pub fn new(t: &RawTable) -> Lut {
+        let mut lut = Lut::default();
+        if validate(t).is_err() || t.n_axes == 0 {
+            return lut;
+        }
+        let n = (t.n_axes as usize).min(AXES_MAX);
+        lut.n = n as u8;
+        lut.source = t.axis_source;
+        let mut s = 1usize;
+        for axis in (0..n).rev() {
+            let points = t.points.get(axis).copied().unwrap_or(2) as usize;
+            let grid = t.grid.get(axis).copied().unwrap_or([0.0; AXIS_POINTS_MAX]);
+            if let Some(p) = lut.points.get_mut(axis) {
+                *p = points as u8;
+            }
+            if let Some(st) = lut.stride.get_mut(axis) {
+                *st = s as u16;
+            }
+            s = s.saturating_mul(points);
+            let first = grid.first().copied().unwrap_or(0.0);
+            let last = grid.get(points - 1).copied().unwrap_or(first);
+            let step = (last - first) / (points - 1) as f32;
+            let mut uniform = true;
+            for i in 0..points - 1 {
+                let a = grid.get(i).copied().unwrap_or(0.0);
+                let b = grid.get(i + 1).copied().unwrap_or(a);
+                if let Some(inv) = lut.inv_span.get_mut(axis).and_then(|r| r.get_mut(i)) {
+                    *inv = 1.0 / (b - a);
+                }
+                if math::abs((b - a) - step) > 1.0e-4 * math::abs(step) {
+                    uniform = false;
+                }
+            }
+            if let Some(inv) = lut.inv_step.get_mut(axis) {
+                *inv = if uniform { 1.0 / step } else { 0.0 };
+            }
+        }
+        lut
+    }
+
+    /// Cell and fraction along one axis, clamped to the grid.
+    #[inline(always)]
+    fn locate(&self, t: &RawTable, axis: usize, x: f32) -> (usize, f32) {
+        let points = self.points.get(axis).copied().unwrap_or(2) as usize;
+        let last = points.saturating_sub(1).max(1);
+        let empty = [0.0; AXIS_POINTS_MAX];
+        let grid = t.grid.get(axis).unwrap_or(&empty);
+        let inv_span = self.inv_span.get(axis).unwrap_or(&empty);
+        let g0 = grid.first().copied().unwrap_or(0.0);
+        let gl = grid.get(last).copied().unwrap_or(g0);
+        let x = math::clamp(x, g0, gl);
+        let inv_step = self.inv_step.get(axis).copied().unwrap_or(0.0);
+        let i = if inv_step > 0.0 {
+            // `as usize` saturates at 0 for negatives; the min keeps the last cell.
+            (((x - g0) * inv_step) as usize).min(last - 1)
+        } else {
+            let (mut lo, mut hi) = (0usize, last);
+            while hi - lo > 1 {
+                let mid = (lo + hi) / 2;
+                if grid.get(mid).copied().unwrap_or(gl) <= x {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        let a = grid.get(i).copied().unwrap_or(g0);
+        let inv = inv_span.get(i).copied().unwrap_or(0.0);
+        // No clamp: x is inside the grid, so the fraction leaves [0, 1] only by the rounding of
+        // the uniform-grid index, a few ulps, which moves the result by as little.
+        (i, (x - a) * inv)
+    }
+
+    /// Torque and (when `with_sigma`) σ with axis `a` at angle `x[a]`.
+    #[inline]
+    pub fn eval(&self, t: &RawTable, x: &[f32; AXES_MAX], with_sigma: bool) -> (f32, f32) {
+        self.eval_with(t, |a| x.get(a).copied().unwrap_or(0.0), with_sigma)
+    }
+
+    /// Torque and (when `with_sigma`) σ where each axis reads its angle from its source:
+    /// `angles = [q, others[0], others[1], others[2]]`.
+    #[inline]
+    pub fn eval_sources(&self, t: &RawTable, angles: &[f32; 4], with_sigma: bool) -> (f32, f32) {
+        self.eval_with(
+            t,
+            |a| {
+                let src = self.source.get(a).copied().unwrap_or(0) as usize;
+                angles.get(src).copied().unwrap_or(0.0)
+            },
+            with_sigma,
+        )
+    }
+
+    /// Torque and (when `with_sigma`) σ with axis `a` at angle `x(a)`, in one pass over the
+    /// cell's corners. Same multilinear interpolation as [`interpolate`], specialised for 1 and
+    /// 2 axes.
+    #[inline(always)]
+    fn eval_with<X: Fn(usize) -> f32>(&self, t: &RawTable, x: X, with_sigma: bool) -> (f32, f32) {
+        let v = |i: usize| t.torque.get(i).copied().unwrap_or(0.0);
+        let s = |i: usize| if with_sigma { t.sigma.get(i).copied().unwrap_or(0.0) } else { 0.0 };
+        match self.n {
+            0 => (0.0, 0.0),
+            1 => {
+                let (i, f) = self.locate(t, 0, x(0));
+                let lerp = |a: f32, b: f32| a + f * (b - a);
+                (lerp(v(i), v(i + 1)), lerp(s(i), s(i + 1)))
+            }
+            2 => {
+                let (i, f) = self.locate(t, 0, x(0));
+                let (j, g) = self.locate(t, 1, x(1));
+                let s0 = self.stride.first().copied().unwrap_or(0) as usize;
+                let o = i * s0 + j;
+                // Two rows of two values each: one bounds check per row, none per value.
+                let corners = |a: &[f32; CELLS_MAX]| -> f32 {
+                    match (a.get(o..o + 2), a.get(o + s0..o + s0 + 2)) {
+                        (Some(&[a00, a01]), Some(&[a10, a11])) => {
+                            let lo = a00 + g * (a01 - a00);
+                            let hi = a10 + g * (a11 - a10);
+                            lo + f * (hi - lo)
+                        }
+                        _ => 0.0,
+                    }
+                };
+                let tau = corners(&t.torque);
+                let sigma = if with_sigma { corners(&t.sigma) } else { 0.0 };
+                (tau, sigma)
+            }
+            n => {
+                let n = (n as usize).min(AXES_MAX);
+                let mut frac = [0.0f32; AXES_MAX];
+                let mut origin = 0usize;
+                for axis in 0..n {
+                    let (i, f) = self.locate(t, axis, x(axis));
+                    origin += i * self.stride.get(axis).copied().unwrap_or(0) as usize;
+                    if let Some(fr) = frac.get_mut(axis) {
+                        *fr = f;
+                    }
+                }
+                let (mut acc_v, mut acc_s) = (0.0f32, 0.0f32);
+                for corner in 0..(1usize << n) {
+                    let mut w = 1.0f32;
+                    let mut idx = origin;
+                    for axis in 0..n {
+                        let f = frac.get(axis).copied().unwrap_or(0.0);
+                        if corner & (1 << axis) != 0 {
+                            w *= f;
+                            idx += self.stride.get(axis).copied().unwrap_or(0) as usize;
+                        } else {
+                            w *= 1.0 - f;
+                        }
+                    }
+                    acc_v += w * v(idx);
+                    acc_s += w * s(idx);
+                }
+                (acc_v, acc_s)
+            }
+        }
+    }
+}

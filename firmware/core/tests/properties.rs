@@ -233,3 +233,58 @@ fn table_declares_every_id_in_order_and_defaults_pass() {
     }
     assert!(check(&RawParams::defaults()).is_ok());
 }
+
+/// An n-axis table (1..=4) with random grids, uniform or not.
+fn random_nd_table() -> impl Strategy<Value = RawTable> {
+    (1usize..=4, any::<bool>()).prop_flat_map(|(n, uniform)| {
+        let pts = proptest::collection::vec(2usize..5, n);
+        (Just(n), Just(uniform), pts).prop_flat_map(|(n, uniform, pts)| {
+            let cells: usize = pts.iter().product();
+            let grids: Vec<_> = pts.iter().map(|&p| grid(p)).collect();
+            (
+                Just(n),
+                Just(uniform),
+                Just(pts),
+                grids,
+                proptest::collection::vec(-50.0f32..50.0, cells),
+                proptest::collection::vec(0.01f32..5.0, cells),
+            )
+        })
+    })
+    .prop_map(|(n, uniform, pts, grids, vals, sig)| {
+        let mut t = RawTable::EMPTY;
+        t.n_axes = n as u8;
+        for (a, (p, g)) in pts.iter().zip(grids.iter()).enumerate() {
+            t.points[a] = *p as u8;
+            t.axis_source[a] = a.min(3) as u8;
+            for (i, v) in g.iter().enumerate() {
+                t.grid[a][i] = if uniform { g[0] + 0.25 * i as f32 } else { *v };
+            }
+        }
+        t.torque[..vals.len()].copy_from_slice(&vals);
+        t.sigma[..sig.len()].copy_from_slice(&sig);
+        t.has_sigma = true;
+        t
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    /// The control step's precomputed lookup gives the reference interpolation's numbers.
+    #[test]
+    fn fast_lookup_matches_reference(t in random_nd_table(), u in proptest::collection::vec(-0.3f32..1.3, 4)) {
+        prop_assert!(validate(&t).is_ok());
+        let lut = joint_core::table::Lut::new(&t);
+        let mut x = [0.0f32; AXES_MAX];
+        for a in 0..t.n_axes as usize {
+            let n = t.points[a] as usize;
+            x[a] = t.grid[a][0] + u[a] * (t.grid[a][n - 1] - t.grid[a][0]);
+        }
+        let (v, s) = lut.eval(&t, &x, true);
+        let v_ref = interpolate(&t, &t.torque, &x);
+        let s_ref = interpolate(&t, &t.sigma, &x);
+        prop_assert!((v - v_ref).abs() <= 1e-4 * v_ref.abs().max(1.0), "{v} vs {v_ref}");
+        prop_assert!((s - s_ref).abs() <= 1e-4 * s_ref.abs().max(1.0), "{s} vs {s_ref}");
+    }
+}
