@@ -423,7 +423,9 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
         Kind::Stribeck => {
             let aq: Vec<f64> = idx.iter().map(|&i| d.qd[i as usize].abs()).collect();
             let v95 = quantile(aq, 0.95).max(1e-3);
-            let lo = (0.5 * d.band).max(1e-4).min(0.05 * v95);
+            // A Stribeck curve narrower than the sign band cannot be told from the band itself
+            // (and from velocity noise at rest), so the search starts at 1.5 bands.
+            let lo = (1.5 * d.band).max(1e-4).min(0.05 * v95);
             Some(log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v }))
         }
         Kind::Asymmetric => Some(Effect::Asymmetric),

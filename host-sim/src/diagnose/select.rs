@@ -9,7 +9,8 @@
 //!
 //! Test: each held-out block is cut into up to 10 sub-blocks (up to 60 units). For a candidate
 //! against its reference (the refitted model for an effect, the file's model for `parameters`)
-//! the per-unit log ratio of mean squared residuals is tested with a one-sided t-test; units are
+//! the per-unit log ratio of mean squared residuals and their difference are tested with
+//! one-sided t-tests (the smaller p, doubled); units are
 //! long compared with the residual's correlation time, which a per-sample F-test would ignore. A
 //! candidate is significant when p < α/m (α = 1 %, m = number of candidates, Bonferroni), it
 //! lowers the held-out MSE by at least 2 % (smaller gains are not worth a model change), and its
@@ -31,7 +32,7 @@ pub struct Split {
     pub guard: usize,
 }
 
-pub const ALPHA: f64 = 0.01;
+pub const ALPHA: f64 = 0.05;
 pub const MIN_GAIN: f64 = 0.02;
 /// A reference whose held-out RMSE is within this factor of the noise floor has nothing left
 /// to explain: no candidate against it is called significant.
@@ -137,28 +138,39 @@ pub fn fit_and_score(d: &Data, base: &Base, effects: &[Effect], fit_idx: &[u32],
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
-/// One-sided test that `cand` beats `reference` on held-out data: (t, p, relative MSE gain).
-/// The test variable is the log ratio of the two models' mean squared residuals per unit:
-/// scale-free, so a regime with a large residual (a warm late part, the static holds) cannot
-/// drown the others, and close to symmetric around 0 when nothing improves.
-pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
-    let diffs: Vec<f64> = reference
-        .unit_sse
-        .iter()
-        .zip(&cand.unit_sse)
-        .zip(&reference.unit_n)
-        .filter(|((a, b), &n)| n > 0.0 && **a > 0.0 && **b > 0.0)
-        .map(|((a, b), _)| (a / b).ln())
-        .collect();
-    let gain = 1.0 - cand.mse() / reference.mse().max(1e-300);
+fn unit_t(diffs: &[f64]) -> (f64, f64) {
     let m = diffs.len() as f64;
     if m < 3.0 {
-        return (0.0, 1.0, gain);
+        return (0.0, 1.0);
     }
     let mean = diffs.iter().sum::<f64>() / m;
     let var = diffs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (m - 1.0);
     let t = if var > 0.0 { mean / (var / m).sqrt() } else if mean > 0.0 { f64::INFINITY } else { 0.0 };
-    (t, super::fit::student_t_sf(t, m - 1.0), gain)
+    (t, super::fit::student_t_sf(t, m - 1.0))
+}
+
+/// One-sided test that `cand` beats `reference` on held-out data: (t, p, relative MSE gain).
+/// Two unit-level t-tests, Bonferroni-combined (p = 2·min): on the log ratio of the units' mean
+/// squared residuals (scale-free, so a regime with a large residual cannot drown the others)
+/// and on their difference (powerful when the gain sits in a few units, e.g. a cable spring
+/// that only acts at one end of the range).
+pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
+    let units = || {
+        reference
+            .unit_sse
+            .iter()
+            .zip(&cand.unit_sse)
+            .zip(&reference.unit_n)
+            .filter(|((a, b), &n)| n > 0.0 && **a > 0.0 && **b > 0.0)
+            .map(|((a, b), n)| (*a, *b, *n))
+    };
+    let logs: Vec<f64> = units().map(|(a, b, _)| (a / b).ln()).collect();
+    let diffs: Vec<f64> = units().map(|(a, b, n)| (a - b) / n).collect();
+    let gain = 1.0 - cand.mse() / reference.mse().max(1e-300);
+    let (t1, p1) = unit_t(&logs);
+    let (t2, p2) = unit_t(&diffs);
+    let (t, p) = if p1 <= p2 { (t1, p1) } else { (t2, p2) };
+    (t, (2.0 * p).min(1.0), gain)
 }
 
 /// One candidate's outcome against its reference.
@@ -238,7 +250,7 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
-        let significant = !at_floor && open(reference) && p < alpha_each && gain >= MIN_GAIN;
+        let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN;
         Outcome { name, scored: s, t, p, gain, significant }
     };
     let first = try_kinds(&Kind::ALL, d, base, &[], &grid_idx, &fit_idx, split, bits, n_regimes);
