@@ -1,0 +1,318 @@
+"""An external CANopen master (python-can + python-canopen from PyPI) against our joint node.
+
+`jointctl sim --bus slcan:B --node 5` serves a simulated joint (the firmware core's CANopen
+node around the host-sim plant) on one end of a `socat` pty pair; python-can's `slcan`
+interface drives the other end, and python-canopen loads the EDS that `jointctl eds` generates.
+Nothing here knows our object layout except through that EDS.
+
+Run: JOINTCTL=path/to/jointctl .venv/bin/python -m pytest tests/python/test_interop.py
+(the cargo test host-sim/tests/can_interop.rs does exactly this).
+"""
+
+import os
+import random
+import shutil
+import struct
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import configparser
+
+import can
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+
+ROOT = Path(__file__).resolve().parents[2]
+NODE = 5
+HOST_ID = 0x7F
+
+
+def jointctl() -> str:
+    exe = os.environ.get("JOINTCTL")
+    if exe:
+        return exe
+    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
+    return str(Path(target) / "debug" / "jointctl")
+
+
+def wait_for(pred, timeout, what):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def rig():
+    assert shutil.which("socat"), "socat is needed (apt-get install socat)"
+    tmp = Path(tempfile.mkdtemp(prefix="joint-interop-"))
+    a, b = tmp / "canA", tmp / "canB"
+    socat = subprocess.Popen(
+        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
+    eds = tmp / "joint.eds"
+    subprocess.run([jointctl(), "eds", "--out", str(eds)], check=True)
+    sim = subprocess.Popen(
+        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", str(NODE),
+         "--plant", str(ROOT / "examples/plants/trunk-right.toml")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    network = canopen.Network()
+    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
+    node = network.add_node(NODE, str(eds))
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    # our heartbeat: the joint's watchdog (consumer 0x1016) listens for node 0x7F
+    hb = network.send_periodic(0x700 + HOST_ID, bytes([0x05]), 0.05)
+    # The joint booted before our heartbeat started, so its watchdog latched heartbeat_lost
+    # (by design it stays latched until the host acknowledges): acknowledge it now.
+    node.nmt.wait_for_heartbeat(timeout=2)
+    time.sleep(0.1)
+    node.sdo["clear_faults"].raw = 1
+    try:
+        yield network, node, eds
+    finally:
+        hb.stop()
+        network.disconnect()
+        sim.terminate()
+        try:
+            sim.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            sim.kill()
+        socat.terminate()
+        socat.wait(timeout=5)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def abort_code(exc_info):
+    return exc_info.value.code
+
+
+def params(node):
+    """The manufacturer parameter objects (0x2000..) as the EDS lists them."""
+    od = node.object_dictionary
+    return [od[i] for i in sorted(od.indices) if 0x2000 <= i < 0x2100]
+
+
+def f32(x):
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+def preop(node):
+    node.nmt.state = "PRE-OPERATIONAL"
+    time.sleep(0.05)
+
+
+def test_heartbeat_and_boot_state(rig):
+    network, node, _ = rig
+    state = node.nmt.wait_for_heartbeat(timeout=2)
+    assert state in ("PRE-OPERATIONAL", "OPERATIONAL")
+    preop(node)
+    assert node.nmt.wait_for_heartbeat(timeout=2) == "PRE-OPERATIONAL"
+    # producer heartbeat time 0x1017 is writable: 50 ms, then back
+    node.sdo[0x1017].raw = 50
+    t0 = time.monotonic()
+    for _ in range(10):
+        node.nmt.wait_for_heartbeat(timeout=1)
+    period = (time.monotonic() - t0) / 10
+    assert 0.03 < period < 0.09, period
+    node.sdo[0x1017].raw = 100
+
+
+def test_identity_and_strings(rig):
+    _, node, _ = rig
+    assert node.sdo[0x1000].raw == 0
+    assert node.sdo[0x1018][1].raw == 0
+    assert node.sdo[0x1018][2].raw == 0x4A4E0001
+    assert node.sdo[0x1018][3].raw == 0x00010000
+    # segmented upload of a VISIBLE_STRING
+    assert node.sdo["manufacturer_device_name"].raw == "joint-node"
+    assert node.sdo["manufacturer_software_version"].raw.count(".") == 2
+
+
+def eds_limits(eds, index):
+    """LowLimit/HighLimit of a REAL32 object, read from the EDS text itself (python-canopen
+    parses limits as integers only and drops fractional ones such as 1.01)."""
+    cp = configparser.ConfigParser()
+    cp.read(eds)
+    sec = cp[f"{index:04X}"]
+    return float(sec["LowLimit"]), float(sec["HighLimit"])
+
+
+def test_every_manufacturer_object_reads_default_and_writes(rig):
+    _, node, eds = rig
+    preop(node)
+    objs = params(node)
+    assert len(objs) == 27, [o.name for o in objs]
+    names = {o.name for o in objs}
+    for n in ("friction_a", "weight_amplitude", "compensation_fraction", "controller_heartbeat_timeout"):
+        assert n in names
+    for o in objs:
+        assert o.data_type == canopen.objectdictionary.REAL32, o.name
+        v = node.sdo[o.name].raw
+        assert v == pytest.approx(f32(o.default)), o.name
+        lo, hi = eds_limits(eds, o.index)
+        assert lo < hi, o.name
+        want = f32(lo + 0.25 * (hi - lo))
+        node.sdo[o.name].raw = want
+        assert node.sdo[o.name].raw == want, o.name
+    # staged, not yet running: the pending flag says so; discard them (commit object = 0)
+    assert node.sdo["params_pending"].raw == 1
+    node.sdo["params_commit"].raw = 0
+    assert node.sdo["params_pending"].raw == 0
+    for o in objs:
+        assert node.sdo[o.name].raw == pytest.approx(f32(o.default)), o.name
+
+
+def test_gravity_table_by_segmented_sdo_and_commit(rig):
+    _, node, _ = rig
+    preop(node)
+    grid = [-1.0 + 0.25 * k for k in range(9)]
+    torque = [0.5 * k - 1.0 for k in range(9)]
+    node.sdo["gravity_table_shape"]["n_axes"].raw = 1
+    node.sdo["gravity_table_shape"]["points_0"].raw = 9
+    node.sdo["gravity_table_grid"].raw = struct.pack("<9f", *grid)
+    node.sdo["gravity_table_torque"].raw = struct.pack("<9f", *torque)
+    node.sdo["params_commit"].raw = 1
+    assert node.sdo["params_pending"].raw == 0
+    back = node.sdo["gravity_table_torque"].raw
+    assert struct.unpack("<9f", back) == tuple(f32(x) for x in torque)
+    g = node.sdo["gravity_table_grid"].raw
+    assert struct.unpack("<9f", g[:36]) == tuple(f32(x) for x in grid)
+    # remove it again
+    node.sdo["gravity_table_shape"]["n_axes"].raw = 0
+    node.sdo["params_commit"].raw = 1
+
+
+def test_aborts_keep_the_old_value(rig):
+    _, node, _ = rig
+    preop(node)
+    before = node.sdo["friction_v_band"].raw
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["friction_v_band"].raw = 2.0  # max 1.0
+    assert abort_code(e) == 0x06090031
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["friction_a"].raw = -1.0  # min 0
+    assert abort_code(e) == 0x06090032
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["friction_a"].raw = float("nan")
+    assert abort_code(e) == 0x06090030
+    assert node.sdo["friction_v_band"].raw == before
+    assert node.sdo["friction_a"].raw == 0.0
+    # size: 2 bytes into a REAL32
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.download(0x2000, 0, b"\x00\x00")
+    assert abort_code(e) in (0x06070010, 0x06070012, 0x06070013)
+    # access
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.download(0x1000, 0, b"\x01\x00\x00\x00")
+    assert abort_code(e) == 0x06010002
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.upload(0x2200, 0)
+    assert abort_code(e) == 0x06010001
+    # existence
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.upload(0x3000, 0)
+    assert abort_code(e) == 0x06020000
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.upload(0x1018, 9)
+    assert abort_code(e) == 0x06090011
+    # device state: a safety-relevant parameter while operational
+    frac = node.sdo["compensation_fraction"].raw
+    node.nmt.state = "OPERATIONAL"
+    time.sleep(0.05)
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["compensation_fraction"].raw = 0.7
+    assert abort_code(e) == 0x08000022
+    assert node.sdo["compensation_fraction"].raw == frac
+    preop(node)
+    node.sdo["compensation_fraction"].raw = 0.7
+    node.sdo["params_commit"].raw = 1
+    assert node.sdo["compensation_fraction"].raw == f32(0.7)
+    node.sdo["compensation_fraction"].raw = frac
+    node.sdo["params_commit"].raw = 1
+    assert node.sdo["params_pending"].raw == 0
+
+
+def test_refused_commit_names_the_parameter_and_keeps_the_set(rig):
+    _, node, _ = rig
+    preop(node)
+    node.emcy.reset()
+    old = node.sdo["controller_accel_cutoff"].raw
+    node.sdo["controller_accel_cutoff"].raw = 600.0  # in range, but ≥ half the 1 kHz rate
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["params_commit"].raw = 1
+    assert abort_code(e) == 0x06090030
+    # the EMCY goes out with the abort; python-canopen logs every EMCY it receives
+    wait_for(lambda: any(x.code == 0x6320 for x in node.emcy.log), 2, "EMCY 0x6320")
+    err = [x for x in node.emcy.log if x.code == 0x6320][-1]
+    assert err.data[0] == 3 and int.from_bytes(err.data[1:3], "little") == 0x16
+    msg = node.sdo["params_commit_error"]["message"].raw
+    assert msg.startswith("controller_accel_cutoff"), msg
+    assert node.sdo["params_commit_error"]["param_index"].raw == 0x16
+    # the staged value is still there, the running one is not: discard brings the old back
+    assert node.sdo["params_pending"].raw == 1
+    node.sdo["params_commit"].raw = 0
+    assert node.sdo["controller_accel_cutoff"].raw == old
+
+
+def test_tpdos_decoded_through_the_eds_mapping(rig):
+    network, node, _ = rig
+    node.tpdo.read(from_od=True)
+    node.nmt.state = "OPERATIONAL"
+    tp1 = node.tpdo[1]
+    assert [v.name for v in tp1] == ["joint_state." + n for n in ("q", "qd", "tau_cmd", "faults")]
+    assert tp1.cob_id == 0x180 + NODE
+    stamps = []
+    for _ in range(20):
+        assert tp1.wait_for_reception(timeout=1.0) is not None
+        stamps.append(tp1.timestamp)
+    period = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
+    assert 0.005 < period < 0.02, period  # event timer 10 ms
+    vals = {v.name.split(".")[-1]: v.raw for v in tp1}
+    # the plant moves within ±0.5 rad under the simulated operator; raw is 1e-4 rad per LSB
+    assert abs(vals["q"]) < 5000, vals
+    assert vals["faults"] == 0, vals
+    tp2 = node.tpdo[2]
+    assert [v.name.split(".")[-1] for v in tp2] == ["qdd", "tau_measured", "temperature", "gain_permille"]
+    assert tp2.wait_for_reception(timeout=1.0) is not None
+    assert {v.name.split(".")[-1]: v.raw for v in tp2}["temperature"] == 3000  # 30.00 °C
+    # event timer is configurable: 20 ms
+    node.sdo[0x1800][5].raw = 20
+    tp1.wait_for_reception(timeout=1.0)
+    t0 = tp1.timestamp
+    for _ in range(10):
+        tp1.wait_for_reception(timeout=1.0)
+    assert 0.015 < (tp1.timestamp - t0) / 10 < 0.03
+    node.sdo[0x1800][5].raw = 10
+    preop(node)
+
+
+def test_garbage_frames_leave_the_node_alive_and_unchanged(rig):
+    network, node, _ = rig
+    preop(node)
+    before = {o.name: node.sdo[o.name].raw for o in params(node)}
+    node.nmt.state = "OPERATIONAL"
+    rng = random.Random(20261122)
+    bus = network.bus
+    for _ in range(3000):
+        # any id but NMT (a well-formed NMT reset is a command, not garbage)
+        cob = rng.choice([0x600 + NODE, 0x200 + NODE, 0x700 + HOST_ID, rng.randrange(1, 0x800)])
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(9)))
+        bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
+    time.sleep(0.5)
+    assert node.nmt.wait_for_heartbeat(timeout=2) == "OPERATIONAL"
+    preop(node)
+    # discard whatever a random SDO write may have staged, then nothing may differ
+    node.sdo["params_commit"].raw = 0
+    after = {o.name: node.sdo[o.name].raw for o in params(node)}
+    assert after == before
+    assert node.sdo[0x1018][2].raw == 0x4A4E0001
