@@ -91,6 +91,11 @@ impl SimBus {
         }
     }
 
+    /// Lose every master frame after the next `n` (a cable pulled mid-transfer).
+    pub fn cut_master_after_more(&mut self, n: u64) {
+        self.cut_master_after = Some(self.master_sent + n);
+    }
+
     pub fn bitrate(&self) -> u32 {
         self.bitrate
     }

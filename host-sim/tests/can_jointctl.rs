@@ -1,0 +1,182 @@
+//! jointctl's CAN side against simulated joints on the in-process bus (virtual time, real
+//! frame lengths): push/pull round trips, a push cut off halfway, heartbeat loss, scan, and
+//! the push timing against the wire-time minimum of its SDO frames.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+
+use host_sim::can::joint::{JointSim, SimStorage};
+use host_sim::can::master::Master;
+use host_sim::can::sim_bus::{SharedSimBus, SimBus};
+use host_sim::can::transfer::{self, PushOptions};
+use host_sim::model_file::ModelFile;
+use joint_core::canopen::node::{MemoryStorage, NmtState, ParamStorage, EMCY_HEARTBEAT, NMT_START};
+use joint_core::canopen::pdo::Tpdo1;
+use joint_core::params::{ParamId, RawParams};
+use joint_core::safety::Faults;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+fn root() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn model(name: &str) -> RawParams {
+    ModelFile::read_file(&root().join("examples/models").join(name)).unwrap().raw_params().unwrap()
+}
+
+struct Rig {
+    bus: SharedSimBus,
+    joints: Vec<Arc<Mutex<JointSim>>>,
+    m: Master,
+}
+
+fn rig(bitrate: u32, nodes: &[u8]) -> Rig {
+    let mut bus = SimBus::new(bitrate);
+    let mut joints = Vec::new();
+    for &n in nodes {
+        let j = Arc::new(Mutex::new(JointSim::new(n, None, SimStorage::Memory(MemoryStorage::default()), 0)));
+        bus.attach(j.clone());
+        joints.push(j);
+    }
+    let bus = SharedSimBus(Arc::new(Mutex::new(bus)));
+    let mut m = Master::new(Box::new(bus.clone()));
+    m.listen(Duration::from_millis(5)).unwrap();
+    Rig { bus, joints, m }
+}
+
+fn running(j: &Arc<Mutex<JointSim>>) -> RawParams {
+    j.lock().unwrap().node.params().raw().clone()
+}
+
+#[test]
+fn push_then_pull_round_trips_the_trunk_model() {
+    let mut r = rig(1_000_000, &[5]);
+    let want = model("trunk-right.toml");
+    let rep = transfer::push(&mut r.m, 5, &want, PushOptions { save: true, ..Default::default() }, &mut |_| {}).unwrap();
+    assert!(rep.saved);
+    // running on the joint, bit for bit, and stored
+    assert_eq!(running(&r.joints[0]), want);
+    assert_eq!(r.joints[0].lock().unwrap().node.storage_mut().load().unwrap(), want);
+    let (pulled, pending) = transfer::pull(&mut r.m, 5).unwrap();
+    assert!(!pending);
+    assert_eq!(pulled, want);
+    // and through the model TOML text: the same values again
+    let text = ModelFile::from_raw(&pulled, Some("trunk-right"), &[]).to_toml_string();
+    let back = ModelFile::parse(&text, "pulled.toml").unwrap().raw_params().unwrap();
+    assert_eq!(back, want);
+}
+
+#[test]
+fn push_then_pull_round_trips_a_two_axis_gravity_table_with_sigma() {
+    let text = r#"
+name = "arm-elbow"
+[weight]
+amplitude = 1.5
+[gravity_table]
+axes = ["q", "q_shoulder"]
+grid = [[0.0, 0.5, 1.0, 1.5], [-0.5, 0.0, 0.5]]
+torque = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1]
+sigma = [0.1, 0.1, 0.1, 0.2, 0.2, 0.2, 0.3, 0.3, 0.3, 0.4, 0.4, 0.4]
+sigma_model = 0.3
+clamp_k = 2.0
+[compensation]
+fraction = 0.5
+"#;
+    let mf = ModelFile::parse(text, "arm.toml").unwrap();
+    let want = mf.raw_params().unwrap();
+    let mut r = rig(1_000_000, &[3]);
+    transfer::push(&mut r.m, 3, &want, PushOptions::default(), &mut |_| {}).unwrap();
+    assert_eq!(running(&r.joints[0]), want);
+    let (pulled, _) = transfer::pull(&mut r.m, 3).unwrap();
+    assert_eq!(pulled, want);
+    let back = ModelFile::from_raw(&pulled, Some("arm-elbow"), &mf.other_columns());
+    assert_eq!(back.table, mf.table);
+}
+
+#[test]
+fn a_push_cut_off_halfway_leaves_the_old_set_running() {
+    let mut r = rig(1_000_000, &[5]);
+    let old = model("trunk-right.toml");
+    transfer::push(&mut r.m, 5, &old, PushOptions::default(), &mut |_| {}).unwrap();
+    let new = model("trunk-left.toml");
+    assert_ne!(old, new);
+    // the cable is pulled after 15 more master frames: 15 expedited writes (one request each)
+    {
+        let mut b = r.bus.0.lock().unwrap();
+        b.cut_master_after_more(15);
+    }
+    r.m.sdo_timeout = Duration::from_millis(200);
+    // the master's own heartbeat counts against the cut too: keep it off for this test
+    r.m.heartbeat_us = 0;
+    let mut steps = 0;
+    let err = transfer::push(&mut r.m, 5, &new, PushOptions::default(), &mut |_| steps += 1).unwrap_err();
+    assert!(err.to_string().contains("no answer"), "{err}");
+    assert_eq!(steps, 15, "15 parameters staged, then silence");
+    let j = r.joints[0].lock().unwrap();
+    assert_eq!(j.node.params().raw(), &old, "the old set must still run");
+    assert_ne!(j.node.staged(), &old, "the cut push did stage some values");
+    assert_eq!(j.node.staged().get(ParamId::FrictionA), new.get(ParamId::FrictionA));
+}
+
+#[test]
+fn heartbeat_loss_trips_the_watchdog_and_is_reported() {
+    let mut r = rig(1_000_000, &[5]);
+    r.m.keep_other = true;
+    r.m.listen(Duration::from_millis(200)).unwrap();
+    // the joint booted before our heartbeat: acknowledge, start, and run for a second
+    r.m.write(5, 0x2202, 0, &[1]).unwrap();
+    r.m.nmt(5, NMT_START).unwrap();
+    r.m.listen(Duration::from_secs(1)).unwrap();
+    assert_eq!(r.m.seen[&5].state, Some(NmtState::Operational));
+    assert!(r.m.emcy.iter().all(|(_, _, d)| u16::from_le_bytes([d[0], d[1]]) != EMCY_HEARTBEAT));
+    {
+        let j = r.joints[0].lock().unwrap();
+        assert!(j.node.safety().faults().is_empty());
+        assert_eq!(j.node.safety().gain(), 1.0);
+    }
+    // the host goes silent
+    r.m.heartbeat_us = 0;
+    r.m.other.clear();
+    r.m.listen(Duration::from_secs(1)).unwrap();
+    let emcy: Vec<_> = r.m.emcy.iter().filter(|(n, _, d)| *n == 5 && u16::from_le_bytes([d[0], d[1]]) == EMCY_HEARTBEAT).collect();
+    assert_eq!(emcy.len(), 1, "{:?}", r.m.emcy);
+    let j = r.joints[0].lock().unwrap();
+    assert!(j.node.safety().faults().contains(Faults::HEARTBEAT_LOST));
+    assert_eq!(j.node.safety().gain(), 0.0, "faded out within fault_ramp_time (0.2 s)");
+    // and the TPDOs say so
+    let last = r.m.other.iter().rev().find(|(_, f)| f.id() == 0x185).unwrap();
+    assert_eq!(Tpdo1::decode(last.1.data()).unwrap().faults & Faults::HEARTBEAT_LOST.bits(), Faults::HEARTBEAT_LOST.bits());
+}
+
+#[test]
+fn scan_finds_every_node_by_heartbeat() {
+    let mut r = rig(500_000, &[2, 7, 9]);
+    r.m.listen(Duration::from_millis(300)).unwrap();
+    let nodes: Vec<u8> = r.m.seen.keys().copied().collect();
+    assert_eq!(nodes, vec![2, 7, 9]);
+    for n in nodes {
+        assert_eq!(r.m.read_string(n, 0x1008, 0).unwrap(), "joint-node");
+    }
+}
+
+#[test]
+fn push_of_the_trunk_set_takes_at_most_1_2_times_its_wire_minimum_at_1_mbit() {
+    let mut r = rig(1_000_000, &[5]);
+    let want = model("trunk-right.toml");
+    let rep = transfer::push(&mut r.m, 5, &want, PushOptions::default(), &mut |_| {}).unwrap();
+    let wire = transfer::wire_minimum_us(&rep, 1_000_000);
+    let ratio = rep.elapsed_us as f64 / wire;
+    println!(
+        "push trunk-right at 1 Mbit/s: {} SDO transfers, {} frames, {} bits; elapsed {:.3} ms, wire minimum {:.3} ms, ratio {:.3}",
+        rep.sdo_transfers,
+        rep.frames,
+        rep.bits,
+        rep.elapsed_us as f64 / 1000.0,
+        wire / 1000.0,
+        ratio
+    );
+    assert_eq!(rep.frames, 2 * rep.sdo_transfers as u64, "expedited only: one request, one response each");
+    assert!(ratio >= 1.0, "cannot beat the wire: {ratio}");
+    assert!(ratio <= 1.2, "push took {ratio:.3}× its wire minimum");
+}
