@@ -158,6 +158,35 @@ pub struct Report {
     pub test: TestInfo,
     pub resid: Option<Resid>,
     pub unknown_columns: Vec<String>,
+    /// optional: vocabulary effects that were not tried on this model/log, and why
+    pub not_applicable: Vec<NotApplicable>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct NotApplicable {
+    pub effect: &'static str,
+    pub why: &'static str,
+}
+
+/// Torque-mode effects the selection skipped for this model.
+fn torque_not_applicable(base: &Base, tried: &[&str]) -> Vec<NotApplicable> {
+    let mut v = vec![NotApplicable { effect: "initial_state", why: "trajectory mode only (torque mode has no state to integrate)" }];
+    for k in candidates::Kind::ALL {
+        if tried.contains(&k.name()) {
+            continue;
+        }
+        let why = match k {
+            candidates::Kind::Dry => "the model has a Coulomb term, so a missing Coulomb torque is `parameters`",
+            candidates::Kind::Backlash => {
+                "torque mode sees a dead zone only in a spring (elastic joint); this model has no [spring]"
+            }
+            candidates::Kind::Thermal => "the model has no friction term to scale",
+            _ => "its shape search found no usable range in this log",
+        };
+        v.push(NotApplicable { effect: k.name(), why });
+    }
+    let _ = base;
+    v
 }
 
 /// Thinned series for the HTML plots.
@@ -529,7 +558,6 @@ fn build_report(
     floor: f64,
     log: &JointLog,
 ) -> Report {
-    let _ = base;
     let nreg = regimes.defs.len();
     let mut sse = vec![0.0; nreg];
     let mut cnt = vec![0usize; nreg];
@@ -640,6 +668,7 @@ fn build_report(
         },
         resid,
         unknown_columns: log.unknown.clone(),
+        not_applicable: torque_not_applicable(base, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
     }
 }
 

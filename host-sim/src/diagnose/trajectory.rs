@@ -472,6 +472,19 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
             xcorr_after: vec![super::resid::xcorr(&hold_ra, &hold_qd, lag, false)],
         }),
         unknown_columns: log.unknown.clone(),
+        not_applicable: {
+            let mut v = vec![
+                super::NotApplicable { effect: "delay", why: "a free response has no input to lag: a time shift is an initial state" },
+                super::NotApplicable { effect: "load_dependent_friction", why: "trajectory mode has no measured transmitted torque" },
+            ];
+            if !has(Col::Q) {
+                v.push(super::NotApplicable { effect: "backlash", why: "the model has no [spring] whose dead zone could be fitted" });
+            }
+            if has(Col::Sgn) {
+                v.push(super::NotApplicable { effect: "dry_friction", why: "the model has a Coulomb term, so a missing Coulomb torque is `parameters`" });
+            }
+            v
+        },
     };
     // Emitted model: refitted values plus the winning effect's section.
     let mut mf = model.clone();

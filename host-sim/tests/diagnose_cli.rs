@@ -1,0 +1,226 @@
+//! `jointctl diagnose` end to end: the spec's JSON in both modes, the emitted model runs as a
+//! plant, harmless CSV variants give the same answer, and every bad log or model is refused with
+//! the line/column/key named, a non-zero exit and no output file.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use host_sim::log::JointLog;
+use host_sim::model_file::ModelFile;
+use host_sim::plant::PlantFile;
+use host_sim::scenario::ScenarioKind;
+use host_sim::sim::{simulate, SimConfig};
+
+fn jointctl(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_jointctl")).args(args).output().unwrap()
+}
+
+const MODEL: &str = "name = \"t\"\n[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
+const SENSORS: &str = "[sensors]\nq_noise = 0.0001\nqd_noise = 0.002\nqdd_noise = 0.3\ntau_noise = 0.08\n[joint_range]\nmin = 0.0\nmax = 2.0\n";
+
+/// Writes a torque-mode log of the model plus `effect` and the model; returns their paths.
+fn torque_case(dir: &Path, effect: &str, seconds: f64) -> (PathBuf, PathBuf) {
+    let plant = PlantFile::parse(&format!("{MODEL}\n{effect}\n{SENSORS}"), "plant").unwrap();
+    let model = ModelFile::parse(MODEL, "model").unwrap();
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Poses, ScenarioKind::Hand],
+        seconds,
+        seed: 3,
+        rate: Some(1000.0),
+        range: Some((0.0, 2.0)),
+        ..SimConfig::default()
+    };
+    let (log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
+    let (l, m) = (dir.join("log.csv"), dir.join("model.toml"));
+    log.write_file(&l).unwrap();
+    std::fs::write(&m, MODEL).unwrap();
+    (l, m)
+}
+
+fn run_json(log: &Path, model: &Path, extra: &[&str]) -> serde_json::Value {
+    let dir = log.parent().unwrap();
+    let json = dir.join("out.json");
+    let mut args = vec!["diagnose", "--log", log.to_str().unwrap(), "--model", model.to_str().unwrap(), "--json", json.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = jointctl(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+#[test]
+fn torque_mode_json_names_stribeck_and_the_emitted_model_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, model) = torque_case(dir.path(), "[stribeck]\nlevel = 0.8\nspeed = 0.05\n", 8.0);
+    let em = dir.path().join("fixed.toml");
+    let v = run_json(&log, &model, &["--emit-model", em.to_str().unwrap()]);
+    // spec §3 fields
+    assert_eq!(v["mode"], "torque");
+    assert!(v["samples"].as_u64().unwrap() > 20_000);
+    let (tr, ho) = (v["split"]["train"].as_u64().unwrap(), v["split"]["holdout"].as_u64().unwrap());
+    assert!(tr > 0 && ho > 0 && tr + ho <= v["samples"].as_u64().unwrap());
+    for k in ["rmse", "holdout_rmse", "noise_floor"] {
+        assert!(v["gap"][k].as_f64().unwrap() > 0.0, "{k}");
+    }
+    let regimes = v["regimes"].as_array().unwrap();
+    let speed_share: f64 = regimes.iter().filter(|r| r["family"] == "speed").map(|r| r["share"].as_f64().unwrap()).sum();
+    assert!((speed_share - 1.0).abs() < 1e-9);
+    assert!(regimes.iter().any(|r| r["name"] == "reversal") && regimes.iter().all(|r| r["where"].is_string()));
+    let effects = v["effects"].as_array().unwrap();
+    // parameters + 7 effects; dry friction (the model has c) and backlash (no spring) are not
+    // applicable and say why.
+    assert_eq!(effects.len(), 8, "{effects:?}");
+    let na: Vec<&str> = v["not_applicable"].as_array().unwrap().iter().map(|e| e["effect"].as_str().unwrap()).collect();
+    assert!(na.contains(&"dry_friction") && na.contains(&"backlash") && na.contains(&"initial_state"), "{na:?}");
+    for e in effects {
+        let (b, a, s) = (e["holdout_rmse_before"].as_f64().unwrap(), e["holdout_rmse_after"].as_f64().unwrap(), e["shrink"].as_f64().unwrap());
+        assert!((s - (1.0 - a / b)).abs() < 1e-12);
+        assert!(e["significant"].is_boolean() && e["params"].is_object());
+    }
+    assert_eq!(v["verdict"]["effect"], "stribeck");
+    let best = &effects[0];
+    assert_eq!(best["effect"], "stribeck");
+    let level = best["params"]["level"].as_f64().unwrap();
+    let speed = best["params"]["speed"].as_f64().unwrap();
+    assert!((level - 0.8).abs() < 0.25 && (speed - 0.05).abs() < 0.02, "level {level} speed {speed}");
+    assert!(v["verdict"]["shrink"].as_f64().unwrap() > 0.3);
+    assert!(v["resid"]["autocorrelation_before"]["band99"].as_f64().unwrap() > 0.0);
+    // The emitted model is a plant file host-sim runs, with the effect section.
+    let text = std::fs::read_to_string(&em).unwrap();
+    assert!(text.contains("[stribeck]"));
+    let plant = PlantFile::parse(&text, "emitted").unwrap();
+    assert!(plant.effects.stribeck.is_some());
+    let cfg = SimConfig { seconds: 1.0, rate: Some(1000.0), range: Some((0.0, 2.0)), ..SimConfig::default() };
+    simulate(&plant, &ModelFile::parse(MODEL, "m").unwrap().param_set().unwrap(), &cfg).unwrap();
+}
+
+#[test]
+fn an_exact_model_gives_none_and_harmless_csv_variants_change_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, model) = torque_case(dir.path(), "", 6.0);
+    let v = run_json(&log, &model, &[]);
+    assert_eq!(v["verdict"]["effect"], "none", "{}", v["effects"]);
+    // CRLF, a BOM, an extra column and reordered columns.
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let order: Vec<usize> = (0..header.len()).rev().collect();
+    let mut out = String::from("\u{feff}");
+    out += &order.iter().map(|&i| header[i]).collect::<Vec<_>>().join(",");
+    out += ",comment\r\n";
+    for l in lines {
+        let c: Vec<&str> = l.split(',').collect();
+        out += &order.iter().map(|&i| c[i]).collect::<Vec<_>>().join(",");
+        out += ",x\r\n";
+    }
+    let variant = dir.path().join("variant.csv");
+    std::fs::write(&variant, out).unwrap();
+    let w = run_json(&variant, &model, &[]);
+    assert_eq!(w["verdict"], v["verdict"]);
+    assert_eq!(w["unknown_columns"][0], "comment");
+}
+
+#[test]
+fn trajectory_mode_finds_stribeck_in_a_free_oscillation() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = "[friction]\nb = 0.05\nc = 0.05\n[inertia]\nj = 0.2\n[spring]\nk = 8.0\nb = 0.02\nq0 = 0.0\n[offset]\nc0 = 0.0\n";
+    let plant = PlantFile::parse(
+        &format!("{model}[stribeck]\nlevel = 0.15\nspeed = 0.05\n[sensors]\nq_noise = 0.0005\n[joint_range]\nmin = -0.5\nmax = 0.5\n"),
+        "p",
+    )
+    .unwrap();
+    let mf = ModelFile::parse(model, "m").unwrap();
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Free],
+        seconds: 6.0,
+        rate: Some(1000.0),
+        range: Some((-0.5, 0.5)),
+        free_start: Some(0.3),
+        torque_columns: false,
+        ..SimConfig::default()
+    };
+    let (log, _) = simulate(&plant, &mf.param_set().unwrap(), &cfg).unwrap();
+    let (l, m) = (dir.path().join("free.csv"), dir.path().join("m.toml"));
+    log.write_file(&l).unwrap();
+    std::fs::write(&m, model).unwrap();
+    let v = run_json(&l, &m, &[]);
+    assert_eq!(v["mode"], "trajectory");
+    assert_eq!(v["gap"]["unit"], "rad");
+    assert_eq!(v["verdict"]["effect"], "stribeck", "{}", v["effects"]);
+    assert!(v["effects"].as_array().unwrap().iter().any(|e| e["effect"] == "initial_state"));
+    assert!(v["verdict"]["shrink"].as_f64().unwrap() > 0.5);
+}
+
+/// Runs diagnose expecting failure; asserts the message contains every `needle` and that none
+/// of the output files exist.
+fn refused(log: &Path, model: &Path, needles: &[&str]) {
+    let dir = log.parent().unwrap();
+    let outs = [dir.join("r.json"), dir.join("r.html"), dir.join("r.toml")];
+    let o = jointctl(&[
+        "diagnose", "--log", log.to_str().unwrap(), "--model", model.to_str().unwrap(),
+        "--json", outs[0].to_str().unwrap(), "--report", outs[1].to_str().unwrap(), "--emit-model", outs[2].to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "accepted: {err}");
+    for n in needles {
+        assert!(err.contains(n), "`{n}` not in: {err}");
+    }
+    for p in &outs {
+        assert!(!p.exists(), "{} written on error", p.display());
+    }
+}
+
+#[test]
+fn bad_logs_and_models_are_refused_with_the_place_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, model) = torque_case(dir.path(), "", 1.0);
+    let good = std::fs::read_to_string(&log).unwrap();
+    let lines: Vec<&str> = good.lines().collect();
+    let write = |name: &str, body: String| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, body).unwrap();
+        p
+    };
+    let with_line = |k: usize, f: &dyn Fn(&str) -> String| {
+        lines.iter().enumerate().map(|(i, l)| if i == k { f(l) } else { l.to_string() }).collect::<Vec<_>>().join("\n") + "\n"
+    };
+    // non-numeric cell at file line 6 (index 5), column q
+    let bad = write("nonnum.csv", with_line(5, &|l| {
+        let mut c: Vec<String> = l.split(',').map(String::from).collect();
+        c[1] = "abc".into();
+        c.join(",")
+    }));
+    refused(&bad, &model, &["line 6", "`q`", "abc"]);
+    let bad = write("nan.csv", with_line(9, &|l| {
+        let mut c: Vec<String> = l.split(',').map(String::from).collect();
+        c[4] = "NaN".into();
+        c.join(",")
+    }));
+    refused(&bad, &model, &["line 10", "`u`"]);
+    let bad = write("back.csv", with_line(20, &|l| {
+        let mut c: Vec<String> = l.split(',').map(String::from).collect();
+        c[0] = "0.0001".into();
+        c.join(",")
+    }));
+    refused(&bad, &model, &["line 21", "`t`"]);
+    let bad = write("noq.csv", good.replacen("t,q,", "t,angle,", 1));
+    refused(&bad, &model, &["`q`", "missing"]);
+    let bad = write("ragged.csv", with_line(30, &|l| format!("{l},1")));
+    refused(&bad, &model, &["line 31"]);
+    // models: unknown key, unknown section, out of range, table column missing from the log
+    let m = write("m1.toml", format!("{MODEL}wobble = 1\n"));
+    refused(&log, &m, &["wobble"]);
+    let m = write("m2.toml", format!("{MODEL}[gearbox]\nratio = 3\n"));
+    refused(&log, &m, &["gearbox"]);
+    let m = write("m3.toml", MODEL.replace("c = 1.0", "c = -1.0"));
+    refused(&log, &m, &["[friction] c"]);
+    let m = write(
+        "m4.toml",
+        format!("{MODEL}[gravity_table]\naxes = [\"q\", \"q_shoulder\"]\ngrid = [[0.0, 1.0], [0.0, 1.0]]\ntorque = [0.0, 0.1, 0.2, 0.3]\n"),
+    );
+    refused(&log, &m, &["q_shoulder"]);
+    // an effect section is a plant section, not a model term: refused in a model
+    let m = write("m5.toml", format!("{MODEL}[stribeck]\nlevel = 1.0\nspeed = 0.1\n"));
+    refused(&log, &m, &["stribeck"]);
+    let _ = JointLog::read_file(&log).unwrap();
+}
