@@ -1,0 +1,73 @@
+//! The `--report` HTML opens offline in a real browser: headless Chromium (Debian package
+//! `chromium`, installed by scripts/chromium.sh) parses it, the DOM it builds holds every plot
+//! with its points and curves, and a screenshot of it is not blank. Skips with a message when no
+//! Chromium is installed.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
+
+use std::process::Command;
+
+use host_sim::model_file::ModelFile;
+use host_sim::plant::PlantFile;
+use host_sim::scenario::ScenarioKind;
+use host_sim::sim::{simulate, SimConfig};
+
+const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
+
+fn chromium() -> Option<String> {
+    for c in ["chromium", "chromium-browser"] {
+        if Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false) {
+            return Some(c.to_string());
+        }
+    }
+    None
+}
+
+#[test]
+fn report_renders_in_headless_chromium_with_all_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let plant = PlantFile::parse(
+        &format!("{MODEL}[position_ripple]\namplitude = 0.4\nperiod = 0.05\n[sensors]\ntau_noise = 0.05\nqdd_noise = 0.2\n[joint_range]\nmin = 0.0\nmax = 2.0\n"),
+        "p",
+    )
+    .unwrap();
+    let model = ModelFile::parse(MODEL, "m").unwrap();
+    let cfg = SimConfig { scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand], seconds: 6.0, rate: Some(1000.0), ..SimConfig::default() };
+    let (log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
+    let (l, m, html) = (dir.path().join("l.csv"), dir.path().join("m.toml"), dir.path().join("report.html"));
+    log.write_file(&l).unwrap();
+    std::fs::write(&m, MODEL).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+        .args(["diagnose", "--log", l.to_str().unwrap(), "--model", m.to_str().unwrap(), "--report", html.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&html).unwrap();
+    // Self-contained: nothing is fetched.
+    assert_eq!(text.matches("http://").count(), text.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(), "only SVG namespaces may name a URL");
+    assert!(!text.contains("https://") && !text.contains("<script") && !text.contains("src="));
+    let Some(browser) = chromium() else {
+        eprintln!("SKIPPED: no `chromium` on this machine (run scripts/chromium.sh); the HTML was checked as text only");
+        return;
+    };
+    let url = format!("file://{}", html.display());
+    let common = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--hide-scrollbars"];
+    let dom = Command::new(&browser).args(common).args(["--dump-dom", &url]).output().unwrap();
+    assert!(dom.status.success(), "{}", String::from_utf8_lossy(&dom.stderr));
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    for id in ["resid-vs-velocity", "resid-vs-position", "resid-vs-time", "overlay", "residual-before-after", "autocorrelation", "crosscorrelation", "ranking"] {
+        assert!(dom.contains(&format!("<svg class=\"plot\" id=\"{id}\"")), "plot {id} missing from the rendered DOM");
+    }
+    assert!(dom.matches("<circle").count() > 3 * 2000, "scatter points missing");
+    assert!(dom.matches("<polyline").count() >= 6, "curves missing");
+    assert!(dom.contains("id=\"verdict\"") && dom.contains("position_ripple"));
+    let png = dir.path().join("shot.png");
+    let shot = Command::new(&browser)
+        .args(common)
+        .args(["--window-size=1200,2400", &format!("--screenshot={}", png.display()), &url])
+        .output()
+        .unwrap();
+    assert!(shot.status.success(), "{}", String::from_utf8_lossy(&shot.stderr));
+    // A blank 1200×2400 page compresses to a few kB; the plots make it far larger.
+    let size = std::fs::metadata(&png).unwrap().len();
+    assert!(size > 100_000, "screenshot only {size} bytes");
+}
