@@ -14,8 +14,8 @@ use crate::log::{self, JointLog};
 /// Procedures (the papers'): friction from ± constant-velocity plateaus (robust bisquare fit
 /// of a·v² + b·v + c, 95 % CIs); weight C_w0·sin(s·q + φ) from static poses; inertia and
 /// offset from moving samples (zero-phase filtered, eq. 5); spring K from the static
-/// torque–angle slope, J and B from a free oscillation. Segments are found from the data;
-/// --window overrides.
+/// torque–angle slope, J and B from a free oscillation; a gravity table over q and the other
+/// joints' angles from static samples. Segments are found from the data; --window overrides.
 ///
 /// Example:
 ///   jointctl simulate --plant examples/plants/trunk-right.toml \
@@ -28,7 +28,8 @@ pub struct IdentifyArgs {
     /// Joint log(s) (CSV, spec §1); repeat for several
     #[arg(long = "log", value_name = "FILE", required = true)]
     pub logs: Vec<PathBuf>,
-    /// Terms to identify, comma-separated: friction, weight, inertia, offset, spring
+    /// Terms to identify, comma-separated: friction, weight, inertia, offset, spring,
+    /// gravity_table (over q and every q_<name> column; fused with the weight term when both)
     /// [default: friction,weight,inertia,offset with torque logs, spring with trajectory logs]
     #[arg(long, value_name = "LIST")]
     pub terms: Option<String>,

@@ -16,6 +16,7 @@
 
 pub mod filter;
 pub mod friction;
+pub mod gravity_table;
 pub mod import;
 pub mod inertia;
 pub mod nls;
@@ -40,6 +41,7 @@ pub enum Term {
     Inertia,
     Offset,
     Spring,
+    GravityTable,
 }
 
 impl Term {
@@ -52,10 +54,10 @@ impl Term {
                 "inertia" => Term::Inertia,
                 "offset" => Term::Offset,
                 "spring" => Term::Spring,
+                "gravity_table" => Term::GravityTable,
                 other => {
                     return Err(format!(
-                        "unknown term `{other}` (known: friction, weight, inertia, offset, spring; \
-                         gravity_table is not implemented)"
+                        "unknown term `{other}` (known: friction, weight, inertia, offset, spring, gravity_table)"
                     ))
                 }
             };
@@ -147,6 +149,9 @@ pub struct Identified {
     pub poses: Vec<weight::Pose>,
     pub inertia: Option<inertia::InertiaFit>,
     pub spring: Option<SpringResult>,
+    pub table: Option<gravity_table::TableFit>,
+    /// fusion clamp k written with a table that has σ_m
+    pub table_clamp_k: f64,
     /// final offset C_0 written to the model
     pub c0: Option<f64>,
     pub v_band: f64,
@@ -186,6 +191,11 @@ impl Data {
         self.prepared.iter().any(|p| p.d.is_some())
     }
 }
+
+/// Fusion clamp written with an identified table: the fused gravity stays within
+/// τ_model ± 3·σ_m. σ_m is a mean absolute residual, not a bound, so the arm paper's k = 1
+/// would clip corrections the data support; 3 keeps the clamp a guard against a wrong table.
+pub const TABLE_CLAMP_K: f64 = 3.0;
 
 /// Smoothed sign as the core computes it (`clamp(v/band, −1, 1)`).
 pub fn sign_band(v: f64, band: f64) -> f64 {
@@ -241,6 +251,8 @@ pub fn identify_data(
         poses: Vec::new(),
         inertia: None,
         spring: None,
+        table: None,
+        table_clamp_k: TABLE_CLAMP_K,
         c0: None,
         v_band: band,
         segments: data.segments.clone(),
@@ -339,6 +351,20 @@ pub fn identify_data(
             (None, Some(d)) => Some(d),
             (None, None) => return Err(term_err("offset", "needs static poses or moving samples with torque")),
         };
+    }
+    if terms.contains(&Term::GravityTable) {
+        let fr = out.friction.clone();
+        let c0 = out.c0.unwrap_or(0.0);
+        let w = out.weight.clone();
+        let st = |li: usize, i: usize| {
+            let p = &data.prepared[li];
+            let d = p.d.as_ref().map_or(0.0, |d| d[i]);
+            d - fr.as_ref().map_or(0.0, |f| friction_torque(f, p.qd_f[i], band)) - c0
+        };
+        let model = |li: usize, i: usize| w.as_ref().map_or(0.0, |w| w.weight(data.prepared[li].q[i]));
+        let m: Option<&dyn Fn(usize, usize) -> f64> = if out.weight.is_some() { Some(&model) } else { None };
+        let fit = gravity_table::fit(&kept_pairs, &st, m).map_err(|e| term_err("gravity_table", e))?;
+        out.table = Some(fit);
     }
     if has(Term::Spring) {
         progress.stage("spring", 2, total);
@@ -482,6 +508,16 @@ pub fn model_file(id: &Identified, name: Option<&str>) -> Result<ModelFile, Iden
     }
     if let Some(c0) = id.c0 {
         mf.set(ParamId::OffsetC0, c0, None);
+    }
+    if let Some(t) = &id.table {
+        mf.table = Some(t.spec());
+        match t.sigma_model {
+            Some(sm) if sm > 0.0 => {
+                mf.set(ParamId::TableSigmaModel, sm, None);
+                mf.set(ParamId::TableClampK, id.table_clamp_k, None);
+            }
+            _ => mf.set(ParamId::TableSigmaModel, 0.0, None),
+        }
     }
     if let Some(s) = &id.spring {
         if let Some(k) = s.k {

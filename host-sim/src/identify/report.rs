@@ -97,8 +97,17 @@ fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i:
     if let Some(f) = &id.friction {
         d += friction_torque(f, v, id.v_band);
     }
-    if let Some(w) = &id.weight {
-        d += w.weight(q);
+    let w = id.weight.as_ref().map_or(0.0, |w| w.weight(q));
+    match &id.table {
+        Some(t) => {
+            let x: Vec<f64> = t
+                .axes
+                .iter()
+                .map(|a| if a == "q" { q } else { p.others.iter().find(|(n, _)| n == a).map_or(0.0, |(_, c)| c[i]) })
+                .collect();
+            d += t.gravity(w, &x, id.table_clamp_k);
+        }
+        None => d += w,
     }
     if let (Some(inr), Some(acc)) = (&id.inertia, acc) {
         d += inr.j * acc[li][i];
@@ -251,6 +260,19 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
         if let (Some(j), Some(b)) = (sp.j, sp.b) {
             let _ = writeln!(s, "           j = {j:.5} kg·m², b = {b:.5} N·m·s/rad");
         }
+    }
+    if let Some(t) = &id.table {
+        let dims: Vec<String> = t.grid.iter().map(|g| g.len().to_string()).collect();
+        let _ = writeln!(
+            s,
+            "table      axes [{}], grid {}, {} samples, RMS {:.4} N·m, {} cells without data, σ_m {}",
+            t.axes.join(", "),
+            dims.join("×"),
+            t.samples,
+            t.rms,
+            t.empty_cells,
+            t.sigma_model.map_or("— (no weight term)".to_string(), |s| format!("{s:.4} N·m"))
+        );
     }
     for n in &id.notes {
         let _ = writeln!(s, "note: {n}");
