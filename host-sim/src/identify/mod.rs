@@ -108,7 +108,8 @@ impl Default for Options {
             windows: Vec::new(),
             segments: SegmentCfg::default(),
             accel_cutoff: 5.0,
-            v_band: f64::from(ParamId::FrictionVBand.desc().default),
+            // The f32 default as its shortest decimal (0.01, not 0.009999999776…).
+            v_band: format!("{}", ParamId::FrictionVBand.desc().default).parse().unwrap_or(0.01),
             v_min_inertia: 0.05,
             name: None,
         }

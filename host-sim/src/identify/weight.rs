@@ -87,7 +87,12 @@ impl WeightFit {
     }
 }
 
-fn normalise(mut a: f64, s: f64, mut phi: f64) -> (f64, f64, f64) {
+fn normalise(mut a: f64, mut s: f64, mut phi: f64) -> (f64, f64, f64) {
+    // sin(−s·q + φ) = sin(s·q + π − φ): keep s positive, as the papers write it.
+    if s < 0.0 {
+        s = -s;
+        phi = std::f64::consts::PI - phi;
+    }
     if a < 0.0 {
         a = -a;
         phi += std::f64::consts::PI;
