@@ -18,6 +18,8 @@ use std::path::PathBuf;
 
 /// Parameter storage of a simulated joint: in memory, or a model TOML file (the host-side
 /// stand-in for the board's flash).
+// Memory holds a whole RawParams; boxing it would only move the same bytes to the heap.
+#[allow(clippy::large_enum_variant)]
 pub enum SimStorage {
     Memory(MemoryStorage),
     File(PathBuf),

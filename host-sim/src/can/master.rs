@@ -201,7 +201,7 @@ impl Master {
         }
         if r[0] & 0x02 != 0 {
             let n = if r[0] & 0x01 != 0 { 4 - ((r[0] >> 2) & 3) as usize } else { 4 };
-            return Ok(r[4..4 + n].to_vec());
+            return Ok(r.get(4..4 + n).unwrap_or(&[]).to_vec());
         }
         let total = if r[0] & 0x01 != 0 { Some(u32::from_le_bytes([r[4], r[5], r[6], r[7]]) as usize) } else { None };
         let mut out = Vec::with_capacity(total.unwrap_or(64));
@@ -213,7 +213,7 @@ impl Master {
                 return Err(proto("bad upload segment (toggle or command)"));
             }
             let n = 7 - ((s[0] >> 1) & 7) as usize;
-            out.extend_from_slice(&s[1..1 + n]);
+            out.extend_from_slice(s.get(1..1 + n).unwrap_or(&[]));
             if s[0] & 1 != 0 {
                 break;
             }
@@ -249,7 +249,9 @@ impl Master {
             let last = i + 1 == chunks.len();
             let mut d = [0u8; 8];
             d[0] = (toggle << 4) | (((7 - c.len()) as u8) << 1) | u8::from(last);
-            d[1..1 + c.len()].copy_from_slice(c);
+            for (x, y) in d.iter_mut().skip(1).zip(c.iter()) {
+                *x = *y;
+            }
             let r = self.transact(node, index, sub, d)?;
             if r[0] != 0x20 | (toggle << 4) {
                 self.abort(node, index, sub, Abort::Toggle);

@@ -116,7 +116,7 @@ pub fn fd_bits(id: u16, data: &[u8], worst: bool) -> (u32, u32) {
         push_bits(&mut dat, u32::from(data.get(i).copied().unwrap_or(0)), 8);
     }
     let (s_arb, s_dat) = if worst {
-        ((arb.len() as u32 - 1) / 4, (dat.len() as u32 + 3) / 4)
+        ((arb.len() as u32 - 1) / 4, (dat.len() as u32).div_ceil(4))
     } else {
         // Count stuffing over the whole dynamic region: runs continue across the BRS point.
         let mut all = arb.clone();

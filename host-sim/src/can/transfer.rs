@@ -59,9 +59,9 @@ fn table_ops(t: &RawTable) -> Vec<(u16, u8, Vec<u8>, String)> {
     let mut v = Vec::new();
     let shape = |s: u8, b: u8, w: &str| (od::TABLE_SHAPE, s, vec![b], format!("gravity_table_shape.{w}"));
     v.push(shape(1, t.n_axes, "n_axes"));
-    for a in 0..AXES_MAX {
-        v.push(shape(2 + a as u8, t.axis_source[a], &format!("axis_source_{a}")));
-        v.push(shape(6 + a as u8, t.points[a], &format!("points_{a}")));
+    for (a, (src, pts)) in t.axis_source.iter().zip(t.points.iter()).enumerate() {
+        v.push(shape(2 + a as u8, *src, &format!("axis_source_{a}")));
+        v.push(shape(6 + a as u8, *pts, &format!("points_{a}")));
     }
     v.push(shape(10, u8::from(t.has_sigma), "has_sigma"));
     if t.n_axes > 0 {
@@ -188,14 +188,16 @@ pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
     t.n_axes = byte(m, 1)?;
     if t.n_axes > 0 {
         for a in 0..AXES_MAX {
-            t.axis_source[a] = byte(m, 2 + a as u8)?;
-            t.points[a] = byte(m, 6 + a as u8)?;
+            let (src, pts) = (byte(m, 2 + a as u8)?, byte(m, 6 + a as u8)?);
+            if let (Some(s), Some(p)) = (t.axis_source.get_mut(a), t.points.get_mut(a)) {
+                (*s, *p) = (src, pts);
+            }
         }
         t.has_sigma = byte(m, 10)? == 1;
         let g = m.read(node, od::TABLE_GRID, 0)?;
-        for a in 0..AXES_MAX {
-            for k in 0..AXIS_POINTS_MAX {
-                t.grid[a][k] = f32_at(&g, a * AXIS_POINTS_MAX + k);
+        for (a, row) in t.grid.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = f32_at(&g, a * AXIS_POINTS_MAX + k);
             }
         }
         let tq = m.read(node, od::TABLE_TORQUE, 0)?;

@@ -43,7 +43,11 @@ pub fn run(a: &PullArgs) -> anyhow::Result<()> {
     if a.json {
         let values: serde_json::Map<String, serde_json::Value> = joint_core::params::PARAMS
             .iter()
-            .map(|d| (d.name.to_string(), serde_json::json!(raw.get(d.id))))
+            .map(|d| {
+                // the f32's shortest decimal, not its f64 widening (0.2, not 0.20000000298…)
+                let v: f64 = raw.get(d.id).to_string().parse().unwrap_or(f64::NAN);
+                (d.name.to_string(), serde_json::json!(v))
+            })
             .collect();
         println!(
             "{}",

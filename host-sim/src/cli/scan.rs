@@ -29,7 +29,10 @@ pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
     let seen: Vec<(u8, _)> = m.seen.iter().map(|(k, v)| (*k, *v)).collect();
     for (node, s) in seen {
         let name = m.read_string(node, od::DEVICE_NAME, 0).ok();
-        let ident: Vec<Option<u32>> = (1..=4).map(|k| m.read_u32(node, od::IDENTITY, k).ok()).collect();
+        let mut ident = [None; 4];
+        for (k, x) in ident.iter_mut().enumerate() {
+            *x = m.read_u32(node, od::IDENTITY, k as u8 + 1).ok();
+        }
         rows.push(serde_json::json!({
             "node": node,
             "state": s.state.map(|x| x.name()),
@@ -45,7 +48,7 @@ pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
         for r in &rows {
             let s = |k: &str| r[k].as_str().unwrap_or("?").to_string();
             let h = |k: &str| r[k].as_u64().map_or("?".to_string(), |v| format!("0x{v:08X}"));
-            println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", r["node"], s("state"), s("device_name"), h("product_code"), h("revision"));
+            println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", r["node"].as_u64().unwrap_or(0), s("state"), s("device_name"), h("product_code"), h("revision"));
         }
         if rows.is_empty() {
             println!("no node heard on {} in {:.1} s", m.bus.describe(), a.seconds);

@@ -71,7 +71,13 @@ pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
                 });
                 println!(
                     "{:>4}  {:<16} {:>8} {:>9} {:>9} {:>9}  {}",
-                    r["node"], r["state"].as_str().unwrap_or("?"), r["heartbeat_age_ms"], f("q"), f("qd"), f("tau"), faults
+                    r["node"].as_u64().unwrap_or(0),
+                    r["state"].as_str().unwrap_or("?"),
+                    r["heartbeat_age_ms"].as_u64().unwrap_or(0),
+                    f("q"),
+                    f("qd"),
+                    f("tau"),
+                    faults
                 );
             }
         }
