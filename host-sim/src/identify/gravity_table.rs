@@ -101,7 +101,7 @@ fn corners(grid: &[Vec<f64>], x: &[f64], idx: &mut Vec<usize>, w: &mut Vec<f64>)
 
 /// Grid of one axis: cluster centres when the values are a few tight clusters, else evenly
 /// spaced `even` points over the range.
-fn axis_grid(values: &mut Vec<f64>, even: usize) -> Option<Vec<f64>> {
+fn axis_grid(values: &mut [f64], even: usize) -> Option<Vec<f64>> {
     values.sort_by(f64::total_cmp);
     let (lo, hi) = (*values.first()?, *values.last()?);
     if !(hi > lo) {

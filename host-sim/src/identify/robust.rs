@@ -227,6 +227,7 @@ pub fn bisquare(x: &[&[f64]], y: &[f64]) -> Option<LinFit> {
     Some(finish(beta, &cov, s2.sqrt(), dof, w, iterations))
 }
 
+#[allow(clippy::excessive_precision)] // the published coefficients, kept as printed
 /// Standard normal quantile (Acklam's rational approximation, |error| < 1.2e-9).
 pub fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [-3.969683028665376e1, 2.209460984245205e2, -2.759285104469687e2, 1.383577518672690e2, -3.066479806614716e1, 2.506628277459239];

@@ -106,6 +106,7 @@ fn dz(x: f64, w: f64) -> f64 {
     }
 }
 
+#[allow(clippy::too_many_arguments)] // the model's parameters and state, each a plain number
 /// Simulates q̈ = −kj·dz(q − q0) − bj·q̇ at the sample times `t` from (x0, v0), into `out`.
 pub fn simulate(t: &[f64], kj: f64, bj: f64, q0: f64, w: f64, x0: f64, v0: f64, out: &mut [f64]) {
     let acc = |x: f64, v: f64| -kj * dz(x - q0, w) - bj * v;
