@@ -1,0 +1,109 @@
+//! The CAN subcommands of `jointctl` end to end on `--bus sim` (the in-process bus with
+//! simulated joints): JSON output, files that the spec's readers accept, errors that name what
+//! is wrong.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
+
+use std::process::Command;
+
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+
+fn jointctl(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
+}
+
+fn json(o: &std::process::Output) -> serde_json::Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn push_json_reports_timing_within_budget() {
+    let v = json(&jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--json"]));
+    assert_eq!(v["node"], 5);
+    let ratio = v["ratio"].as_f64().unwrap();
+    assert!((1.0..=1.2).contains(&ratio), "{v}");
+    assert_eq!(v["frames"].as_u64().unwrap(), 2 * v["sdo_transfers"].as_u64().unwrap());
+}
+
+#[test]
+fn push_of_an_invalid_model_names_the_key_and_sends_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.toml");
+    std::fs::write(&p, "[compensation]\nfraction = 1.5\n").unwrap();
+    let o = jointctl(&["push", p.to_str().unwrap(), "--node", "5"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("fraction"), "{err}");
+}
+
+#[test]
+fn log_writes_a_joint_log_the_spec_reader_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("can.csv");
+    let v = json(&jointctl(&["log", "--node", "5", "--seconds", "0.5", "--start", "--out", out.to_str().unwrap(), "--json"]));
+    // TPDOs every 10 ms
+    let rows = v["rows"].as_u64().unwrap();
+    assert!((48..=52).contains(&rows), "{v}");
+    let log = host_sim::log::JointLog::read_file(&out).unwrap();
+    assert_eq!(log.len() as u64, rows);
+}
+
+#[test]
+fn log_without_start_says_why_nothing_came() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("none.csv");
+    let o = jointctl(&["log", "--node", "5", "--seconds", "0.2", "--out", out.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("operational"));
+    assert!(!out.exists());
+}
+
+#[test]
+fn scan_and_watch_json() {
+    let v = json(&jointctl(&["scan", "--sim-node", "3", "--sim-node", "4", "--seconds", "0.3", "--json"]));
+    let nodes: Vec<u64> = v["nodes"].as_array().unwrap().iter().map(|n| n["node"].as_u64().unwrap()).collect();
+    assert_eq!(nodes, vec![3, 4]);
+    assert_eq!(v["nodes"][0]["device_name"], "joint-node");
+    let o = jointctl(&["watch", "--sim-node", "3", "--seconds", "0.5", "--start", "--json"]);
+    let last = String::from_utf8_lossy(&o.stdout).lines().last().unwrap().to_string();
+    let w: serde_json::Value = serde_json::from_str(&last).unwrap();
+    assert_eq!(w["nodes"][0]["state"], "operational");
+    assert_eq!(w["nodes"][0]["faults"].as_array().unwrap().len(), 0);
+}
+
+#[test]
+fn bus_budget_matches_hand_counted_frames() {
+    // 1 joint at 1000 Hz, classic 1 Mbit/s, worst case 47 + 8n + ⌊(34 + 8n − 1)/4⌋ bits: two
+    // 8-byte frames (135 bits) and one 2-byte frame (47 + 16 + 12 = 75) per ms, plus two 1-byte
+    // heartbeats (47 + 8 + 10 = 65) at 10 Hz: (270 + 75)·1000 + 2·65·10 = 346 300 bit/s.
+    let v = json(&jointctl(&["bus-budget", "--joints", "1", "--rate", "1000", "--json"]));
+    let w = v["load_worst"].as_f64().unwrap();
+    assert!((w - 0.3463).abs() < 1e-6, "{w}");
+    assert!(v["load_typical"].as_f64().unwrap() < w);
+    let o = jointctl(&["bus-budget", "--joints", "0", "--rate", "100"]);
+    assert!(!o.status.success());
+}
+
+#[test]
+fn eds_is_written_and_lists_every_parameter() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("joint.eds");
+    let o = jointctl(&["eds", "--out", p.to_str().unwrap()]);
+    assert!(o.status.success());
+    let text = std::fs::read_to_string(&p).unwrap();
+    for d in joint_core::params::PARAMS.iter() {
+        assert!(text.contains(&format!("ParameterName={}\n", d.name)), "{}", d.name);
+    }
+    assert!(text.contains("DefaultValue=$NODEID+0x180"));
+}
+
+#[test]
+fn sim_refuses_the_in_process_bus_and_bad_node_ids() {
+    let o = jointctl(&["sim", "--bus", "sim", "--node", "5"]);
+    assert!(!o.status.success());
+    let o = jointctl(&["sim", "--bus", "slcan:/nonexistent/tty", "--node", "0"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("1..=127"));
+    let o = jointctl(&["sim", "--bus", "slcan:/nonexistent/tty", "--node", "5", "--seconds", "0.1"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/tty"));
+}
