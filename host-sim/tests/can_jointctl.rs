@@ -180,3 +180,26 @@ fn push_of_the_trunk_set_takes_at_most_1_2_times_its_wire_minimum_at_1_mbit() {
     assert!(ratio >= 1.0, "cannot beat the wire: {ratio}");
     assert!(ratio <= 1.2, "push took {ratio:.3}× its wire minimum");
 }
+
+#[test]
+fn push_to_an_operational_joint_needs_pre_operational_only_for_changed_safety_values() {
+    let mut r = rig(1_000_000, &[5]);
+    let mut set = model("trunk-right.toml");
+    transfer::push(&mut r.m, 5, &set, PushOptions::default(), &mut |_| {}).unwrap();
+    r.m.nmt(5, NMT_START).unwrap();
+    r.m.listen(Duration::from_millis(200)).unwrap();
+    assert_eq!(r.m.seen[&5].state, Some(NmtState::Operational));
+    // friction retuned live: safety values unchanged, so the push goes through while running
+    set.set(ParamId::FrictionC, 2.5);
+    transfer::push(&mut r.m, 5, &set, PushOptions::default(), &mut |_| {}).unwrap();
+    assert_eq!(running(&r.joints[0]).get(ParamId::FrictionC), 2.5);
+    // a new compensation fraction is refused while operational, with the way out named
+    let mut unsafe_set = set.clone();
+    unsafe_set.set(ParamId::Fraction, 0.5);
+    let err = transfer::push(&mut r.m, 5, &unsafe_set, PushOptions::default(), &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("compensation_fraction") && err.to_string().contains("--pre-operational"), "{err}");
+    assert_eq!(running(&r.joints[0]), set);
+    let opts = PushOptions { pre_operational: true, ..Default::default() };
+    transfer::push(&mut r.m, 5, &unsafe_set, opts, &mut |_| {}).unwrap();
+    assert_eq!(running(&r.joints[0]), unsafe_set);
+}

@@ -268,3 +268,14 @@ proptest! {
         prop_assert_eq!(r, [0x43, 0x18, 0x10, 0x02, 0x01, 0x00, 0x4E, 0x4A]);
     }
 }
+
+/// The node lives in the G431's 32 KiB RAM next to the control loop: keep it small. Most of it
+/// is the staged and the committed parameter sets (each with the 256-cell gravity table and
+/// its sigma) and the 1 KiB segmented-download buffer.
+#[test]
+fn node_fits_its_ram_budget() {
+    use joint_core::canopen::node::NoStorage;
+    let size = std::mem::size_of::<Node<NoStorage>>();
+    println!("Node<NoStorage>: {size} bytes");
+    assert!(size <= 8 * 1024, "{size} bytes");
+}
