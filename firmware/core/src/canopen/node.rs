@@ -34,6 +34,7 @@ use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
+use crate::math;
 use crate::params::{self, ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
 use crate::safety::{Faults, Safety, SafetyConfig};
 use crate::table::{AXES_MAX, AXIS_POINTS_MAX, AXIS_SOURCE_MAX, CELLS_MAX};
@@ -1274,7 +1275,7 @@ impl<S: ParamStorage> Node<S> {
                 if d.safety && !self.in_preop() {
                     return Err(Abort::DeviceState);
                 }
-                if !v.is_finite() {
+                if !math::is_finite(v) {
                     return Err(Abort::InvalidValue);
                 }
                 if v < d.min {
@@ -1291,7 +1292,7 @@ impl<S: ParamStorage> Node<S> {
                 let mut grid = [[0.0f32; AXIS_POINTS_MAX]; AXES_MAX];
                 for (k, c) in data.chunks_exact(4).enumerate() {
                     let v = f32::from_bits(le_u32(c));
-                    if !v.is_finite() {
+                    if !math::is_finite(v) {
                         return Err(Abort::InvalidValue);
                     }
                     if let Some(x) = grid
@@ -1308,7 +1309,7 @@ impl<S: ParamStorage> Node<S> {
                 let mut vals = [0.0f32; CELLS_MAX];
                 for (x, c) in vals.iter_mut().zip(data.chunks_exact(4)) {
                     let v = f32::from_bits(le_u32(c));
-                    if !v.is_finite() {
+                    if !math::is_finite(v) {
                         return Err(Abort::InvalidValue);
                     }
                     *x = v;
