@@ -203,3 +203,32 @@ fn push_to_an_operational_joint_needs_pre_operational_only_for_changed_safety_va
     transfer::push(&mut r.m, 5, &unsafe_set, opts, &mut |_| {}).unwrap();
     assert_eq!(running(&r.joints[0]), unsafe_set);
 }
+
+#[test]
+fn a_joint_reads_another_joints_angle_from_its_tpdo() {
+    // Joint 5 moves (trunk plant under the simulated operator); joint 6's gravity-table input
+    // slot 1 listens to joint 5's TPDO1 once RPDO2's COB-ID (0x1401:1) points at 0x185.
+    let pf = host_sim::plant::PlantFile::read_file(&root().join("examples/plants/trunk-right.toml")).unwrap();
+    let mut bus = SimBus::new(1_000_000);
+    let j5 = Arc::new(Mutex::new(JointSim::new(5, Some(&pf), SimStorage::Memory(MemoryStorage::default()), 0)));
+    let j6 = Arc::new(Mutex::new(JointSim::new(6, None, SimStorage::Memory(MemoryStorage::default()), 0)));
+    bus.attach(j5.clone());
+    bus.attach(j6.clone());
+    let bus = SharedSimBus(Arc::new(Mutex::new(bus)));
+    let mut m = Master::new(Box::new(bus.clone()));
+    m.listen(Duration::from_millis(10)).unwrap();
+    m.write(6, 0x1401, 1, &0x185u32.to_le_bytes()).unwrap();
+    m.nmt(0, NMT_START).unwrap();
+    let mut worst: f32 = 0.0;
+    let mut moved: f32 = 0.0;
+    for _ in 0..40 {
+        m.listen(Duration::from_millis(50)).unwrap();
+        let q5 = j5.lock().unwrap().node.joint_state().q;
+        let seen = j6.lock().unwrap().node.others()[0];
+        // one TPDO period (10 ms) of motion plus the 1e-4 rad resolution
+        worst = worst.max((q5 - seen).abs());
+        moved = moved.max(q5.abs());
+    }
+    assert!(moved > 0.05, "joint 5 should move: {moved}");
+    assert!(worst < 0.02, "joint 6 saw joint 5's angle within {worst} rad");
+}

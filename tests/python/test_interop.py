@@ -82,14 +82,17 @@ def rig():
     finally:
         hb.stop()
         network.disconnect()
+        # SIGTERM stops `jointctl sim` cleanly (exit 0, summary on stderr)
         sim.terminate()
         try:
-            sim.wait(timeout=5)
+            rc = sim.wait(timeout=5)
         except subprocess.TimeoutExpired:
             sim.kill()
+            rc = "hung"
         socat.terminate()
         socat.wait(timeout=5)
         shutil.rmtree(tmp, ignore_errors=True)
+        assert rc == 0, f"jointctl sim did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
 
 
 def abort_code(exc_info):
