@@ -203,3 +203,17 @@ fn a_log_without_plateaus_is_refused_with_the_reason() {
     let err = identify::identify(&[hand], &opts, &Quiet).unwrap_err().to_string();
     assert!(err.contains("friction") && err.contains("plateau"), "{err}");
 }
+
+/// `--window START:END:motion` restricts the inertia fit to the hand-moved third (the paper's
+/// §3.4 data); the inertia stays within 3 %.
+#[test]
+fn motion_window_uses_only_the_hand_motion() {
+    use host_sim::identify::segments::{SegKind, Window};
+    let (log, truth) = simulate("right", 11);
+    let opts = Options { windows: vec![Window { start: 80.0, end: 120.0, kind: SegKind::Motion }], ..Options::default() };
+    let (_, id) = identify::identify(std::slice::from_ref(&log), &opts, &Quiet).unwrap();
+    let inr = id.inertia.as_ref().unwrap();
+    let rel = inr.j / truth.value(ParamId::InertiaJ) - 1.0;
+    eprintln!("motion window: J {:.4} ({:+.2} %), {} samples", inr.j, rel * 100.0, inr.n);
+    assert!(rel.abs() < 0.03 && inr.n < 40_000, "J {} from {} samples", inr.j, inr.n);
+}

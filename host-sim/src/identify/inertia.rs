@@ -12,7 +12,8 @@
 //!
 //! Samples near zero velocity are left out (|q̇| < `v_min`, widened by half a filter period):
 //! there the smoothed Coulomb sign is least certain and its error would leak into J. Static
-//! segments are left out too; plateaus stay (they carry q̈ ≈ 0 and pin ΔC_0).
+//! segments are left out too; plateaus stay (they carry q̈ ≈ 0 and pin ΔC_0). With
+//! `--window START:END:motion` only the given stretches are used.
 
 use super::filter;
 use super::robust::{self, t_quantile_975};
@@ -73,6 +74,19 @@ pub fn data(
                 for s in segs.iter().filter(|s| s.kind == SegKind::Static) {
                     for m in &mut mask[s.start.min(n)..s.end.min(n)] {
                         *m = false;
+                    }
+                }
+                // `--window …:motion` given: only those stretches are motion.
+                let motion: Vec<&Segment> = segs.iter().filter(|s| s.kind == SegKind::Motion).collect();
+                if !motion.is_empty() {
+                    let mut inside = vec![false; n];
+                    for s in motion {
+                        for x in &mut inside[s.start.min(n)..s.end.min(n)] {
+                            *x = true;
+                        }
+                    }
+                    for (m, i) in mask.iter_mut().zip(inside) {
+                        *m &= i;
                     }
                 }
                 (y, mask)
