@@ -217,3 +217,23 @@ fn motion_window_uses_only_the_hand_motion() {
     eprintln!("motion window: J {:.4} ({:+.2} %), {} samples", inr.j, rel * 100.0, inr.n);
     assert!(rel.abs() < 0.03 && inr.n < 40_000, "J {} from {} samples", inr.j, inr.n);
 }
+
+/// Without the logged `qdd` (and then without `qd` too) the accelerations come from the
+/// zero-phase filtered derivative; the Table 1 bounds still hold.
+#[test]
+fn derived_velocity_and_acceleration_suffice() {
+    let (mut log, truth) = simulate("right", 11);
+    for drop_qd in [false, true] {
+        log.qdd = None;
+        if drop_qd {
+            log.qd = None;
+        }
+        let (_, id) = identify::identify(std::slice::from_ref(&log), &Options::default(), &Quiet).unwrap();
+        let found = identify::model_file(&id, Some("found")).unwrap();
+        let (q_lo, q_hi) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+        let e = errors(&found, &truth, q_lo, q_hi);
+        let worst = e.friction_rel.iter().fold(0.0f64, |m, (_, r)| m.max(*r));
+        eprintln!("no qdd{}: friction worst {:.2} %, static RMS {:.4} N·m, J {:.2} %", if drop_qd { ", no qd" } else { "" }, worst * 100.0, e.static_rms, e.j_rel * 100.0);
+        assert!(worst < 0.03 && e.static_rms < 0.1 && e.j_rel < 0.03);
+    }
+}
