@@ -79,5 +79,10 @@ fn table_over_two_joints_reproduces_the_static_torque() {
         t.empty_cells
     );
     assert!(e_table < 0.1, "table RMS error {e_table}");
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _) = identify::identify(std::slice::from_ref(&log), &opts, &Quiet).unwrap();
+    let rep = identify::report::validate(&data, &opts, &id).unwrap();
+    identify::report::write_dir(dir.path(), &rep, &id, &data).unwrap();
+    assert!(std::fs::read_to_string(dir.path().join("gravity_table.svg")).unwrap().contains("q_shoulder"));
     assert!(e_table < 0.5 * e_weight, "table {e_table} vs weight alone {e_weight}");
 }

@@ -486,6 +486,32 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
             }
         }
     }
+    if let Some(t) = &id.table {
+        // One line per grid value of the second axis (the first four), torque against q.
+        let colors = ["#111", "#d62728", "#2ca02c", "#9467bd"];
+        let second: Vec<f64> = t.grid.get(1).cloned().unwrap_or_else(|| vec![0.0]);
+        let pick: Vec<f64> = if second.len() <= 4 {
+            second.clone()
+        } else {
+            (0..4).map(|k| second[k * (second.len() - 1) / 3]).collect()
+        };
+        let (q0, q1) = (t.grid[0][0], t.grid[0][t.grid[0].len() - 1]);
+        let names: Vec<String> = pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
+        let mut series = Vec::new();
+        for (k, v) in pick.iter().enumerate() {
+            let pts = (0..=100)
+                .map(|i| q0 + (q1 - q0) * i as f64 / 100.0)
+                .map(|q| {
+                    let mut x = vec![q, *v];
+                    x.truncate(t.axes.len());
+                    x.resize(t.axes.len(), *v);
+                    (q, t.eval(&x).0)
+                })
+                .collect();
+            series.push(Series { name: if t.axes.len() > 1 { &names[k] } else { "table" }, points: pts, line: true, color: colors[k % 4] });
+        }
+        plots.push(("gravity_table.svg", svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series)));
+    }
     if let Some(sp) = &id.spring {
         if let Some(st) = &sp.stat {
             let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
