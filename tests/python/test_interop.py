@@ -35,7 +35,9 @@ def jointctl() -> str:
     if exe:
         return exe
     target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(Path(target) / "debug" / "jointctl")
+    exe = Path(target) / "debug" / "jointctl"
+    assert exe.exists(), f"{exe} missing: `cargo build -p host-sim`, or set JOINTCTL to the binary"
+    return str(exe)
 
 
 def wait_for(pred, timeout, what):
@@ -173,6 +175,31 @@ def test_every_manufacturer_object_reads_default_and_writes(rig):
     assert node.sdo["params_pending"].raw == 0
     for o in objs:
         assert node.sdo[o.name].raw == pytest.approx(f32(o.default)), o.name
+
+
+def test_process_data_objects_by_sdo(rig):
+    _, node, _ = rig
+    preop(node)
+    # joint state: readable, not writable
+    for sub in ("q", "qd", "tau_cmd", "faults", "qdd", "tau_measured", "temperature", "gain_permille"):
+        node.sdo["joint_state"][sub].raw
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["joint_state"]["q"].raw = 1
+    assert abort_code(e) == 0x06010002
+    # other joints' angles: read/write (1e-4 rad per LSB)
+    node.sdo["other_joint_angles"][2].raw = -1234
+    assert node.sdo["other_joint_angles"][2].raw == -1234
+    node.sdo["other_joint_angles"][2].raw = 0
+    # the host's assist command only while operational (the torque is off otherwise)
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["host_command"]["assist_cmd"].raw = 150
+    assert abort_code(e) == 0x08000022
+    node.nmt.state = "OPERATIONAL"
+    time.sleep(0.05)
+    node.sdo["host_command"]["assist_cmd"].raw = 150
+    assert node.sdo["host_command"]["assist_cmd"].raw == 150
+    preop(node)
+    assert node.sdo["host_command"]["assist_cmd"].raw == 0  # dropped on leaving operational
 
 
 def test_gravity_table_by_segmented_sdo_and_commit(rig):
