@@ -33,6 +33,11 @@ pub struct Data {
     pub sgn: Vec<f64>,
     /// the model's spring rest angle (centre of a backlash dead zone)
     pub q0: f64,
+    /// `sin(s·q)`, `cos(s·q)` at the model's weight scale `ws`, computed once: every fit and
+    /// every score reads them
+    pub ws: f64,
+    pub wsin: Vec<f64>,
+    pub wcos: Vec<f64>,
 }
 
 /// Where a thermal candidate reads its temperature.
@@ -74,6 +79,8 @@ impl Col {
             Col::QdAbsQd => qd * qd.abs(),
             Col::Qd => qd,
             Col::Sgn => d.sgn[i],
+            Col::SinSq(s) if s == d.ws && !d.wsin.is_empty() => d.wsin[i],
+            Col::CosSq(s) if s == d.ws && !d.wcos.is_empty() => d.wcos[i],
             Col::SinSq(s) => (s * d.q[i]).sin(),
             Col::CosSq(s) => (s * d.q[i]).cos(),
             Col::Q => d.q[i],

@@ -334,6 +334,13 @@ fn torque_mode(
     opts: &Options,
 ) -> Result<Diagnosis, DiagError> {
     let n = log.len();
+    let clock = std::time::Instant::now();
+    let timing = std::env::var_os("DIAG_TIMING").is_some();
+    let lap = |what: &str| {
+        if timing {
+            eprintln!("[diagnose] {what}: {:.3} s", clock.elapsed().as_secs_f64());
+        }
+    };
     let dt = median_dt(&log.t);
     let (qd, qdd) = velocities(log, dt);
     // Friction terms are steep inside the sign band, so velocity noise there turns into large
@@ -365,7 +372,15 @@ fn torque_mode(
         band,
         sgn,
         q0: model.value(ParamId::SpringQ0),
+        ws: model.value(ParamId::WeightS),
+        wsin: Vec::new(),
+        wcos: Vec::new(),
     };
+    if model.value(ParamId::WeightAmplitude) != 0.0 {
+        let (ws, wc): (Vec<f64>, Vec<f64>) = data.q.iter().map(|&q| (data.ws * q).sin_cos()).unzip();
+        data.wsin = ws;
+        data.wcos = wc;
+    }
     // y = d − (prediction − linear part at the model's values): the rest the fits keep fixed.
     let des0 = candidates::Design::new(&base, &[]);
     let mut x = vec![0.0; des0.cols.len()];
@@ -386,8 +401,11 @@ fn torque_mode(
         return Err(DiagError::Input("too few samples for a training/held-out split".into()));
     }
     let floor = noise_floor(&r0);
+    lap("prepared (velocities, model prediction, regimes, split, noise floor)");
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
+    lap("candidates and forward selection");
     let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, log);
+    lap("report");
     let final_s = sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let emitted_model = emit_model(model, &base, final_s, &data);
     let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
@@ -636,10 +654,10 @@ fn build_report(
         shrink: shrink(before, vafter),
         effects: if sel.chosen.is_empty() { vec![vname] } else { sel.chosen.iter().map(|o| o.name.to_string()).collect() },
     };
-    // resid evidence on the first contiguous stretch of held-out samples (at most 100 000).
+    // resid evidence on the first held-out samples (at most 50 000).
     let resid = {
         let mut idx: Vec<usize> = Vec::new();
-        for &i in split.holdout.iter().take(100_000) {
+        for &i in split.holdout.iter().take(50_000) {
             idx.push(i as usize);
         }
         let mut x0 = vec![0.0; sel.m0.design.cols.len()];

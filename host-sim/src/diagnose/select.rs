@@ -235,8 +235,8 @@ fn try_kinds(
 
 /// The whole torque-mode selection. `floor` = noise floor (N·m); selection stops there.
 pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usize, floor: f64, max_effects: usize) -> Selection {
-    // Fits read at most 250 000 training rows, grids 40 000 (every k-th sample).
-    let fit_idx = super::candidates::thin_idx(&split.train, 250_000);
+    // Fits read at most 150 000 training rows, grids 20 000 (every k-th sample).
+    let fit_idx = super::candidates::thin_idx(&split.train, 150_000);
     let grid_idx = super::candidates::thin_idx(&split.train, 20_000);
     let m0 = score(d, Design::new(base, &[]), base.beta0.clone(), vec![], split, bits, n_regimes);
     let m_tests = (Kind::ALL.len() + 1) as f64;
@@ -253,8 +253,22 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
         let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN;
         Outcome { name, scored: s, t, p, gain, significant }
     };
+    let t0 = std::time::Instant::now();
     let first = try_kinds(&Kind::ALL, d, base, &[], &grid_idx, &fit_idx, split, bits, n_regimes);
-    let candidates: Vec<Outcome> = first.into_iter().map(|s| outcome(&refit.scored, s)).collect();
+    if std::env::var_os("DIAG_TIMING").is_some() {
+        eprintln!("[diagnose] first round of candidates: {:.3} s", t0.elapsed().as_secs_f64());
+    }
+    // An effect must beat the refit (what retuning cannot explain) and the file's model too (a
+    // refit can overfit a short or chattering log and score worse than the file's values).
+    let candidates: Vec<Outcome> = first
+        .into_iter()
+        .map(|s| {
+            let mut o = outcome(&refit.scored, s);
+            let (_, p0, g0) = compare(&m0, &o.scored);
+            o.significant &= p0 < alpha_each && g0 >= MIN_GAIN;
+            o
+        })
+        .collect();
 
     let mut chosen: Vec<Outcome> = Vec::new();
     let best_first = candidates

@@ -295,7 +295,9 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
         .map(|f| {
             let reference = if f.kind == TKind::InitialState { &m0 } else { &refit.scored };
             let (t, p, g) = compare(reference, &f.scored);
-            (f, t, p, g, !at_floor && p < alpha_each && g >= MIN_GAIN)
+            // and, like in torque mode, better than the file's model itself
+            let (_, p0, g0) = compare(&m0, &f.scored);
+            (f, t, p, g, !at_floor && p < alpha_each && g >= MIN_GAIN && p0 < alpha_each && g0 >= MIN_GAIN)
         })
         .collect();
     let best = outcomes.iter().filter(|o| o.4).min_by(|a, b| a.0.scored.mse().total_cmp(&b.0.scored.mse()));
