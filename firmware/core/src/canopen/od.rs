@@ -181,6 +181,9 @@ pub const JOINT_STATE: u16 = 0x2300;
 pub const HOST_COMMAND: u16 = 0x2310;
 pub const OTHER_ANGLES: u16 = 0x2311;
 
+// Parameter objects run from PARAM_BASE up to the gravity table's objects at 0x2100.
+const _: () = assert!(PARAM_COUNT <= (TABLE_SHAPE - PARAM_BASE) as usize);
+
 /// Number of RPDOs: 1 = host command, 2..=4 = other joints' angles.
 pub const RPDO_COUNT: u8 = 4;
 /// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain.
