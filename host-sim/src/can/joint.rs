@@ -13,7 +13,7 @@ use crate::model_file::ModelFile;
 use crate::plant::{Operator, Plant, PlantFile, State};
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
 use joint_core::canopen::CanFrame;
-use joint_core::params::{ParamId, RawParams};
+use joint_core::params::{ParamId, ParamSet, RawParams};
 use std::path::PathBuf;
 
 /// Parameter storage of a simulated joint: in memory, or a model TOML file (the host-side
@@ -26,11 +26,11 @@ pub enum SimStorage {
 }
 
 impl ParamStorage for SimStorage {
-    fn save(&mut self, raw: &RawParams) -> Result<(), StorageError> {
+    fn save(&mut self, set: &ParamSet) -> Result<(), StorageError> {
         match self {
-            SimStorage::Memory(m) => m.save(raw),
+            SimStorage::Memory(m) => m.save(set),
             SimStorage::File(p) => {
-                let text = ModelFile::from_raw(raw, None, &[]).to_toml_string();
+                let text = ModelFile::from_raw(set.raw(), None, &[]).to_toml_string();
                 std::fs::write(p, text).map_err(|_| StorageError::Failed)
             }
         }

@@ -15,6 +15,7 @@ pub mod node;
 pub mod od;
 pub mod pdo;
 pub mod sdo;
+pub mod storage;
 
 pub use frame::CanFrame;
 pub use node::{

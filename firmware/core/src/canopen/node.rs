@@ -170,11 +170,16 @@ pub enum StorageError {
 
 /// Persistent parameter storage, implemented by whoever owns the flash (or a file).
 pub trait ParamStorage {
-    /// Persist a committed (validated) set. `Ok` means accepted: the firmware's flash task may
-    /// finish the write later and raise [`Faults::STORE_WRITE`] should it fail.
-    fn save(&mut self, raw: &RawParams) -> Result<(), StorageError>;
+    /// Persist the committed set. `Ok` means accepted: a firmware flash task may finish the
+    /// write later and raise [`Faults::STORE_WRITE`] should it fail.
+    fn save(&mut self, set: &ParamSet) -> Result<(), StorageError>;
     /// The stored set, read at boot and on NMT reset-node; `None` when nothing is stored.
     fn load(&mut self) -> Option<RawParams>;
+    /// The fault the last [`ParamStorage::load`] found (a damaged or unreadable store), raised
+    /// by the node after it; none by default.
+    fn load_fault(&self) -> Faults {
+        Faults::NONE
+    }
     /// Forget the stored set, so the next reset runs the table defaults (0x1011 "load").
     fn restore_defaults(&mut self) -> Result<(), StorageError>;
 }
@@ -184,7 +189,7 @@ pub trait ParamStorage {
 pub struct NoStorage;
 
 impl ParamStorage for NoStorage {
-    fn save(&mut self, _raw: &RawParams) -> Result<(), StorageError> {
+    fn save(&mut self, _set: &ParamSet) -> Result<(), StorageError> {
         Err(StorageError::Unsupported)
     }
     fn load(&mut self) -> Option<RawParams> {
@@ -203,8 +208,8 @@ pub struct MemoryStorage {
 }
 
 impl ParamStorage for MemoryStorage {
-    fn save(&mut self, raw: &RawParams) -> Result<(), StorageError> {
-        self.stored = Some(raw.clone());
+    fn save(&mut self, set: &ParamSet) -> Result<(), StorageError> {
+        self.stored = Some(set.raw().clone());
         self.saves = self.saves.saturating_add(1);
         Ok(())
     }
@@ -402,6 +407,7 @@ impl<S: ParamStorage> Node<S> {
             },
             None => ParamSet::defaults(),
         };
+        faults.insert(self.storage.load_fault());
         self.staged = set.raw().clone();
         self.safety = Safety::new(SafetyConfig::from_params(&set), now_us);
         self.safety.raise(faults);
@@ -471,6 +477,10 @@ impl<S: ParamStorage> Node<S> {
     }
     pub fn storage_mut(&mut self) -> &mut S {
         &mut self.storage
+    }
+    /// Give the storage back (a power cycle in tests: build a new node on it).
+    pub fn into_storage(self) -> S {
+        self.storage
     }
     /// The host's assist command (RPDO1), N·m.
     pub fn assist_cmd(&self) -> f32 {
@@ -1200,8 +1210,12 @@ impl<S: ParamStorage> Node<S> {
                 if u != od::SAVE_SIGNATURE {
                     return Err(Abort::CannotStore);
                 }
-                let raw = self.active.current().raw().clone();
-                self.storage.save(&raw).map_err(|_| Abort::CannotStore)
+                let set = self.active.current();
+                let r = self.storage.save(set);
+                if r == Err(StorageError::Failed) {
+                    self.safety.raise(Faults::STORE_WRITE);
+                }
+                r.map_err(|_| Abort::CannotStore)
             }
             Key::RestoreAll => {
                 if u != od::LOAD_SIGNATURE {
