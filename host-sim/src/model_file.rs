@@ -86,7 +86,20 @@ macro_rules! model_toml_struct {
 pub(crate) use model_toml_struct;
 
 model_toml_struct! {
-    pub(crate) struct ModelToml {}
+    /// The model file: the common sections plus the effect terms the core can compensate.
+    /// (A plant file parses these same sections as its effects instead: see `plant.rs`.)
+    pub(crate) struct ModelToml {
+        #[serde(default)]
+        pub stribeck: Option<Section>,
+        #[serde(default)]
+        pub asymmetric_friction: Option<Section>,
+        #[serde(default)]
+        pub position_ripple: Option<Section>,
+        #[serde(default)]
+        pub cable_spring: Option<Section>,
+        #[serde(default)]
+        pub dry_friction: Option<Section>,
+    }
 }
 
 /// The gravity table as the file gives it (f64, names), before it becomes a core `RawTable`.
@@ -164,7 +177,15 @@ impl ModelFile {
         text: &str,
         file: &str,
     ) -> Result<ModelFile, ModelError> {
-        Self::from_parts(toml.name.clone(), &toml.scalar_sections(), toml.gravity_table.as_ref(), text, file)
+        let mut sections = toml.scalar_sections().to_vec();
+        sections.extend([
+            ("stribeck", toml.stribeck.as_ref()),
+            ("asymmetric_friction", toml.asymmetric_friction.as_ref()),
+            ("position_ripple", toml.position_ripple.as_ref()),
+            ("cable_spring", toml.cable_spring.as_ref()),
+            ("dry_friction", toml.dry_friction.as_ref()),
+        ]);
+        Self::from_parts(toml.name.clone(), &sections, toml.gravity_table.as_ref(), text, file)
     }
 
     pub(crate) fn from_parts(

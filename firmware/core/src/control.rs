@@ -103,7 +103,7 @@ pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
 #[inline]
 pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
     let t = p.terms();
-    t.j * qdd + t.friction.torque(qd) + gravity(p, q, others) + t.c0 + t.spring.torque(q, qd)
+    t.j * qdd + t.friction.torque(qd) + gravity(p, q, others) + t.c0 + t.spring.torque(q, qd) + t.extra_torque(q, qd)
 }
 
 /// The controller's memory between steps.
@@ -130,7 +130,9 @@ impl Controller {
 
     /// One control step of length `dt` seconds.
     pub fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
-        let dt = if dt > 0.0 && within(dt, DT_MAX_BITS) { dt } else { 0.0 };
+        // 0 < dt ≤ DT_MAX in one unsigned compare: positive floats order like their bits, and a
+        // negative or NaN dt has bits above DT_MAX's.
+        let dt = if dt.to_bits().wrapping_sub(1) < DT_MAX_BITS { dt } else { 0.0 };
         let limit = p.get(ParamId::TorqueLimit);
 
         // Fast path: one integer compare per input proves it finite and inside the limits
@@ -193,14 +195,14 @@ impl Controller {
                         let err = v - qd;
                         // Anti-windup: the integrator alone can never ask for more than the limit.
                         self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
-                        let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v);
+                        let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v) + t.extra_torque(q, v);
                         p.get(ParamId::VelKp) * err + self.integ + ff
                     }
                     Mode::Position(x) => {
                         self.integ = 0.0;
                         let x = if math::is_finite(x) { math::clamp(x, -INPUT_LIMITS.q, INPUT_LIMITS.q) } else { q };
                         let t = p.terms();
-                        let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0);
+                        let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0) + t.extra_torque(q, 0.0);
                         p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
                     }
                 }
@@ -221,7 +223,10 @@ impl Controller {
         } else {
             limited_target
         };
-        out.limited = limited_target != target || tau != limited_target;
+        // The output differs from the law's target exactly when a limit acted: a torque-limited
+        // target lies outside ±limit where the output cannot be, and a rate-limited output
+        // stops short of the (possibly limited) target.
+        out.limited = tau != target;
         self.prev_tau = tau;
         out.tau_out = tau;
         out.u_motor = tau * p.inv_ratio_m1();

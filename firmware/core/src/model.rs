@@ -89,4 +89,69 @@ pub struct Terms {
     pub j: f32,
     /// constant torque offset C_0, N·m
     pub c0: f32,
+    /// effect terms a diagnosis can add (Stribeck, asymmetric and dry friction, position
+    /// ripple, cable spring)
+    pub extra: Extra,
+}
+
+impl Terms {
+    /// Torque of the effect terms; 0 without any (one branch on the hot path).
+    #[inline]
+    pub fn extra_torque(&self, q: f32, qd: f32) -> f32 {
+        if self.extra.any {
+            self.extra.torque(q, qd, math::sign_smooth(qd, self.friction.v_band))
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The effect terms of the spec's vocabulary that a joint can compensate by feed-forward,
+/// with the same formulas as host-sim's plant (`host-sim/src/effects.rs`):
+/// - Stribeck: `level·exp(−(q̇/speed)²)·sgn`;
+/// - asymmetric friction: `delta·|sgn|` (Coulomb c + delta forward, c − delta backward);
+/// - position ripple: `amplitude·sin(2π·q/period + phase)`;
+/// - cable spring: 0 below `engage`, `k·x²/(2·width)` in the blend, `k·(x − width/2)` above,
+///   `x = q − engage`;
+/// - dry friction: `c·sgn`.
+///
+/// Load-dependent friction, thermal drift, backlash and delay are not here: the first two need
+/// a measured load torque or temperature the loop does not have, the last two change the
+/// plant's structure rather than add a torque (see the README).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Extra {
+    /// any term non-zero
+    pub any: bool,
+    pub stribeck_level: f32,
+    pub stribeck_inv_speed: f32,
+    pub asym_delta: f32,
+    pub ripple_amplitude: f32,
+    /// 2π/period
+    pub ripple_k: f32,
+    pub ripple_phase: f32,
+    pub cable_k: f32,
+    pub cable_engage: f32,
+    pub cable_width: f32,
+    pub dry_c: f32,
+}
+
+impl Extra {
+    /// Sum of the terms, `sgn` the smoothed sign of q̇. Kept out of line: inlined, its
+    /// registers cost the common step (no effect terms) about ten instructions.
+    #[inline(never)]
+    pub fn torque(&self, q: f32, qd: f32, sgn: f32) -> f32 {
+        let r = qd * self.stribeck_inv_speed;
+        let stribeck = self.stribeck_level * math::exp(-(r * r)) * sgn;
+        let asym = self.asym_delta * math::abs(sgn);
+        let ripple = self.ripple_amplitude * math::sin(self.ripple_k * q + self.ripple_phase);
+        let x = q - self.cable_engage;
+        let cable = if x <= 0.0 {
+            0.0
+        } else if x < self.cable_width {
+            self.cable_k * x * x / (2.0 * self.cable_width)
+        } else {
+            self.cable_k * (x - 0.5 * self.cable_width)
+        };
+        stribeck + asym + ripple + cable + self.dry_c * sgn
+    }
 }

@@ -9,7 +9,7 @@
 //! running, never half of each.
 
 use crate::math;
-use crate::model::{Friction, Spring, Terms, Weight};
+use crate::model::{Extra, Friction, Spring, Terms, Weight};
 pub use crate::table::RawTable;
 use crate::table::{self, Lut, TableError};
 
@@ -46,9 +46,19 @@ pub enum ParamId {
     VelKi,
     PosKp,
     PosKd,
+    StribeckLevel,
+    StribeckSpeed,
+    AsymmetricDelta,
+    RippleAmplitude,
+    RipplePeriod,
+    RipplePhase,
+    CableK,
+    CableEngage,
+    CableWidth,
+    DryFrictionC,
 }
 
-pub const PARAM_COUNT: usize = 27;
+pub const PARAM_COUNT: usize = 37;
 
 impl ParamId {
     /// All ids in table order.
@@ -80,6 +90,16 @@ impl ParamId {
         ParamId::VelKi,
         ParamId::PosKp,
         ParamId::PosKd,
+        ParamId::StribeckLevel,
+        ParamId::StribeckSpeed,
+        ParamId::AsymmetricDelta,
+        ParamId::RippleAmplitude,
+        ParamId::RipplePeriod,
+        ParamId::RipplePhase,
+        ParamId::CableK,
+        ParamId::CableEngage,
+        ParamId::CableWidth,
+        ParamId::DryFrictionC,
     ];
 
     pub const fn index(self) -> usize {
@@ -208,6 +228,28 @@ pub static PARAMS: [ParamDesc; PARAM_COUNT] = [
        "position mode stiffness (static poses)"),
     p!(PosKd, "controller_pos_kd", "controller", "pos_kd", "N·m·s/rad", 0.0, 1.0e4, 10.0, false,
        "position mode damping"),
+    // The effect terms below share the names and formulas of host-sim's plant effect sections
+    // (spec §3 vocabulary), so `jointctl diagnose --emit-model` output runs on the joint as is.
+    p!(StribeckLevel, "stribeck_level", "stribeck", "level", "N·m", 0.0, 1.0e3, 0.0, false,
+       "Stribeck friction above the Coulomb level at rest: level·exp(−(q̇/speed)²)·sign(q̇)"),
+    p!(StribeckSpeed, "stribeck_speed", "stribeck", "speed", "rad/s", 1.0e-4, 100.0, 0.05, false,
+       "speed over which the Stribeck excess decays"),
+    p!(AsymmetricDelta, "asymmetric_friction_delta", "asymmetric_friction", "delta", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "direction-dependent Coulomb level: c + delta forward, c − delta backward (delta·|sign(q̇)|)"),
+    p!(RippleAmplitude, "position_ripple_amplitude", "position_ripple", "amplitude", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "torque ripple periodic in position: amplitude·sin(2π·q/period + phase)"),
+    p!(RipplePeriod, "position_ripple_period", "position_ripple", "period", "rad", 1.0e-3, 100.0, 1.0, false,
+       "period of the position ripple (gear mesh, cogging)"),
+    p!(RipplePhase, "position_ripple_phase", "position_ripple", "phase", "rad", -10.0, 10.0, 0.0, false,
+       "phase of the position ripple"),
+    p!(CableK, "cable_spring_k", "cable_spring", "k", "N·m/rad", -1.0e4, 1.0e4, 0.0, false,
+       "stiffness of a one-sided cable/harness spring, engaged above `engage`"),
+    p!(CableEngage, "cable_spring_engage", "cable_spring", "engage", "rad", -100.0, 100.0, 0.0, false,
+       "angle where the cable spring engages"),
+    p!(CableWidth, "cable_spring_width", "cable_spring", "width", "rad", 1.0e-4, 10.0, 0.01, false,
+       "width of the quadratic blend into the cable spring's slope"),
+    p!(DryFrictionC, "dry_friction_c", "dry_friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
+       "extra Coulomb torque c·sign(q̇)"),
 ];
 
 /// A parameter set as received; nothing here is trusted until [`check`] says so.
@@ -367,6 +409,23 @@ fn build(raw: RawParams) -> ParamSet {
         spring: Spring { k: g(ParamId::SpringK), b: g(ParamId::SpringB), q0: g(ParamId::SpringQ0) },
         j: g(ParamId::InertiaJ),
         c0: g(ParamId::OffsetC0),
+        extra: Extra {
+            any: g(ParamId::StribeckLevel) != 0.0
+                || g(ParamId::AsymmetricDelta) != 0.0
+                || g(ParamId::RippleAmplitude) != 0.0
+                || g(ParamId::CableK) != 0.0
+                || g(ParamId::DryFrictionC) != 0.0,
+            stribeck_level: g(ParamId::StribeckLevel),
+            stribeck_inv_speed: 1.0 / g(ParamId::StribeckSpeed),
+            asym_delta: g(ParamId::AsymmetricDelta),
+            ripple_amplitude: g(ParamId::RippleAmplitude),
+            ripple_k: 2.0 * core::f32::consts::PI / g(ParamId::RipplePeriod),
+            ripple_phase: g(ParamId::RipplePhase),
+            cable_k: g(ParamId::CableK),
+            cable_engage: g(ParamId::CableEngage),
+            cable_width: g(ParamId::CableWidth),
+            dry_c: g(ParamId::DryFrictionC),
+        },
     };
     let inv_ratio_m1 = 1.0 / (g(ParamId::Ratio) - 1.0);
     let lut = Lut::new(&raw.table);

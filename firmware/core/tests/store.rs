@@ -305,11 +305,13 @@ fn crc32_is_iso_hdlc() {
 
 #[test]
 fn geometry() {
-    assert_eq!(HEADER_LEN + PAYLOAD_LEN, 2568);
-    assert_eq!(RECORD_LEN, 2568);
+    // 24-byte header, 8 bytes of counts, 8 bytes per scalar parameter, then the table (2320 B).
+    let expected = 24 + 8 + 8 * joint_core::params::PARAM_COUNT + 2320;
+    assert_eq!(HEADER_LEN + PAYLOAD_LEN, expected);
+    assert_eq!(RECORD_LEN, expected);
     let s = store(MockFlash::blank());
     assert_eq!(s.used_len() as usize, REGION);
-    assert_eq!(s.ops_per_save(), 2 + 321);
+    assert_eq!(s.ops_per_save() as usize, 2 + expected / 8);
     assert_eq!(
         Store::new(MockFlash::from_mem(vec![0xFF; 3 * PAGE])).err(),
         Some(GeometryError::RegionTooSmall {
@@ -842,6 +844,8 @@ fn a_set_changed_during_the_save_is_never_committed() {
 
 #[test]
 fn begin_save_restarts_and_progress_is_reported() {
+    // two page erases plus one 8-byte write per record unit
+    let ops = (2 + RECORD_LEN / 8) as u16;
     let mut s = store(flash_with(&[sample(1)]));
     s.load().expect("load");
     s.begin_save(&sample(2)).expect("begin");
@@ -849,7 +853,7 @@ fn begin_save_restarts_and_progress_is_reported() {
         s.poll(&sample(2)),
         Ok(SaveProgress::Working {
             done: 1,
-            total: 323
+            total: ops
         })
     );
     // A newer set arrives mid-save: start over with it.
@@ -862,11 +866,11 @@ fn begin_save_restarts_and_progress_is_reported() {
                 assert_eq!((slot, seq), (1, 2));
                 break;
             }
-            SaveProgress::Working { done, total } => assert_eq!((done, total), (polls, 323)),
+            SaveProgress::Working { done, total } => assert_eq!((done, total), (polls, ops)),
             SaveProgress::Idle => panic!("idle"),
         }
     }
-    assert_eq!(polls, 323, "one flash operation per poll");
+    assert_eq!(polls, ops, "one flash operation per poll");
     assert_eq!(s.poll(&sample(3)), Ok(SaveProgress::Idle));
     assert_eq!(loaded_raw(&s.into_flash().mem), *sample(3).raw());
 }
