@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Every test: the host test suite (core, host-sim, end-to-end), the firmware on an emulated
-# Cortex-M4F (QEMU) with bit-parity against the PC, and the firmware size budget.
+# Every test: the firmware size budget, the firmware on an emulated Cortex-M4F (QEMU) with
+# bit-parity against the PC, the core's no-panic lints, and the host test suite (core, CANopen,
+# host-sim, identification, diagnosis, python-canopen interop, end-to-end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -8,5 +9,9 @@ echo "== firmware image size (budget: flash ≤ 64 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh
 echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
 bash scripts/qemu-test.sh
+echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
+cargo clippy -q -p joint-core --lib -- -D warnings
+echo "== python peers for the CAN interop test (python-can, canopen)"
+bash scripts/python-venv.sh
 echo "== host test suite"
 cargo test --workspace --no-fail-fast
