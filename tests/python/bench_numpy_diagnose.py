@@ -5,10 +5,12 @@ The same analysis as host-sim/src/diagnose, written the way a NumPy user would w
 the CSV, smooth q̇ (±5 ms), tag regimes, split into 20 interleaved blocks (6 held out, 50-sample
 guards, 10 units per held-out block), refit the model's terms by least squares, search every
 effect's shape on 20 000 thinned training rows (same grids and golden-section steps), fit each
-candidate on ≤ 250 000 training rows, score on the held-out rows per unit and regime, test with
+candidate on ≤ 150 000 training rows, score on the held-out rows per unit and regime, test with
 the same two unit t-tests, run forward selection, and compute the residual correlations.
 
-Usage: bench_numpy_diagnose.py LOG.csv MODEL.toml   (prints timings and the verdict)
+Usage: bench_numpy_diagnose.py [--lstsq] LOG.csv MODEL.toml   (prints timings and the verdict)
+  --lstsq: every grid point solved with np.linalg.lstsq on the full design (how a plain NumPy
+  port would do it) instead of bordering the normal equations like the Rust code.
 The model is read with tomllib; only the sections the bench model uses are supported.
 """
 import math
@@ -20,6 +22,7 @@ import numpy as np
 from scipy import stats
 
 ALPHA, MIN_GAIN, AT_FLOOR = 0.05, 0.02, 1.05
+NAIVE = False
 
 
 def smooth(x, h):
@@ -109,7 +112,7 @@ def main(log_path, model_path):
     unit = hb_rank * subs + np.minimum(offs[hold] * subs // ln, subs - 1)
     n_units = unit.max() + 1
     thin = lambda idx, mx: idx[:: max(-(-len(idx) // mx), 1)]
-    fit_idx, grid_idx = thin(train, 250_000), thin(train, 20_000)
+    fit_idx, grid_idx = thin(train, 150_000), thin(train, 20_000)
     floor = np.median(np.abs(r0[2:] - 2 * r0[1:-1] + r0[:-2])[:: max(n // 200000, 1)]) / (0.67448975 * math.sqrt(6))
     span_t = t[-1] - t[0]
 
@@ -156,7 +159,18 @@ def main(log_path, model_path):
 
     cache = {}
 
+    def rss_lstsq(effects, idx):
+        """Training RSS the plain NumPy way: build the full design, np.linalg.lstsq."""
+        A, yy = design(effects, idx)
+        sc = np.linalg.norm(A, axis=0)
+        sc[sc == 0] = 1
+        coef, *_ = np.linalg.lstsq(A / sc, yy, rcond=None)
+        r = yy - (A / sc) @ coef
+        return float(r @ r)
+
     def rss(effects, idx):
+        if NAIVE:
+            return rss_lstsq(effects, idx)
         """Training RSS on the grid rows: the chosen effects' design is built once and bordered
         with the new effect's columns (the same normal-equation trick as the Rust code)."""
         *chosen, e = effects
@@ -296,10 +310,14 @@ def main(log_path, model_path):
         while len(chosen) < 3 and math.sqrt(cur[1]["mse"]) > AT_FLOOR * floor:
             effs = cur[1]["effects"]
             nxt = []
+            A, yy = design(effs, grid_idx)
+            cur_rss = float(np.sum((yy - A @ np.linalg.lstsq(A, yy, rcond=None)[0]) ** 2))
             for k in kinds:
                 if any(e[0] == k for e in effs):
                     continue
                 e = search(k, effs)
+                if rss(effs + [e], grid_idx) > (1 - 0.5 * MIN_GAIN) * cur_rss:
+                    continue  # same pruning as the Rust code: too little training gain
                 sc = fit_score(effs + [e])
                 p, g = compare(cur[1], sc)
                 if p < alpha_each and g >= MIN_GAIN:
@@ -308,8 +326,8 @@ def main(log_path, model_path):
                 break
             cur = min(nxt, key=lambda cd: cd[1]["mse"])
             chosen.append(cur)
-    # resid evidence on the first ≤100 000 held-out samples
-    hidx = hold[:100_000]
+    # resid evidence on the first ≤50 000 held-out samples
+    hidx = hold[:50_000]
     fin = chosen[-1][1] if chosen else (refit if refit_sig else m0)
     A, yy = design(fin["effects"], hidx)
     ra = yy - A @ fin["beta"]
@@ -329,10 +347,14 @@ def main(log_path, model_path):
     total = t_read + t_diag
     print(f"numpy diagnose {n} samples: read {t_read:.3f} s + diagnose {t_diag:.3f} s = {total:.3f} s; verdict {' -> '.join(verdict)}; "
           f"held-out RMSE {math.sqrt(m0['mse']):.4f} -> {math.sqrt(fin['mse']):.4f}; floor {floor:.4f}; shares {np.round(shares[:3], 3)}; acf0 {ev[0][1]:.3f}")
-    print(f"NUMPY_BENCH total_s={total:.4f} diagnose_s={t_diag:.4f} read_s={t_read:.4f}")
+    print(f"NUMPY_BENCH mode={'lstsq' if NAIVE else 'bordered'} total_s={total:.4f} diagnose_s={t_diag:.4f} read_s={t_read:.4f}")
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    args = sys.argv[1:]
+    if args and args[0] == "--lstsq":
+        NAIVE = True
+        args = args[1:]
+    if len(args) != 2:
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2])
+    main(args[0], args[1])

@@ -10,6 +10,11 @@
 //! numerics, [`select`] scores and selects, [`resid`] the correlation evidence, [`trajectory`]
 //! the simulation mode, [`report_html`] the HTML report, [`bench`] the withheld-effect bench.
 
+// The numeric kernels index series whose lengths are fixed when `Data` is built (every column
+// has the log's length, every index comes from `0..n` or from the split built on it), so the
+// indexing lint would only repeat that invariant at each of a few hundred sites.
+#![allow(clippy::indexing_slicing)]
+
 pub mod bench;
 pub mod candidates;
 pub mod fit;
@@ -754,8 +759,17 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
         }
     }
     let mut out = String::from("# written by `jointctl diagnose --emit-model`: the model refitted on the training part of the log,\n# plus the selected effects as plant sections (readable by `jointctl simulate --plant`).\n");
-    out.push_str(&mf.to_toml_string());
+    let model_text = mf.to_toml_string();
+    out.push_str(&model_text);
     for k in 0..fin.effects.len() {
+        let name = fin.effects[k].kind().name();
+        if model_text.lines().any(|l| l.trim() == format!("[{name}]")) {
+            // The model already carries this term as a section of its own: a second table of
+            // the same name would make the file invalid TOML, so the fitted extra is a comment.
+            out.push_str(&format!("\n# diagnose: the [{name}] term above needs, on top of it:\n"));
+            out.push_str(&effect_section(fin, k, d).lines().skip(2).map(|l| format!("#   {l}\n")).collect::<String>());
+            continue;
+        }
         out.push_str(&effect_section(fin, k, d));
     }
     out

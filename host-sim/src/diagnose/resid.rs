@@ -35,14 +35,13 @@ pub fn xcorr(r: &[f64], x: &[f64], max_lag: usize, auto: bool) -> Correlation {
     let lo: i64 = if auto { 0 } else { -(max_lag as i64) };
     let mut lags = Vec::new();
     let mut values = Vec::new();
+    let rc: Vec<f64> = r[..n].iter().map(|v| v - mr).collect();
+    let xc: Vec<f64> = x[..n].iter().map(|v| v - mx).collect();
     for lag in lo..=(max_lag as i64) {
-        let mut s = 0.0;
-        for i in 0..n {
-            let j = i as i64 - lag;
-            if j >= 0 && (j as usize) < n {
-                s += (r[i] - mr) * (x[j as usize] - mx);
-            }
-        }
+        // pairs (r[i], x[i − lag]) over the overlap
+        let l = lag.unsigned_abs() as usize;
+        let (a, b) = if lag >= 0 { (&rc[l..], &xc[..n - l]) } else { (&rc[..n - l], &xc[l..]) };
+        let s: f64 = a.iter().zip(b).map(|(p, q)| p * q).sum();
         lags.push(lag);
         values.push(s / den);
     }

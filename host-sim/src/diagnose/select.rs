@@ -209,8 +209,16 @@ fn try_kinds(
     n_regimes: usize,
 ) -> Vec<Scored> {
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8);
+    // The held-out gain of a term can hardly exceed its training gain, so a candidate that does
+    // not lower the thinned training RSS by half the minimum gain is not fitted in full.
+    let cur_rss = Design::new(base, chosen).rss(d, grid_idx);
     let work = |k: Kind| -> Option<Scored> {
         let e = search(k, d, base, chosen, grid_idx)?;
+        let mut trial = chosen.to_vec();
+        trial.push(e);
+        if !chosen.is_empty() && Design::new(base, &trial).rss(d, grid_idx) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
+            return None;
+        }
         let mut eff = chosen.to_vec();
         eff.push(e);
         Some(fit_and_score(d, base, &eff, fit_idx, split, bits, n_regimes))
