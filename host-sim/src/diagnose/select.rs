@@ -284,6 +284,46 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
         .filter(|o| o.significant)
         .min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()))
         .cloned();
+    // Look-ahead for two effects that mask each other: when no single effect is significant
+    // but several lower the held-out MSE, the best pairs of the three strongest are tried. A
+    // pair is kept only if it is significant against the refit and against each partner alone
+    // (Bonferroni over the pairs too), so one strong term cannot carry a passenger.
+    let best_first = match best_first {
+        Some(b) => Some(b),
+        None if !at_floor && max_effects >= 2 => {
+            let mut strong: Vec<&Outcome> = candidates.iter().filter(|o| o.gain >= MIN_GAIN).collect();
+            strong.sort_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
+            strong.truncate(3);
+            let pair_alpha = ALPHA / (m_tests + 3.0);
+            let mut best_pair: Option<(Outcome, Outcome)> = None;
+            for (i, a) in strong.iter().enumerate() {
+                for b in strong.iter().skip(i + 1) {
+                    let Some(&ea) = a.scored.effects.last() else { continue };
+                    let Some(kb) = b.scored.effects.last().map(|e| e.kind()) else { continue };
+                    let Some(eb) = search(kb, d, base, &[ea], &grid_idx) else { continue };
+                    let pair = fit_and_score(d, base, &[ea, eb], &fit_idx, split, bits, n_regimes);
+                    let tests = [compare(&refit.scored, &pair), compare(&m0, &pair), compare(&a.scored, &pair), compare(&b.scored, &pair)];
+                    if tests.iter().all(|&(_, p, g)| p < pair_alpha && g >= MIN_GAIN)
+                        && best_pair.as_ref().map(|(_, bp)| pair.mse() < bp.scored.mse()).unwrap_or(true)
+                    {
+                        let (t, p, gain) = compare(&a.scored, &pair);
+                        let second = Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true };
+                        let mut first = (*a).clone();
+                        first.significant = true;
+                        best_pair = Some((first, second));
+                    }
+                }
+            }
+            match best_pair {
+                Some((first, second)) => {
+                    chosen.push(first);
+                    Some(second)
+                }
+                None => None,
+            }
+        }
+        None => None,
+    };
     if let Some(b) = best_first {
         chosen.push(b);
         while chosen.len() < max_effects {
