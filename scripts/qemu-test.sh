@@ -3,7 +3,11 @@
 #   1. builds the QEMU images (firmware-qemu, release, thumbv7em-none-eabihf);
 #   2. qemu-core-checks: on-target facts about the core, exit status counts;
 #   3. qemu-parity: the scripted session's every output, compared bit for bit with the
-#      same session computed natively (tests/tests/qemu_parity.rs reads this run's log).
+#      same session computed natively (tests/tests/qemu_parity.rs reads this run's log);
+#   4. qemu-canopen: a scripted CANopen session through the core's node (NMT, SDO pushes with
+#      aborts, commit, save, RPDOs, heartbeat loss) interleaved with 1 kHz control steps;
+#      every frame the node sends and every control output compared byte for byte with the
+#      host's run of the same script.
 # Exits non-zero on any failure, a timeout included. Prints "N passed, M failed".
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -48,8 +52,18 @@ if [[ $st -ne 0 ]]; then
     result "parity image run" $st "$(explain $st)"
 else
     echo "qemu-test: parity image printed $(grep -c '^[RS] ' "$LOG_DIR/qemu-parity.out") records; comparing with the host"
-    QEMU_PARITY_LOG="$LOG_DIR/qemu-parity.out" cargo test -p joint-tests --test qemu_parity -- --nocapture
+    QEMU_PARITY_LOG="$LOG_DIR/qemu-parity.out" cargo test -p joint-tests --test qemu_parity -- --nocapture \
+        qemu_matches_host_to_the_last_bit a_single_bit_difference
     result "parity QEMU vs host, bit for bit" $?
+fi
+
+qemu "$BIN/qemu-canopen"; st=$?
+if [[ $st -ne 0 ]]; then
+    result "CANopen session image run" $st "$(explain $st)"
+else
+    echo "qemu-test: CANopen image printed $(grep -c '^[TC] ' "$LOG_DIR/qemu-canopen.out") lines; comparing with the host"
+    QEMU_CANOPEN_LOG="$LOG_DIR/qemu-canopen.out" cargo test -p joint-tests --test qemu_parity -- --nocapture canopen
+    result "CANopen session QEMU vs host, byte for byte" $?
 fi
 
 echo "$passed passed, $failed failed"

@@ -5,11 +5,19 @@
 //! this test runs the same session natively and compares every word. The first
 //! difference fails the test with the record index and field named.
 //!
-//! Where the image's output comes from: `QEMU_PARITY_LOG=FILE` (scripts/qemu-test.sh runs
-//! QEMU once and passes its stdout), otherwise the test builds the image itself (own
-//! target dir under `target/`, so it does not wait on the outer cargo's lock) and runs
-//! QEMU. Without qemu-system-arm or the thumbv7em target the test fails and says what is
-//! missing: it never passes without having compared.
+//! The `qemu-canopen` image runs a scripted CANopen session through the core's node
+//! (`firmware/qemu/src/canopen_session.rs`, included here by path so both sides run the one
+//! script): every frame the node sends and every control output, compared as text line by
+//! line; the first different byte fails the test with the step and its event named.
+//!
+//! Where an image's output comes from: `QEMU_PARITY_LOG=FILE` / `QEMU_CANOPEN_LOG=FILE`
+//! (scripts/qemu-test.sh runs QEMU once and passes its stdout), otherwise the test builds
+//! the image itself (own target dir under `target/`, so it does not wait on the outer
+//! cargo's lock) and runs QEMU. Without qemu-system-arm or the thumbv7em target the test
+//! fails and says what is missing: it never passes without having compared.
+
+#[path = "../../firmware/qemu/src/canopen_session.rs"]
+mod canopen_session;
 
 use joint_core::vectors::{self, first_mismatch, Mismatch, Record};
 use std::path::{Path, PathBuf};
@@ -23,7 +31,7 @@ fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
 }
 
-fn build_image() -> PathBuf {
+fn build_image(bin: &str) -> PathBuf {
     let root = workspace_root();
     let target_dir = match std::env::var_os("CARGO_TARGET_DIR") {
         Some(d) => PathBuf::from(d).join("qemu-parity"),
@@ -34,15 +42,15 @@ fn build_image() -> PathBuf {
     let status = Command::new(cargo)
         .current_dir(&root)
         .env("CARGO_TARGET_DIR", &target_dir)
-        .args(["build", "--release", "-p", "firmware-qemu", "--bin", "qemu-parity", "--target", TARGET])
+        .args(["build", "--release", "-p", "firmware-qemu", "--bin", bin, "--target", TARGET])
         .status()
         .expect("running cargo to build the QEMU parity image");
     assert!(
         status.success(),
-        "building the QEMU parity image failed ({status}); is the target installed? \
+        "building the QEMU image {bin} failed ({status}); is the target installed? \
          (rustup target add {TARGET})"
     );
-    target_dir.join(TARGET).join("release").join("qemu-parity")
+    target_dir.join(TARGET).join("release").join(bin)
 }
 
 fn run_qemu(elf: &Path) -> String {
@@ -68,19 +76,19 @@ fn run_qemu(elf: &Path) -> String {
     let out = child.wait_with_output().expect("reading qemu-system-arm output");
     assert!(
         out.status.success(),
-        "the parity image exited with {} (1 = panic, 2 = check failed, 3 = CPU fault); stderr:\n{}",
+        "the QEMU image exited with {} (1 = panic, 2 = check failed, 3 = CPU fault); stderr:\n{}",
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8(out.stdout).expect("QEMU output is not UTF-8")
 }
 
-fn qemu_output() -> String {
-    if let Some(path) = std::env::var_os("QEMU_PARITY_LOG") {
+fn qemu_output(log_var: &str, bin: &str) -> String {
+    if let Some(path) = std::env::var_os(log_var) {
         return std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("reading QEMU_PARITY_LOG {}: {e}", Path::new(&path).display()));
+            .unwrap_or_else(|e| panic!("reading {log_var} {}: {e}", Path::new(&path).display()));
     }
-    run_qemu(&build_image())
+    run_qemu(&build_image(bin))
 }
 
 /// Records and the summary line of the image's output; any other line is an error.
@@ -123,7 +131,7 @@ fn describe(m: Mismatch, expected: &[Record]) -> String {
 #[test]
 fn qemu_matches_host_to_the_last_bit() {
     let (host, summary) = host_session();
-    let (qemu, qemu_summary) = parse(&qemu_output());
+    let (qemu, qemu_summary) = parse(&qemu_output("QEMU_PARITY_LOG", "qemu-parity"));
     let expected_summary = format!(
         "records={} steps={} accepted={} rejected={} rejected_but_changed={} unexpected={} unsafe={}",
         summary.records,
@@ -157,4 +165,101 @@ fn a_single_bit_difference_is_caught_and_named() {
     let m = first_mismatch(&host, &other).expect("a flipped bit must be noticed");
     let text = describe(m, &host);
     assert!(text.starts_with("record 300 (u_motor)"), "{text}");
+}
+
+/// The CANopen session natively: its lines as the image prints them, and the summary.
+fn host_canopen() -> (Vec<String>, canopen_session::Summary) {
+    let mut lines = Vec::new();
+    let summary = canopen_session::run(&mut |l: &canopen_session::Line| {
+        let mut s = String::new();
+        l.write(&mut s).expect("formatting into a String");
+        lines.push(s.trim_end().to_string());
+    });
+    (lines, summary)
+}
+
+/// The first line where QEMU's output differs from the host's, described with the step,
+/// its event and the first differing field.
+fn canopen_mismatch(host: &[String], qemu: &[&str]) -> Option<String> {
+    for (n, (h, q)) in host.iter().zip(qemu).enumerate() {
+        if h != q {
+            let hw: Vec<&str> = h.split(' ').collect();
+            let qw: Vec<&str> = q.split(' ').collect();
+            let field = hw.iter().zip(&qw).position(|(a, b)| a != b).unwrap_or(hw.len().min(qw.len()));
+            let kind = if h.starts_with("T ") {
+                match field {
+                    0..=2 => "kind/step/event".to_string(),
+                    3 => "COB-ID".to_string(),
+                    4 => "DLC".to_string(),
+                    k => format!("data byte {}", k - 5),
+                }
+            } else {
+                ["kind", "step", "tau_out", "u_motor", "c_c", "assist", "limited"].get(field).unwrap_or(&"field").to_string()
+            };
+            let step = hw.get(1).copied().unwrap_or("?");
+            let what = if h.starts_with("T ") { hw.get(2).copied().unwrap_or("?") } else { "control" };
+            return Some(format!("line {} (step {step}, {what}), {kind} differs:\n  host: {h}\n  QEMU: {q}", n + 1));
+        }
+    }
+    if host.len() != qemu.len() {
+        return Some(format!("host has {} lines, QEMU {}", host.len(), qemu.len()));
+    }
+    None
+}
+
+#[test]
+fn canopen_session_on_qemu_matches_host_byte_for_byte() {
+    let (host, summary) = host_canopen();
+    let text = qemu_output("QEMU_CANOPEN_LOG", "qemu-canopen");
+    let qemu: Vec<&str> = text.lines().filter(|l| !l.starts_with("# ")).collect();
+    let qemu_summary = text.lines().find_map(|l| l.strip_prefix("# canopen ")).expect("the image printed no summary line");
+    if let Some(m) = canopen_mismatch(&host, &qemu) {
+        panic!("CANopen session: QEMU and host differ at {m}");
+    }
+    let mut expected_summary = String::new();
+    summary.write(&mut expected_summary).expect("formatting into a String");
+    assert_eq!(format!("# canopen {qemu_summary}"), expected_summary.trim_end(), "summary line");
+
+    // The session exercised what its script claims.
+    assert_eq!((summary.aborts, summary.expected_aborts_seen), (3, 3), "out-of-range, short SDO, safety write while operational");
+    assert!(summary.committed_trunk_set, "the pushed trunk-joint set is committed whole");
+    assert!(summary.refused_writes_changed_nothing);
+    assert_eq!(summary.saves, 1);
+    assert!(summary.emcy >= 2, "short RPDO and heartbeat loss each send an EMCY: {summary:?}");
+    assert!(summary.tpdo > 100, "{summary:?}");
+    assert!(summary.max_tau > 0.5, "torque while operational with the host: {summary:?}");
+    assert_eq!(summary.final_tau, 0.0, "the watchdog faded the torque after the host went silent");
+    println!(
+        "QEMU CANopen session: {} lines ({} frames, {} control steps), every byte identical",
+        host.len(),
+        summary.frames,
+        canopen_session::STEPS
+    );
+}
+
+/// One changed byte in one frame, or one bit of one output, is caught and named.
+#[test]
+fn a_single_different_byte_in_the_canopen_session_is_caught_and_named() {
+    let (host, _) = host_canopen();
+    let n = host.iter().position(|l| l.starts_with("T ") && l.contains(" read-back ")).expect("a read-back line");
+    let mut other: Vec<String> = host.clone();
+    let last = other[n].len() - 1;
+    let flipped = if other[n].ends_with('0') { '1' } else { '0' };
+    other[n].replace_range(last.., &flipped.to_string());
+    let refs: Vec<&str> = other.iter().map(String::as_str).collect();
+    let m = canopen_mismatch(&host, &refs).expect("a changed byte must be noticed");
+    assert!(m.contains("(step 00005, read-back), data byte 7 differs"), "{m}");
+
+    let c = host.iter().position(|l| l.starts_with("C 00300 ")).expect("a control line at step 300");
+    let mut other = host.clone();
+    let mut w: Vec<String> = other[c].split(' ').map(str::to_string).collect();
+    let bits = u32::from_str_radix(&w[2], 16).unwrap() ^ 1;
+    w[2] = format!("{bits:08x}");
+    other[c] = w.join(" ");
+    let refs: Vec<&str> = other.iter().map(String::as_str).collect();
+    let m = canopen_mismatch(&host, &refs).expect("a flipped bit must be noticed");
+    assert!(m.contains("(step 00300, control), tau_out differs"), "{m}");
+
+    let refs: Vec<&str> = host.iter().take(host.len() - 1).map(String::as_str).collect();
+    assert!(canopen_mismatch(&host, &refs).unwrap().contains("lines"));
 }

@@ -5,9 +5,12 @@
 //! pieces here are what every image needs: a minimal runtime (vector table, FPU enable,
 //! .data/.bss init: see [`rt`]), a panic handler that exits with status 1 instead of
 //! spinning on `udf` like panic-probe does, and the SysTick counter the benchmark reads.
-//! On the host the crate is empty so that `cargo check --workspace` stays green.
+//! [`canopen_session`] is the scripted CANopen session of the `qemu-canopen` image; it is
+//! plain `joint_core` code and also builds on the host (the parity test includes the same
+//! file). Everything else is empty on the host so that `cargo check --workspace` stays green.
 #![cfg_attr(target_os = "none", no_std)]
 
+pub mod canopen_session;
 #[cfg(target_os = "none")]
 pub mod rt;
 #[cfg(target_os = "none")]
