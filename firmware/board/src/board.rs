@@ -36,6 +36,13 @@ impl QeiEncoder {
     }
 }
 
+impl QeiEncoder {
+    /// A new gear ratio was committed: rescale (see [`QuadratureUnwrap::set_ratio`]).
+    pub fn set_ratio(&mut self, counts_per_motor_rev: u32, ratio: f32) {
+        self.unwrap.set_ratio(counts_per_motor_rev, ratio);
+    }
+}
+
 impl Encoder for QeiEncoder {
     fn position(&mut self) -> Result<f32, EncoderError> {
         // A bare A/B encoder has no fault signal; reading the counter cannot fail.

@@ -1,96 +1,97 @@
-//! CAN frame plumbing that does not need the peripheral: which received frames are the
-//! host's heartbeat, the node's own heartbeat frame, and the bookkeeping of bus health
-//! (error counters, error-passive and bus-off episodes) that the CAN task exposes.
+//! CAN frame plumbing that does not need the peripheral: conversion between the HAL's
+//! frames and the core's [`CanFrame`], the outbox the node's frames wait in while the node's
+//! lock is held, and the bookkeeping of bus health (error counters, error-passive and
+//! bus-off episodes) that the CAN task exposes.
 //!
-//! The CANopen protocol itself (NMT, SDO, PDO, EMCY) is the core's job (issue 4); this
-//! module only knows the two COB-IDs the firmware must handle before that exists: the
-//! host's heartbeat, which feeds the heartbeat watchdog, and the node's own heartbeat.
-//! Everything is generic over `embedded_can::Frame`, so it is unit-tested on the host
-//! with a plain frame type and used on the board with embassy-stm32's `can::Frame`.
+//! The CANopen protocol itself (NMT, heartbeat, SDO, PDO, EMCY) is the core's
+//! [`joint_core::canopen::Node`]; this module only moves frames to and from it. Everything
+//! is generic over `embedded_can::Frame`, so it is unit-tested on the host with a plain
+//! frame type and used on the board with embassy-stm32's `can::Frame`.
 
 use embedded_can::{Frame, Id, StandardId};
+use joint_core::canopen::CanFrame;
 
-/// CANopen heartbeat/NMT-error-control COB-ID base (CiA 301): heartbeat of node n is 0x700 + n.
-pub const HEARTBEAT_BASE: u16 = 0x700;
-
-/// A CANopen node id, 1..=127.
+/// Why a received frame was not handed to the node. None of these is CANopen traffic the
+/// node serves; they are counted ([`BusStats::rx_rejected`]), never a panic.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NodeId(u8);
+pub enum Rejected {
+    /// 29-bit identifier: CANopen (CiA 301) uses 11-bit ids only.
+    Extended,
+    /// Remote frame: the node implements no RTR services (node guarding is not served).
+    Remote,
+    /// More than 8 data bytes (an FD frame on a classic node).
+    TooLong,
+}
 
-/// A node id outside 1..=127.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BadNodeId(pub u8);
+/// A received HAL frame as the node's frame.
+pub fn to_core<F: Frame>(f: &F) -> Result<CanFrame, Rejected> {
+    let Id::Standard(id) = f.id() else {
+        return Err(Rejected::Extended);
+    };
+    if f.is_remote_frame() {
+        return Err(Rejected::Remote);
+    }
+    CanFrame::new(id.as_raw(), f.data()).ok_or(Rejected::TooLong)
+}
 
-impl NodeId {
-    /// Checks the CiA 301 range; 0 is the NMT broadcast address and 128.. do not exist.
-    pub const fn new(id: u8) -> Result<Self, BadNodeId> {
-        if id >= 1 && id <= 127 {
-            Ok(Self(id))
-        } else {
-            Err(BadNodeId(id))
+/// A frame of the node as the HAL's frame. The node only makes frames with an 11-bit id and
+/// at most 8 bytes, so `None` means the HAL refused a valid classic frame.
+pub fn to_hal<F: Frame>(f: &CanFrame) -> Option<F> {
+    F::new(StandardId::new(f.id())?, f.data())
+}
+
+/// Frames the node emitted while its lock was held, waiting to be written to the
+/// controller once the lock is released (writing may wait for a free TX buffer, which must
+/// never happen inside a critical section). Frames beyond `N` are counted, not kept.
+#[derive(Debug, Clone)]
+pub struct Outbox<const N: usize> {
+    frames: [CanFrame; N],
+    len: usize,
+    /// Frames that did not fit since the last [`Outbox::take_overflow`].
+    overflow: u32,
+}
+
+impl<const N: usize> Default for Outbox<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Outbox<N> {
+    pub fn new() -> Self {
+        Outbox { frames: [CanFrame::default(); N], len: 0, overflow: 0 }
+    }
+
+    /// The callback the node's `process`/`poll` send through.
+    pub fn push(&mut self, f: CanFrame) {
+        match self.frames.get_mut(self.len) {
+            Some(slot) => {
+                *slot = f;
+                self.len += 1;
+            }
+            None => self.overflow = self.overflow.saturating_add(1),
         }
     }
 
-    pub const fn get(self) -> u8 {
-        self.0
+    /// The callback to hand the node, as one concrete type: the node's `process` and `poll`
+    /// are generic over their callback, and every distinct closure type would instantiate
+    /// (and put in flash) another copy of the node's sending code.
+    pub fn sink(&mut self) -> impl FnMut(CanFrame) + '_ {
+        move |f| self.push(f)
     }
 
-    /// COB-ID of this node's heartbeat.
-    pub fn heartbeat_id(self) -> StandardId {
-        // 0x700 + 127 = 0x77F < 0x800: always a valid 11-bit id, so `new` cannot return None;
-        // ZERO is there only to avoid an unwrap the lints forbid.
-        StandardId::new(HEARTBEAT_BASE + u16::from(self.0)).unwrap_or(StandardId::ZERO)
+    /// The frames in the order the node sent them.
+    pub fn frames(&self) -> &[CanFrame] {
+        self.frames.get(..self.len).unwrap_or(&[])
     }
-}
 
-/// CANopen NMT state byte carried by a heartbeat (CiA 301 table 50).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub enum NmtState {
-    BootUp = 0x00,
-    Stopped = 0x04,
-    Operational = 0x05,
-    PreOperational = 0x7F,
-}
-
-impl NmtState {
-    pub fn from_byte(b: u8) -> Option<Self> {
-        match b & 0x7F {
-            0x00 => Some(Self::BootUp),
-            0x04 => Some(Self::Stopped),
-            0x05 => Some(Self::Operational),
-            0x7F => Some(Self::PreOperational),
-            _ => None,
-        }
+    pub fn clear(&mut self) {
+        self.len = 0;
     }
-}
 
-/// What a received frame means to the firmware's plumbing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Inbound {
-    /// The host's heartbeat: feeds the heartbeat watchdog. Carries the host's NMT state.
-    HostHeartbeat(NmtState),
-    /// Anything else: handed on to the protocol layer unchanged.
-    Other,
-}
-
-/// Classifies a received frame. A frame on the host's heartbeat id that is not a valid
-/// heartbeat (remote frame, wrong length, unknown state byte) does NOT feed the watchdog:
-/// a babbling or broken host must not keep the joint powered.
-pub fn classify<F: Frame>(frame: &F, host: NodeId) -> Inbound {
-    let is_host_hb = matches!(frame.id(), Id::Standard(id) if id == host.heartbeat_id());
-    if !is_host_hb || frame.is_remote_frame() || frame.dlc() != 1 {
-        return Inbound::Other;
+    pub fn take_overflow(&mut self) -> u32 {
+        core::mem::take(&mut self.overflow)
     }
-    match frame.data().first().copied().and_then(NmtState::from_byte) {
-        Some(state) => Inbound::HostHeartbeat(state),
-        None => Inbound::Other,
-    }
-}
-
-/// The node's own heartbeat frame (one byte, the NMT state).
-pub fn heartbeat_frame<F: Frame>(node: NodeId, state: NmtState) -> Option<F> {
-    F::new(node.heartbeat_id(), &[state as u8])
 }
 
 /// Error state of the controller as the FDCAN reports it (PSR.EP / PSR.BO).
@@ -102,8 +103,9 @@ pub enum BusMode {
     BusOff,
 }
 
-/// Counters the CAN task exposes (to defmt logs now, to the CANopen error register and
-/// EMCY later). All counters saturate instead of wrapping.
+/// Counters the CAN task exposes (defmt log on every change of bus mode and every 10 s while
+/// they change; the node's object dictionary has no object for them yet). All counters
+/// saturate instead of wrapping.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct BusStats {
     pub mode: BusMode,
@@ -112,9 +114,9 @@ pub struct BusStats {
     pub tec: u8,
     pub rx_frames: u32,
     pub tx_frames: u32,
-    /// Received frames dropped because the protocol side's queue was full.
-    pub rx_dropped: u32,
-    /// Frames the firmware wanted to send but had to drop (queue full, bus off).
+    /// Received frames the node does not serve (extended id, remote, over 8 bytes).
+    pub rx_rejected: u32,
+    /// Frames the node sent that did not go out (outbox full, TX buffer timeout, bus off).
     pub tx_dropped: u32,
     /// Receive errors the driver reported (stuff, form, CRC, ...).
     pub bus_errors: u32,
@@ -165,8 +167,8 @@ impl BusStats {
     pub fn count_tx(&mut self) {
         self.tx_frames = self.tx_frames.saturating_add(1);
     }
-    pub fn count_rx_dropped(&mut self) {
-        self.rx_dropped = self.rx_dropped.saturating_add(1);
+    pub fn count_rx_rejected(&mut self) {
+        self.rx_rejected = self.rx_rejected.saturating_add(1);
     }
     pub fn count_tx_dropped(&mut self) {
         self.tx_dropped = self.tx_dropped.saturating_add(1);
@@ -228,40 +230,66 @@ mod tests {
     }
 
     #[test]
-    fn node_id_range() {
-        assert_eq!(NodeId::new(0), Err(BadNodeId(0)));
-        assert_eq!(NodeId::new(128), Err(BadNodeId(128)));
-        assert_eq!(NodeId::new(127).unwrap().heartbeat_id(), sid(0x77F));
-        assert_eq!(NodeId::new(1).unwrap().heartbeat_id(), sid(0x701));
+    fn standard_data_frames_convert_both_ways_unchanged() {
+        for (id, data) in [(0x000u16, &[0x01u8, 0x05][..]), (0x605, &[0x2F, 0x00, 0x20, 0, 1, 2, 3, 4]), (0x7FF, &[])] {
+            let hal = TestFrame::new(sid(id), data).unwrap();
+            let core = to_core(&hal).unwrap();
+            assert_eq!((core.id(), core.data()), (id, data));
+            let back: TestFrame = to_hal(&core).unwrap();
+            assert_eq!(back, hal);
+        }
     }
 
     #[test]
-    fn host_heartbeat_is_recognised_only_when_well_formed() {
-        let host = NodeId::new(0x7F).unwrap();
-        let ok = TestFrame::new(sid(0x77F), &[0x05]).unwrap();
-        assert_eq!(classify(&ok, host), Inbound::HostHeartbeat(NmtState::Operational));
-        // Toggle bit (bit 7) as sent by node-guarding-era masters is ignored.
-        let toggled = TestFrame::new(sid(0x77F), &[0x85]).unwrap();
-        assert_eq!(classify(&toggled, host), Inbound::HostHeartbeat(NmtState::Operational));
-        let wrong_node = TestFrame::new(sid(0x77E), &[0x05]).unwrap();
-        assert_eq!(classify(&wrong_node, host), Inbound::Other);
-        let long = TestFrame::new(sid(0x77F), &[0x05, 0]).unwrap();
-        assert_eq!(classify(&long, host), Inbound::Other);
-        let empty = TestFrame::new(sid(0x77F), &[]).unwrap();
-        assert_eq!(classify(&empty, host), Inbound::Other);
-        let remote = TestFrame::new_remote(sid(0x77F), 1).unwrap();
-        assert_eq!(classify(&remote, host), Inbound::Other);
-        let bad_state = TestFrame::new(sid(0x77F), &[0x33]).unwrap();
-        assert_eq!(classify(&bad_state, host), Inbound::Other);
-        let ext = TestFrame::new(ExtendedId::new(0x77F).unwrap(), &[0x05]).unwrap();
-        assert_eq!(classify(&ext, host), Inbound::Other);
+    fn frames_the_node_does_not_serve_are_rejected_with_the_reason() {
+        let ext = TestFrame::new(ExtendedId::new(0x605).unwrap(), &[0x40, 0, 0x10, 0, 0, 0, 0, 0]).unwrap();
+        assert_eq!(to_core(&ext), Err(Rejected::Extended));
+        let remote = TestFrame::new_remote(sid(0x705), 1).unwrap();
+        assert_eq!(to_core(&remote), Err(Rejected::Remote));
+        // An FD-sized payload cannot become a classic frame.
+        let long = TestFrame { id: Id::Standard(sid(0x605)), remote: false, dlc: 12, data: [0; 8] };
+        let long = LongFrame(long);
+        assert_eq!(to_core(&long), Err(Rejected::TooLong));
+    }
+
+    /// A frame type whose `data()` is longer than 8 bytes, as an FD frame's can be.
+    struct LongFrame(TestFrame);
+    impl Frame for LongFrame {
+        fn new(id: impl Into<Id>, data: &[u8]) -> Option<Self> {
+            TestFrame::new(id, data).map(LongFrame)
+        }
+        fn new_remote(id: impl Into<Id>, dlc: usize) -> Option<Self> {
+            TestFrame::new_remote(id, dlc).map(LongFrame)
+        }
+        fn is_extended(&self) -> bool {
+            false
+        }
+        fn is_remote_frame(&self) -> bool {
+            false
+        }
+        fn id(&self) -> Id {
+            self.0.id
+        }
+        fn dlc(&self) -> usize {
+            12
+        }
+        fn data(&self) -> &[u8] {
+            &[0; 12]
+        }
     }
 
     #[test]
-    fn own_heartbeat_frame() {
-        let f: TestFrame = heartbeat_frame(NodeId::new(5).unwrap(), NmtState::PreOperational).unwrap();
-        assert_eq!(f.id(), Id::Standard(sid(0x705)));
-        assert_eq!(f.data(), &[0x7F]);
+    fn outbox_keeps_order_and_counts_what_does_not_fit() {
+        let mut o = Outbox::<2>::new();
+        for id in [0x705u16, 0x185, 0x085] {
+            o.push(CanFrame::new(id, &[1]).unwrap());
+        }
+        let ids: Vec<u16> = o.frames().iter().map(|f| f.id()).collect();
+        assert_eq!(ids, [0x705, 0x185]);
+        assert_eq!(o.take_overflow(), 1);
+        assert_eq!(o.take_overflow(), 0);
+        o.clear();
+        assert!(o.frames().is_empty());
     }
 
     #[test]

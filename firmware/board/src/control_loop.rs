@@ -1,56 +1,44 @@
 //! One tick of the control loop, without the hardware: position in, motor command out.
 //!
 //! Per tick: q from the encoder; q̇ and q̈ from two of the core's [`Differentiator`]s at
-//! the nominal period; the core's [`Controller::step`]; then the core's [`Safety`] layer
-//! (heartbeat watchdog, fault latch, fade to zero), whose output becomes the motor command
-//! `τ/(N − 1)`. The embassy task around it only waits for the ticker, reads the encoder and
+//! the nominal period; then the CANopen node's [`Node::control`], which steps the core's
+//! controller with the committed parameter set, the NMT state's mode and the host's RPDO
+//! commands, passes the torque through the heartbeat watchdog and records the state for the
+//! TPDOs. What the node cannot know stays here: the loop period and filter cut-offs that
+//! follow the committed `controller_rate_hz`, and overrun detection (a tick more than three
+//! periods late latches `LOOP_OVERRUN` in the node's fault word). The embassy task around it
+//! only waits for the ticker, reads the encoder, takes the node's lock for the tick and
 //! writes the PWM. Nothing here allocates or blocks.
 
-use joint_core::control::{Controller, Differentiator, Input, Mode, Output};
+use joint_core::canopen::{NmtState, Node, ParamStorage};
+use joint_core::control::{Differentiator, Output};
 use joint_core::params::{ParamId, ParamSet};
-use joint_core::safety::{Faults, Safety, SafetyConfig};
+use joint_core::safety::Faults;
 use joint_core::vectors::velocity_cutoff_hz;
 
 use crate::io::EncoderError;
 
-/// What the host asks of the loop (set by the protocol layer; defaults to the product's
-/// normal mode, gated by the heartbeat watchdog and the soft start).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Command {
-    pub mode: Mode,
-    pub assist_cmd: f32,
-    pub others: [f32; 3],
-}
-
-impl Default for Command {
-    fn default() -> Self {
-        Command { mode: Mode::Assist, assist_cmd: 0.0, others: [0.0; 3] }
-    }
-}
-
 /// Result of a tick, for the output stage and the status report.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TickOutput {
-    /// Motor torque command after the safety layer, N·m (motor side).
-    pub u_motor: f32,
-    /// Output torque after the safety layer, N·m.
-    pub tau: f32,
+    /// The node's output: `tau_out`/`u_motor` after the safety layer.
+    pub out: Output,
     pub q: f32,
     pub qd: f32,
-    /// The controller's own output before the safety layer.
-    pub step: Output,
     pub faults: Faults,
-    pub gain: f32,
+    /// Drive the bridge (operational and the watchdog's gain above zero); otherwise the
+    /// switches are opened.
+    pub drive: bool,
 }
 
 /// The loop's state between ticks.
 pub struct ControlLoop {
-    ctl: Controller,
     dq: Differentiator,
     dqd: Differentiator,
-    safety: Safety,
     dt: f32,
     period_us: u64,
+    /// The committed rate the period was derived from (bits, so any change is seen).
+    rate_bits: u32,
     vel_cutoff: f32,
     accel_cutoff: f32,
     last_tick_us: Option<u64>,
@@ -58,14 +46,13 @@ pub struct ControlLoop {
 }
 
 impl ControlLoop {
-    pub fn new(p: &ParamSet, now_us: u64) -> Self {
+    pub fn new(p: &ParamSet) -> Self {
         let mut s = ControlLoop {
-            ctl: Controller::new(),
             dq: Differentiator::new(),
             dqd: Differentiator::new(),
-            safety: Safety::new(SafetyConfig::from_params(p), now_us),
             dt: 0.0,
             period_us: 0,
+            rate_bits: 0,
             vel_cutoff: 0.0,
             accel_cutoff: 0.0,
             last_tick_us: None,
@@ -82,16 +69,15 @@ impl ControlLoop {
         ((1.0e6 / hz + 0.5) as u64).clamp(100, 10_000)
     }
 
-    /// A new parameter set is in force: new period, filters and safety limits. The
-    /// controller's memory is kept so that a parameter change is not a torque step (the
-    /// rate limit then moves the torque to the new target).
-    pub fn apply_params(&mut self, p: &ParamSet) {
+    /// Period and filters for a committed set. The filters' memory is kept so that a
+    /// parameter change is not a step in q̇/q̈.
+    fn apply_params(&mut self, p: &ParamSet) {
         self.period_us = Self::period_us(p);
         self.dt = self.period_us as f32 * 1.0e-6;
         let rate = p.get(ParamId::ControlRateHz);
+        self.rate_bits = rate.to_bits();
         self.vel_cutoff = velocity_cutoff_hz(rate);
         self.accel_cutoff = p.get(ParamId::AccelCutoff);
-        self.safety.configure(SafetyConfig::from_params(p));
     }
 
     pub fn nominal_period_us(&self) -> u64 {
@@ -104,133 +90,151 @@ impl ControlLoop {
         self.last_tick_us = None;
     }
 
-    /// A valid host heartbeat arrived at `now_us`.
-    pub fn on_heartbeat(&mut self, now_us: u64) {
-        self.safety.on_heartbeat(now_us);
-    }
-
-    /// Latch a fault found outside the loop (store corrupt at boot, CAN bus-off...).
-    pub fn raise(&mut self, f: Faults) {
-        self.safety.raise(f);
-    }
-
-    pub fn clear_faults(&mut self, now_us: u64) -> Result<Faults, joint_core::safety::ClearError> {
-        self.safety.clear_faults(now_us)
-    }
-
-    pub fn take_new_faults(&mut self) -> Faults {
-        self.safety.take_new_faults()
-    }
-
-    /// One tick at `now_us` with the encoder's reading.
-    pub fn tick(&mut self, p: &ParamSet, now_us: u64, position: Result<f32, EncoderError>, cmd: &Command) -> TickOutput {
+    /// One tick at `now_us` with the encoder's reading. Returns the node's output; the
+    /// caller restarts its ticker when [`ControlLoop::nominal_period_us`] changed (a commit
+    /// of a new `controller_rate_hz`).
+    pub fn tick<S: ParamStorage>(&mut self, node: &mut Node<S>, now_us: u64, position: Result<f32, EncoderError>) -> TickOutput {
+        if node.params().get(ParamId::ControlRateHz).to_bits() != self.rate_bits {
+            self.apply_params(node.params());
+        }
         // A tick that comes more than three periods late means the loop was stalled (a
         // flash erase, a runaway task): latch it, the safety layer fades the torque.
         if let Some(last) = self.last_tick_us {
             if now_us.wrapping_sub(last) > 3 * self.period_us {
-                self.safety.raise(Faults::LOOP_OVERRUN);
+                node.safety_mut().raise(Faults::LOOP_OVERRUN);
             }
         }
         self.last_tick_us = Some(now_us);
 
-        let (mode, q) = match position {
+        let q = match position {
             Ok(q) => {
                 self.last_q = q;
-                (cmd.mode, q)
+                q
             }
-            // No fresh angle: hold the last one for the filters and ask for zero torque.
-            Err(_) => (Mode::Off, self.last_q),
+            // No fresh angle: the compensation would push on a stale one. The node has no
+            // "sensor" fault bit; COMMAND_INVALID (the loop's input is not valid) latches, is
+            // reported by EMCY and fades the torque to zero until the host clears it.
+            Err(_) => {
+                node.safety_mut().raise(Faults::COMMAND_INVALID);
+                self.last_q
+            }
         };
         let qd = self.dq.update(q, self.dt, self.vel_cutoff);
         let qdd = self.dqd.update(qd, self.dt, self.accel_cutoff);
-        let input = Input { q, qd, qdd, others: cmd.others, assist_cmd: cmd.assist_cmd };
-        let step = self.ctl.step(p, mode, &input, self.dt);
-        let tau = self.safety.update(now_us, step.tau_out);
-        TickOutput {
-            u_motor: tau * p.inv_ratio_m1(),
-            tau,
-            q,
-            qd,
-            step,
-            faults: self.safety.faults(),
-            gain: self.safety.gain(),
-        }
+        let out = node.control(now_us, q, qd, qdd, self.dt);
+        let drive = node.nmt_state() == NmtState::Operational && node.safety().gain() > 0.0;
+        TickOutput { out, q, qd, faults: node.safety().faults(), drive }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use joint_core::canopen::{CanFrame, MemoryStorage, NodeConfig};
     use joint_core::params::check;
     use joint_core::vectors::trunk_right;
 
-    fn set() -> ParamSet {
-        check(&trunk_right()).unwrap()
+    const NODE: u8 = 5;
+
+    fn frame(id: u16, d: &[u8]) -> CanFrame {
+        CanFrame::new(id, d).unwrap()
     }
 
-    /// Runs `ms` ticks of 1 ms at a fixed angle, heartbeat every 100 ms while `host` says so.
-    fn run(l: &mut ControlLoop, p: &ParamSet, t0: u64, ms: u64, host: impl Fn(u64) -> bool) -> (u64, TickOutput) {
+    /// A node on the trunk-paper set, operational.
+    fn node() -> Node<MemoryStorage> {
+        let storage = MemoryStorage { stored: Some(trunk_right()), saves: 0 };
+        let mut n = Node::new(NodeConfig::new(NODE), storage, 0);
+        let mut sink = |_f: CanFrame| {};
+        n.process(0, Some(&frame(0x000, &[0x01, NODE])), &mut sink);
+        assert_eq!(n.nmt_state(), NmtState::Operational);
+        n
+    }
+
+    /// Runs `ms` ticks of 1 ms at a fixed angle, host heartbeat every 100 ms while `host`.
+    fn run(l: &mut ControlLoop, n: &mut Node<MemoryStorage>, t0: u64, ms: u64, host: bool) -> (u64, TickOutput) {
         let mut out = TickOutput::default();
         let mut t = t0;
+        let mut sink = |_f: CanFrame| {};
         for i in 0..ms {
             t = t0 + i * 1000;
-            if i % 100 == 0 && host(t) {
-                l.on_heartbeat(t);
+            if i % 100 == 0 && host {
+                n.process(t, Some(&frame(0x77F, &[0x05])), &mut sink);
             }
-            out = l.tick(p, t, Ok(1.0), &Command::default());
+            out = l.tick(n, t, Ok(1.0));
         }
         (t, out)
     }
 
     #[test]
     fn torque_reaches_the_law_with_host_and_fades_to_zero_without() {
-        let p = set();
-        let mut l = ControlLoop::new(&p, 0);
+        let mut n = node();
+        let mut l = ControlLoop::new(n.params());
         assert_eq!(l.nominal_period_us(), 1000);
-        let (t, out) = run(&mut l, &p, 0, 2000, |_| true);
-        assert!(out.faults.is_empty());
-        assert!(out.tau > 0.5, "gravity compensation should push: {out:?}");
-        let ratio = p.get(ParamId::Ratio);
-        assert!(joint_core::math::abs(out.u_motor - out.tau / (ratio - 1.0)) < 1e-6);
+        let (t, r) = run(&mut l, &mut n, 0, 2000, true);
+        assert!(r.faults.is_empty(), "{r:?}");
+        assert!(r.drive);
+        assert!(r.out.tau_out > 0.5, "gravity compensation should push: {r:?}");
+        let ratio = n.params().get(ParamId::Ratio);
+        assert!(joint_core::math::abs(r.out.u_motor - r.out.tau_out / (ratio - 1.0)) < 1e-6);
+        assert_eq!(n.joint_state().tau_cmd, r.out.tau_out, "the TPDO state is the applied torque");
         // Host gone: timeout 0.5 s + ramp 0.2 s, so zero within 0.7 s and latched.
-        let (_, out) = run(&mut l, &p, t + 1000, 800, |_| false);
-        assert_eq!(out.tau, 0.0);
-        assert!(out.faults.contains(Faults::HEARTBEAT_LOST));
+        let (_, r) = run(&mut l, &mut n, t + 1000, 800, false);
+        assert_eq!(r.out.tau_out, 0.0);
+        assert!(!r.drive);
+        assert!(r.faults.contains(Faults::HEARTBEAT_LOST));
     }
 
     #[test]
-    fn encoder_error_commands_zero_torque_through_the_rate_limit() {
-        let p = set();
-        let mut l = ControlLoop::new(&p, 0);
-        let (t, out) = run(&mut l, &p, 0, 1000, |_| true);
-        assert!(out.tau > 0.5);
-        l.on_heartbeat(t);
-        let mut last = out.tau;
-        for i in 1..200 {
-            let o = l.tick(&p, t + i * 1000, Err(EncoderError::Sensor), &Command::default());
-            assert!(o.tau <= last + 1e-6);
-            last = o.tau;
+    fn no_torque_outside_operational() {
+        let mut n = Node::new(NodeConfig::new(NODE), MemoryStorage { stored: Some(trunk_right()), saves: 0 }, 0);
+        let mut l = ControlLoop::new(n.params());
+        let (_, r) = run(&mut l, &mut n, 0, 1000, true);
+        assert_eq!(n.nmt_state(), NmtState::PreOperational);
+        assert_eq!(r.out.tau_out, 0.0);
+        assert!(!r.drive);
+    }
+
+    #[test]
+    fn encoder_error_latches_and_fades_to_zero() {
+        let mut n = node();
+        let mut l = ControlLoop::new(n.params());
+        let (t, r) = run(&mut l, &mut n, 0, 1000, true);
+        assert!(r.out.tau_out > 0.5);
+        let mut last = r.out.tau_out;
+        let mut r = r;
+        for i in 1..300 {
+            r = l.tick(&mut n, t + i * 1000, Err(EncoderError::Sensor));
+            assert!(r.out.tau_out <= last + 1e-6);
+            last = r.out.tau_out;
         }
         assert_eq!(last, 0.0);
+        assert!(r.faults.contains(Faults::COMMAND_INVALID));
     }
 
     #[test]
-    fn a_stalled_loop_latches_an_overrun() {
-        let p = set();
-        let mut l = ControlLoop::new(&p, 0);
-        l.on_heartbeat(0);
-        l.tick(&p, 1000, Ok(0.0), &Command::default());
-        let o = l.tick(&p, 10_000, Ok(0.0), &Command::default());
-        assert!(o.faults.contains(Faults::LOOP_OVERRUN));
+    fn a_stalled_loop_latches_an_overrun_unless_excused() {
+        let mut n = node();
+        let mut l = ControlLoop::new(n.params());
+        l.tick(&mut n, 1000, Ok(0.0));
+        l.excuse_gap();
+        let r = l.tick(&mut n, 50_000, Ok(0.0));
+        assert!(!r.faults.contains(Faults::LOOP_OVERRUN));
+        let r = l.tick(&mut n, 60_000, Ok(0.0));
+        assert!(r.faults.contains(Faults::LOOP_OVERRUN));
     }
 
     #[test]
-    fn period_follows_the_rate_parameter() {
+    fn period_follows_the_committed_rate() {
         let mut raw = trunk_right();
         raw.set(ParamId::ControlRateHz, 10_000.0);
         raw.set(ParamId::AccelCutoff, 20.0);
         assert_eq!(ControlLoop::period_us(&check(&raw).unwrap()), 100);
         raw.set(ParamId::ControlRateHz, 100.0);
         assert_eq!(ControlLoop::period_us(&check(&raw).unwrap()), 10_000);
+        // Through the node: a committed rate change is picked up at the next tick.
+        let mut n = Node::new(NodeConfig::new(NODE), MemoryStorage { stored: Some(raw), saves: 0 }, 0);
+        let mut l = ControlLoop::new(&ParamSet::defaults());
+        l.tick(&mut n, 0, Ok(0.0));
+        assert_eq!(l.nominal_period_us(), 10_000);
     }
 }

@@ -47,13 +47,22 @@ impl QuadratureUnwrap {
     /// scale is zero and every reading is 0 rad, which the caller's checks will notice
     /// as a joint that never moves, rather than a NaN fed into the controller.
     pub fn new(first_count: u16, counts_per_motor_rev: u32, ratio: f32) -> Self {
+        Self { last: first_count, total: 0, rad_per_count: Self::scale(counts_per_motor_rev, ratio) }
+    }
+
+    fn scale(counts_per_motor_rev: u32, ratio: f32) -> f32 {
         let denom = counts_per_motor_rev as f32 * ratio;
-        let rad_per_count = if joint_core::math::is_finite(denom) && denom > 0.0 {
+        if joint_core::math::is_finite(denom) && denom > 0.0 {
             2.0 * core::f32::consts::PI / denom
         } else {
             0.0
-        };
-        Self { last: first_count, total: 0, rad_per_count }
+        }
+    }
+
+    /// A new gear ratio was committed (only possible in pre-operational, where no torque
+    /// is applied): the counts so far are re-read with it.
+    pub fn set_ratio(&mut self, counts_per_motor_rev: u32, ratio: f32) {
+        self.rad_per_count = Self::scale(counts_per_motor_rev, ratio);
     }
 
     /// Feeds the current counter value and returns the joint angle in rad since start.
@@ -85,6 +94,15 @@ mod tests {
         let mut u = QuadratureUnwrap::new(0, 4096, 160.0);
         let q = u.update(4096);
         assert!(joint_core::math::abs(q - 2.0 * core::f32::consts::PI / 160.0) < 1e-7);
+    }
+
+    #[test]
+    fn a_new_ratio_rescales_the_counts_so_far() {
+        let mut u = QuadratureUnwrap::new(0, 4, 1.0);
+        u.update(2);
+        u.set_ratio(4, 2.0);
+        // 2 counts of 4 per motor turn, 2 motor turns per joint turn: a quarter joint turn.
+        assert!(joint_core::math::abs(u.update(2) - core::f32::consts::FRAC_PI_2) < 1e-7);
     }
 
     #[test]

@@ -1,21 +1,31 @@
-//! Joint-board firmware for the STM32G431CB (B-G431B-ESC1).
+//! Joint-board firmware for the STM32G431CB (B-G431B-ESC1): a CANopen joint node.
 //!
-//! `main` only initialises the chip and spawns the tasks:
-//! - `control`: fixed-rate loop (Ticker at `controller_rate_hz`, 1 kHz default, up to
-//!   10 kHz): encoder → differentiators → `Controller::step` → safety layer → PWM; pets the
-//!   independent watchdog (IWDG), so a stuck loop resets the chip;
-//! - `can`: FDCAN1, classic CAN at 1 Mbit/s: received frames go to the `CAN_RX` channel
-//!   for the protocol layer (the host's heartbeat 0x700 + host id is taken out here and
-//!   feeds the heartbeat watchdog), frames in `CAN_TX` go out; automatic bus-off recovery
-//!   (128 × 11 recessive bits, done by the controller), error counters and bus-off
-//!   episodes in `BUS_STATS`;
-//! - `heartbeat`: the node's own heartbeat 0x700 + node id every 100 ms;
+//! The board runs the core's sans-IO CANopen node ([`joint_core::canopen::Node`]: NMT,
+//! heartbeat producer and consumer, SDO, EMCY, TPDOs, RPDOs, staged/committed parameters),
+//! which lives in one blocking mutex (`NODE`, a critical section) shared by the tasks; every
+//! lock is held for one call into the node and no I/O happens inside it. `main` only
+//! initialises the chip, reads the parameter store, creates the node and spawns the tasks:
+//! - `control`: fixed-rate loop (Ticker at the committed `controller_rate_hz`, 1 kHz
+//!   default, up to 10 kHz): encoder → differentiators → `node.control` (controller with the
+//!   committed set, NMT mode, the host's RPDO commands, heartbeat watchdog with torque fade)
+//!   → PWM; pets the independent watchdog (IWDG), so a stuck loop resets the chip;
+//! - `can`: FDCAN1, classic CAN at 1 Mbit/s: every received frame goes to
+//!   `node.process(now, Some(&frame), tx)` (extended-id, remote and over-long frames are
+//!   counted and dropped), a 1 ms tick calls `node.poll` (heartbeat, TPDO event timers, SDO
+//!   timeouts, EMCY); what the node emits is collected during the lock and written to the
+//!   controller afterwards. Automatic bus-off recovery (128 × 11 recessive bits, done by the
+//!   controller) latches `CAN_BUS_OFF` in the node (EMCY 0x8140); error counters, bus-off
+//!   episodes and dropped frames are in `BUS_STATS` and logged over defmt (the node's object
+//!   dictionary has no object for them yet);
 //! - `params`: the only owner of the flash: loads the stored set at boot (defaults plus a
-//!   latched fault when the region is corrupt or foreign), saves on request with the
-//!   core's power-loss-safe A/B store.
+//!   latched fault when the region is corrupt, foreign or refused), then serves the node's
+//!   0x1010 store and 0x1011 restore requests handed over by [`firmware::storage`], with the
+//!   core's incremental power-loss-safe A/B store, one flash operation at a time and only
+//!   while no torque is commanded (the single-bank G431 stalls on erase).
 //!
-//! The CANopen protocol (SDO, PDO, NMT) is not here yet: nothing consumes `CAN_RX` and
-//! nothing sends `PARAM_CMD` until it is.
+//! Not here: node id and bit rate are compile-time constants (no LSS, no DIP switches);
+//! CAN FD is not enabled; the torque stage is an open-loop H-bridge for a brushed motor
+//! (see `board.rs`).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -24,11 +34,11 @@ mod board;
 #[cfg(target_os = "none")]
 mod fw {
     use core::cell::{Cell, RefCell};
-    use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use defmt::{error, info, warn};
     use embassy_executor::Spawner;
-    use embassy_futures::select::{select3, Either3};
+    use embassy_futures::select::{select, Either};
     use embassy_stm32::can::{self, Frame};
     use embassy_stm32::flash::Flash;
     use embassy_stm32::gpio::{OutputType, Pull};
@@ -42,26 +52,29 @@ mod fw {
     use embassy_stm32::{bind_interrupts, Config};
     use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
     use embassy_sync::blocking_mutex::Mutex;
-    use embassy_sync::channel::Channel;
     use embassy_sync::signal::Signal;
     use embassy_time::{Duration, Instant, Ticker, Timer};
-    use firmware::can_link::{self, BusMode, BusStats, Inbound, NmtState, NodeId};
-    use firmware::control_loop::{Command, ControlLoop};
+    use static_cell::StaticCell;
+    use firmware::can_link::{self, BusMode, BusStats, Outbox};
+    use firmware::control_loop::ControlLoop;
     use firmware::io::{Encoder, TorqueOutput};
-    use joint_core::control::Mode;
-    use joint_core::params::{ParamId, ParamSet};
+    use firmware::storage::{BoardStorage, EraseOrder, Job};
+    use joint_core::canopen::{Node, NodeConfig};
+    use joint_core::params::{check, ParamId, ParamSet, RawParams};
     use joint_core::safety::Faults;
-    use joint_core::store::{SaveProgress, Store};
+    use joint_core::store::{Flash as _, SaveProgress, Store};
     use {defmt_rtt as _, panic_probe as _};
 
     use crate::board::{HBridgeTorque, ParamFlash, QeiEncoder};
 
-    /// This node's CANopen id (until the protocol layer makes it a parameter).
+    /// This node's CANopen id (no LSS: a compile-time constant).
     const NODE_ID: u8 = 5;
-    /// The host (CANopen master) whose heartbeat feeds the watchdog.
-    const HOST_NODE_ID: u8 = 0x7F;
     const CAN_BITRATE: u32 = 1_000_000;
-    const HEARTBEAT_PERIOD: Duration = Duration::from_millis(100);
+    /// The node's timers (heartbeat, TPDO event timer, SDO timeout) want a poll at least
+    /// every millisecond.
+    const NODE_POLL: Duration = Duration::from_millis(1);
+    /// Bus counters are logged this often while they change.
+    const STATS_LOG: Duration = Duration::from_secs(10);
     /// Encoder edges per motor revolution (x4 decoding of a 1024-line encoder).
     const ENCODER_COUNTS_PER_REV: u32 = 4096;
     /// Motor torque at 100 % duty, N·m (see board::HBridgeTorque).
@@ -76,36 +89,29 @@ mod fw {
     });
 
     type Cs = CriticalSectionRawMutex;
+    type JointNode = Node<BoardStorage>;
 
-    /// The parameter set in force; written only by the params task, copied by the loop
-    /// when `PARAMS_CHANGED` fires (one copy, inside a short critical section).
-    static PARAMS: Mutex<Cs, RefCell<Option<ParamSet>>> = Mutex::new(RefCell::new(None));
-    static PARAMS_CHANGED: Signal<Cs, ()> = Signal::new();
-    /// Time (µs) of the latest valid host heartbeat.
-    static HOST_HEARTBEAT: Signal<Cs, u64> = Signal::new();
-    /// What the host asks for; set by the protocol layer.
-    static COMMAND: Mutex<Cs, Cell<Command>> = Mutex::new(Cell::new(Command {
-        mode: Mode::Assist,
-        assist_cmd: 0.0,
-        others: [0.0; 3],
-    }));
-    /// Faults found outside the loop (boot store, bus-off), OR-ed in, taken by the loop.
-    static PENDING_FAULTS: AtomicU16 = AtomicU16::new(0);
-    /// Latched faults and torque state as the loop last saw them, for reports.
-    static LOOP_FAULTS: AtomicU16 = AtomicU16::new(0);
+    /// The CANopen node, shared by the control, CAN and params tasks. Every lock is one call
+    /// into the node (a control step, one frame, one poll, a storage handoff): a few µs, an
+    /// SDO commit (the whole-set check) the longest. Never locked while waiting on I/O.
+    /// The node itself (≈ 9 KiB) lives in `NODE_CELL`, uninitialised RAM (.bss) until
+    /// `main` builds it in place: an `Option<Node>` static would be initialised data, i.e.
+    /// 9 KiB of flash too.
+    static NODE: Mutex<Cs, RefCell<Option<&'static mut JointNode>>> = Mutex::new(RefCell::new(None));
+    static NODE_CELL: StaticCell<JointNode> = StaticCell::new();
+    /// The node queued a store/restore job for the params task.
+    static STORE_WAKE: Signal<Cs, ()> = Signal::new();
+    /// The loop commands a non-zero torque: the params task does not touch the flash.
     static TORQUE_ACTIVE: AtomicBool = AtomicBool::new(false);
     /// Flash operations done so far: a change tells the loop a gap was a flash stall.
     static FLASH_OPS: AtomicU32 = AtomicU32::new(0);
-    /// Frames for the protocol layer and from it.
-    pub static CAN_RX: Channel<Cs, Frame, 16> = Channel::new();
-    pub static CAN_TX: Channel<Cs, Frame, 16> = Channel::new();
     pub static BUS_STATS: Mutex<Cs, Cell<BusStats>> = Mutex::new(Cell::new(BusStats {
         mode: BusMode::ErrorActive,
         rec: 0,
         tec: 0,
         rx_frames: 0,
         tx_frames: 0,
-        rx_dropped: 0,
+        rx_rejected: 0,
         tx_dropped: 0,
         bus_errors: 0,
         error_passive_events: 0,
@@ -113,33 +119,43 @@ mod fw {
         recoveries: 0,
     }));
 
-    /// Requests to the params task. Sent by the protocol layer (CANopen 0x1010 store /
-    /// 0x1011 restore, issue 4), which does not exist in this image yet.
-    #[allow(dead_code)]
-    #[derive(Clone, Copy, defmt::Format)]
-    pub enum ParamCommand {
-        /// Persist the set in force.
-        Save,
-        /// Put the table defaults in force (not persisted until `Save`).
-        RestoreDefaults,
-    }
-    pub static PARAM_CMD: Channel<Cs, ParamCommand, 2> = Channel::new();
-
     fn now_us() -> u64 {
         Instant::now().as_micros()
     }
 
-    fn raise(f: Faults) {
-        PENDING_FAULTS.fetch_or(f.bits(), Ordering::Relaxed);
+    fn wake_params() {
+        STORE_WAKE.signal(());
     }
 
-    fn publish(set: ParamSet) {
-        PARAMS.lock(|p| *p.borrow_mut() = Some(set));
-        PARAMS_CHANGED.signal(());
+    /// `f` on the node inside its lock (`None` only before `main` created it).
+    fn with_node<R>(f: impl FnOnce(&mut JointNode) -> R) -> Option<R> {
+        NODE.lock(|n| n.borrow_mut().as_deref_mut().map(f))
     }
 
-    fn current_params() -> ParamSet {
-        PARAMS.lock(|p| p.borrow().clone()).unwrap_or_default()
+    /// The stored set as the store reads it at boot, and the fault to latch.
+    fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, Faults) {
+        let Some(store) = store else {
+            error!("parameter region too small for two slots: defaults, nothing can be saved");
+            return (None, Faults::PARAMS_CORRUPT);
+        };
+        match store.load() {
+            Ok(l) => {
+                info!(
+                    "parameters: slot {=u8} seq {=u32} ({=u8} defaulted, {=u8} unknown)",
+                    l.info.slot, l.info.seq, l.info.defaulted, l.info.unknown
+                );
+                (Some(l.params.raw().clone()), l.info.fault())
+            }
+            Err(e) => {
+                let f = e.fault();
+                if f.is_empty() {
+                    info!("parameters: nothing stored, table defaults");
+                } else {
+                    warn!("parameter store unreadable: defaults, fault {=u16:#x}", f.bits());
+                }
+                (None, f)
+            }
+        }
     }
 
     #[embassy_executor::main]
@@ -161,33 +177,23 @@ mod fw {
             config.rcc.mux.fdcansel = mux::Fdcansel::PCLK1;
         }
         let p = embassy_stm32::init(config);
-        info!("joint firmware {} starting", env!("CARGO_PKG_VERSION"));
+        info!("joint firmware {} starting, CANopen node {=u8}", env!("CARGO_PKG_VERSION"), NODE_ID);
 
-        // Parameters first: the loop must start on the stored calibration.
+        // Parameters first: the node must start on the stored calibration.
         let flash = ParamFlash::new(Flash::new_blocking(p.FLASH));
         let (base, len) = flash.region();
         info!("parameter region {=u32:#x}, {=u32} bytes", base, len);
-        let store = match Store::new(flash) {
-            Ok(mut store) => {
-                let (set, fault) = store.load_or_defaults();
-                if !fault.is_empty() {
-                    warn!("parameter store: running on defaults or an older set, fault {=u16:#x}", fault.bits());
-                    raise(fault);
-                }
-                publish(set);
-                Some(store)
-            }
-            Err(_) => {
-                error!("parameter region too small for two slots: defaults, nothing will be saved");
-                raise(Faults::PARAMS_CORRUPT);
-                publish(ParamSet::defaults());
-                None
-            }
-        };
-        let params = current_params();
+        let mut store = Store::new(flash).ok();
+        let (boot, fault) = boot_params(store.as_mut());
+        // The node latches `fault` (the storage's load fault) itself, and again after every
+        // NMT reset-node.
+        let node: &'static mut JointNode =
+            NODE_CELL.init_with(|| Node::new(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()));
+        let ratio = node.params().get(ParamId::Ratio);
+        NODE.lock(|n| *n.borrow_mut() = Some(node));
 
         let qei = Qei::new(p.TIM4, p.PB6, p.PB7, qei::Config { ch1_pull: Pull::Up, ch2_pull: Pull::Up, ..Default::default() });
-        let encoder = QeiEncoder::new(qei, ENCODER_COUNTS_PER_REV, params.get(ParamId::Ratio));
+        let encoder = QeiEncoder::new(qei, ENCODER_COUNTS_PER_REV, ratio);
         let pwm = ComplementaryPwm::new(
             p.TIM1,
             Some(PwmPin::new(p.PA8, OutputType::PushPull)),
@@ -209,115 +215,130 @@ mod fw {
         can_cfg.set_config(can_cfg.config().set_automatic_bus_off_recovery(true));
         let can = can_cfg.into_normal_mode();
 
-        let (Ok(node), Ok(host)) = (NodeId::new(NODE_ID), NodeId::new(HOST_NODE_ID)) else {
-            error!("node ids out of range");
-            return;
-        };
         // A failed spawn is a build-time sizing error (task pool); it is logged, and the
         // IWDG, started only by the control task, then never runs: no torque either way.
         match control(encoder, torque, wdg) {
             Ok(t) => spawner.spawn(t),
             Err(_) => error!("spawning the control task failed"),
         }
-        match can_task(can, host) {
+        match can_task(can) {
             Ok(t) => spawner.spawn(t),
             Err(_) => error!("spawning the CAN task failed"),
         }
-        match heartbeat(node) {
+        match params_task(store) {
             Ok(t) => spawner.spawn(t),
-            Err(_) => error!("spawning the heartbeat task failed"),
-        }
-        if let Some(store) = store {
-            match params_task(store) {
-                Ok(t) => spawner.spawn(t),
-                Err(_) => error!("spawning the parameter task failed"),
-            }
+            Err(_) => error!("spawning the parameter task failed"),
         }
     }
 
     #[embassy_executor::task]
     async fn control(mut enc: QeiEncoder, mut out: HBridgeTorque, mut wdg: IndependentWatchdog<'static, peripherals::IWDG>) {
-        let mut params = current_params();
-        let mut lp = ControlLoop::new(&params, now_us());
-        let mut ticker = Ticker::every(Duration::from_micros(lp.nominal_period_us()));
+        let Some((mut lp, mut ratio_bits)) = with_node(|n| (ControlLoop::new(n.params()), n.params().get(ParamId::Ratio).to_bits())) else {
+            error!("control: no node");
+            return;
+        };
+        let mut period = lp.nominal_period_us();
+        let mut ticker = Ticker::every(Duration::from_micros(period));
         let mut flash_ops = FLASH_OPS.load(Ordering::Relaxed);
+        let mut faults = Faults::NONE;
         wdg.unleash();
-        info!("control loop at {=u64} us", lp.nominal_period_us());
+        info!("control loop at {=u64} us", period);
         loop {
             ticker.next().await;
             wdg.pet();
-            if PARAMS_CHANGED.signaled() {
-                PARAMS_CHANGED.reset();
-                params = current_params();
-                let old = lp.nominal_period_us();
-                lp.apply_params(&params);
-                if lp.nominal_period_us() != old {
-                    ticker = Ticker::every(Duration::from_micros(lp.nominal_period_us()));
-                }
-            }
-            let now = now_us();
-            if let Some(t) = HOST_HEARTBEAT.try_take() {
-                lp.on_heartbeat(t);
-            }
-            let pending = PENDING_FAULTS.swap(0, Ordering::Relaxed);
-            if pending != 0 {
-                lp.raise(Faults::from_bits_truncate(pending));
-            }
+            let position = enc.position();
             let ops = FLASH_OPS.load(Ordering::Relaxed);
-            if ops != flash_ops {
-                // The gap since the last tick was a flash stall the params task chose to
-                // make while the torque was off, not a stuck loop.
-                flash_ops = ops;
-                lp.excuse_gap();
-            }
-            let cmd = COMMAND.lock(|c| c.get());
-            let r = lp.tick(&params, now, enc.position(), &cmd);
-            if r.gain > 0.0 {
-                out.set_motor_torque(r.u_motor);
+            // A gap since the last tick that a flash operation explains (made while the
+            // torque was off) is not a stuck loop.
+            let excuse = ops != flash_ops;
+            flash_ops = ops;
+            let now = now_us();
+            let Some((r, ratio)) = with_node(|n| {
+                if excuse {
+                    lp.excuse_gap();
+                }
+                (lp.tick(n, now, position), n.params().get(ParamId::Ratio))
+            }) else {
+                out.disable();
+                continue;
+            };
+            if r.drive {
+                out.set_motor_torque(r.out.u_motor);
             } else {
                 out.disable();
             }
-            TORQUE_ACTIVE.store(r.gain > 0.0 && r.tau != 0.0, Ordering::Relaxed);
-            LOOP_FAULTS.store(r.faults.bits(), Ordering::Relaxed);
-            let new = lp.take_new_faults();
-            if !new.is_empty() {
-                warn!("fault latched: {=u16:#x}", new.bits());
+            TORQUE_ACTIVE.store(r.out.tau_out != 0.0, Ordering::Relaxed);
+            if ratio.to_bits() != ratio_bits {
+                // Committed in pre-operational only (safety parameter), so never under torque.
+                ratio_bits = ratio.to_bits();
+                enc.set_ratio(ENCODER_COUNTS_PER_REV, ratio);
+            }
+            if lp.nominal_period_us() != period {
+                period = lp.nominal_period_us();
+                ticker = Ticker::every(Duration::from_micros(period));
+                info!("control loop at {=u64} us", period);
+            }
+            if r.faults != faults {
+                if !r.faults.is_empty() {
+                    warn!("faults {=u16:#x}", r.faults.bits());
+                }
+                faults = r.faults;
             }
         }
     }
 
     #[embassy_executor::task]
-    async fn can_task(can: can::Can<'static>, host: NodeId) {
+    async fn can_task(can: can::Can<'static>) {
         let (mut tx, mut rx, props) = can.split();
         let mut stats = BUS_STATS.lock(|s| s.get());
+        // Frames the node emits inside one lock: boot-up + SDO answer + heartbeat + EMCYs +
+        // 4 TPDOs is the most one call sends.
+        let mut outbox: Outbox<16> = Outbox::new();
+        let mut poll = Ticker::every(NODE_POLL);
+        let mut logged = stats;
+        let mut next_log = Instant::now() + STATS_LOG;
         loop {
-            match select3(rx.read(), CAN_TX.receive(), Timer::after_millis(10)).await {
-                Either3::First(Ok(env)) => {
+            match select(rx.read(), poll.next()).await {
+                Either::First(Ok(env)) => {
                     stats.count_rx();
-                    match can_link::classify(&env.frame, host) {
-                        Inbound::HostHeartbeat(_) => HOST_HEARTBEAT.signal(now_us()),
-                        Inbound::Other => {
-                            if CAN_RX.try_send(env.frame).is_err() {
-                                stats.count_rx_dropped();
-                            }
+                    match can_link::to_core(&env.frame) {
+                        Ok(f) => {
+                            let now = now_us();
+                            with_node(|n| n.process(now, Some(&f), &mut outbox.sink()));
                         }
+                        Err(_) => stats.count_rx_rejected(),
                     }
                 }
-                Either3::First(Err(_)) => stats.count_bus_error(),
-                Either3::Second(frame) => {
-                    if stats.mode == BusMode::BusOff {
-                        stats.count_tx_dropped();
-                    } else {
+                Either::First(Err(_)) => stats.count_bus_error(),
+                Either::Second(()) => {
+                    let now = now_us();
+                    with_node(|n| n.poll(now, &mut outbox.sink()));
+                }
+            }
+            for f in outbox.frames() {
+                let hal = can_link::to_hal::<Frame>(f);
+                match hal {
+                    Some(frame) if stats.mode != BusMode::BusOff => {
                         // write() waits for a free TX buffer; bounded so a dead bus cannot
-                        // park the task.
+                        // park the task (and with it the node's timers).
                         match embassy_time::with_timeout(Duration::from_millis(5), tx.write(&frame)).await {
-                            Ok(_) => stats.count_tx(),
+                            Ok(None) => stats.count_tx(),
+                            // A queued lower-priority frame was pushed out to make room.
+                            Ok(Some(_)) => {
+                                stats.count_tx();
+                                stats.count_tx_dropped();
+                            }
                             Err(_) => stats.count_tx_dropped(),
                         }
                     }
+                    _ => stats.count_tx_dropped(),
                 }
-                Either3::Third(()) => {}
             }
+            outbox.clear();
+            for _ in 0..outbox.take_overflow() {
+                stats.count_tx_dropped();
+            }
+
             let mode = match props.bus_error_mode() {
                 can::enums::BusErrorMode::ErrorActive => BusMode::ErrorActive,
                 can::enums::BusErrorMode::ErrorPassive => BusMode::ErrorPassive,
@@ -326,89 +347,127 @@ mod fw {
             match stats.observe(mode, props.rx_error_count(), props.tx_error_count()) {
                 Some(can_link::BusEvent::EnteredBusOff) => {
                     warn!("CAN bus-off (tec {=u8}); controller recovers automatically", stats.tec);
-                    raise(Faults::CAN_BUS_OFF);
+                    with_node(|n| n.safety_mut().raise(Faults::CAN_BUS_OFF));
                 }
                 Some(can_link::BusEvent::Recovered) => info!("CAN recovered from bus-off"),
                 Some(can_link::BusEvent::EnteredErrorPassive) => warn!("CAN error-passive (rec {=u8}, tec {=u8})", stats.rec, stats.tec),
                 None => {}
             }
             BUS_STATS.lock(|s| s.set(stats));
+            if Instant::now() >= next_log {
+                next_log = Instant::now() + STATS_LOG;
+                if stats != logged {
+                    logged = stats;
+                    let node_dropped = with_node(|n| n.dropped).unwrap_or(0);
+                    info!(
+                        "CAN rx {=u32} tx {=u32} rejected {=u32} tx-dropped {=u32} bus-errors {=u32} rec {=u8} tec {=u8} bus-off {=u32} node-dropped {=u32}",
+                        stats.rx_frames, stats.tx_frames, stats.rx_rejected, stats.tx_dropped, stats.bus_errors,
+                        stats.rec, stats.tec, stats.bus_off_events, node_dropped
+                    );
+                }
+            }
         }
     }
 
+    /// Waits until the loop commands no torque: the single-bank flash stalls every
+    /// instruction fetch during an operation, so it never happens under load.
+    async fn torque_off() {
+        while TORQUE_ACTIVE.load(Ordering::Relaxed) {
+            Timer::after_millis(20).await;
+        }
+    }
+
+    /// Saves `set`, one flash operation per millisecond; torque coming back mid-save
+    /// abandons the attempt (the old record is intact) and starts over once it is off again.
+    async fn save(store: &mut Store<ParamFlash>, set: &ParamSet) -> Result<(), ()> {
+        'attempt: loop {
+            torque_off().await;
+            store.begin_save(set).map_err(|_| ())?;
+            loop {
+                if TORQUE_ACTIVE.load(Ordering::Relaxed) {
+                    store.abort_save();
+                    warn!("parameter save paused: torque active");
+                    continue 'attempt;
+                }
+                let r = store.poll(set);
+                FLASH_OPS.fetch_add(1, Ordering::Relaxed);
+                match r {
+                    Ok(SaveProgress::Done { .. }) => return Ok(()),
+                    Ok(_) => Timer::after_millis(1).await,
+                    Err(_) => return Err(()),
+                }
+            }
+        }
+    }
+
+    /// Erases both record slots, the one without the newest record first (see
+    /// `firmware::storage::EraseOrder`), one page per step.
+    async fn erase(slot: &mut Option<Store<ParamFlash>>) -> Result<(), ()> {
+        let mut store = slot.take().ok_or(())?;
+        let states = match store.scan() {
+            Ok(s) => s,
+            Err(_) => {
+                *slot = Some(store);
+                return Err(());
+            }
+        };
+        let slot_len = store.used_len() / 2;
+        let mut flash = store.into_flash();
+        let mut order = EraseOrder::new(states, slot_len, ParamFlash::ERASE_SIZE as u32);
+        let mut result = Ok(());
+        while let Some((from, to)) = order.next_page() {
+            torque_off().await;
+            let r = flash.erase(from, to);
+            FLASH_OPS.fetch_add(1, Ordering::Relaxed);
+            if r.is_err() {
+                result = Err(());
+                break;
+            }
+            Timer::after_millis(1).await;
+        }
+        // The geometry was accepted at boot, so this succeeds; the store rescans before its
+        // next save.
+        *slot = Store::new(flash).ok();
+        result
+    }
+
     #[embassy_executor::task]
-    async fn heartbeat(node: NodeId) {
-        // CiA 301: boot-up message once, then the node is pre-operational.
-        let mut state = NmtState::BootUp;
-        let mut ticker = Ticker::every(HEARTBEAT_PERIOD);
+    async fn params_task(mut store: Option<Store<ParamFlash>>) {
+        enum Work {
+            Save(ParamSet),
+            Erase,
+        }
         loop {
-            if let Some(f) = can_link::heartbeat_frame::<Frame>(node, state) {
-                if CAN_TX.try_send(f).is_err() {
-                    BUS_STATS.lock(|s| {
-                        let mut v = s.get();
-                        v.count_tx_dropped();
-                        s.set(v);
+            STORE_WAKE.wait().await;
+            let Some(job) = with_node(|n| n.storage_mut().take_job()).flatten() else {
+                continue;
+            };
+            // Only committed sets reach the storage, so the check passes; a set that did not
+            // would be a core bug, reported as a failed write rather than stored.
+            let work = match job {
+                Job::Save(raw) => check(&raw).ok().map(Work::Save),
+                Job::Erase => Some(Work::Erase),
+            };
+            let result = match (work, store.as_mut()) {
+                (Some(Work::Save(set)), Some(s)) => save(s, &set).await,
+                (Some(Work::Erase), Some(_)) => erase(&mut store).await,
+                _ => Err(()),
+            };
+            match result {
+                Ok(()) => {
+                    info!("parameter store updated");
+                    with_node(|n| n.storage_mut().finish(Ok(())));
+                }
+                Err(()) => {
+                    error!("parameter store write failed; re-reading what the flash holds");
+                    let actual = boot_params(store.as_mut());
+                    with_node(|n| {
+                        n.storage_mut().finish(Err(actual));
+                        n.safety_mut().raise(Faults::STORE_WRITE);
                     });
                 }
             }
-            state = NmtState::PreOperational;
-            ticker.next().await;
         }
-    }
-
-    #[embassy_executor::task]
-    async fn params_task(mut store: Store<ParamFlash>) {
-        loop {
-            match PARAM_CMD.receive().await {
-                ParamCommand::RestoreDefaults => {
-                    info!("parameters: defaults in force");
-                    publish(ParamSet::defaults());
-                }
-                ParamCommand::Save => {
-                    // The G431 has one flash bank: an erase stalls every instruction fetch
-                    // for up to 40 ms. Save only while no torque is commanded, so the
-                    // stall never hits a joint under load.
-                    while TORQUE_ACTIVE.load(Ordering::Relaxed) {
-                        Timer::after_millis(20).await;
-                    }
-                    let set = current_params();
-                    if store.begin_save(&set).is_err() {
-                        error!("parameter save could not start");
-                        raise(Faults::STORE_WRITE);
-                        continue;
-                    }
-                    loop {
-                        if TORQUE_ACTIVE.load(Ordering::Relaxed) {
-                            // Torque came back mid-save: stop; the old record is intact.
-                            store.abort_save();
-                            warn!("parameter save aborted: torque active");
-                            break;
-                        }
-                        let r = store.poll(&set);
-                        FLASH_OPS.fetch_add(1, Ordering::Relaxed);
-                        match r {
-                            Ok(SaveProgress::Done { .. }) => {
-                                info!("parameters saved");
-                                break;
-                            }
-                            Ok(_) => Timer::after_millis(1).await,
-                            Err(_) => {
-                                error!("parameter save failed; the previous set is intact");
-                                raise(Faults::STORE_WRITE);
-                                break;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-
-    /// Latched faults as the loop last saw them (for status reports of the protocol layer,
-    /// issue 4).
-    #[allow(dead_code)]
-    pub fn loop_faults() -> Faults {
-        Faults::from_bits_truncate(LOOP_FAULTS.load(Ordering::Relaxed))
     }
 }
 

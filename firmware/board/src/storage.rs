@@ -1,0 +1,285 @@
+//! The node's parameter storage on the board: a handoff, not a flash driver.
+//!
+//! The CANopen node calls [`ParamStorage::save`] (object 0x1010) and
+//! [`ParamStorage::restore_defaults`] (0x1011) from inside the CAN task's critical section,
+//! where nothing may wait, let alone stall 40 ms on a page erase. So [`BoardStorage`] only
+//! records the request and wakes the params task, the one owner of the flash, which takes it
+//! with [`BoardStorage::take_job`], does the flash work with the core's incremental store
+//! (only while no torque is commanded: the single-bank G431 stalls every instruction fetch
+//! during an erase), and reports back with [`BoardStorage::finish`]. While a job is queued or
+//! running, further requests get [`StorageError::Busy`] (SDO abort 0x08000020), so the master
+//! knows to retry.
+//!
+//! [`ParamStorage::load`] answers from a mirror of what the flash holds (or will hold once
+//! the job in flight completes): the set read at boot, replaced by every accepted save,
+//! cleared by restore. When a job fails, the params task re-reads the flash and puts what it
+//! really holds back into the mirror, and latches `STORE_WRITE`.
+//!
+//! "Restore defaults" erases the two record slots ([`EraseOrder`]); the slot holding the
+//! older record goes first, so a power cut during the erase boots either the stored set
+//! (first slot cut) or the defaults (second slot cut), never an older calibration.
+
+use joint_core::canopen::{ParamStorage, StorageError};
+use joint_core::params::{ParamSet, RawParams};
+use joint_core::safety::Faults;
+use joint_core::store::SlotState;
+
+/// Work for the params task.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Job {
+    /// Persist this (committed, validated) set.
+    Save(RawParams),
+    /// Erase the stored set: the next boot runs the table defaults.
+    Erase,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    Idle,
+    SaveQueued,
+    EraseQueued,
+    Running,
+}
+
+/// The board's [`ParamStorage`]; lives inside the node, shared with the params task through
+/// the node's lock.
+pub struct BoardStorage {
+    /// What `load` returns: the flash's set as of the last completed or accepted job.
+    mirror: Option<RawParams>,
+    /// What reading the flash found (boot, or the re-read after a failed job): the node
+    /// latches it again after every NMT reset-node.
+    load_fault: Faults,
+    state: State,
+    /// Wakes the params task (a `Signal` on the board, a counter in tests). Called inside
+    /// the node's critical section, so it must only set a flag.
+    wake: fn(),
+}
+
+impl BoardStorage {
+    /// `boot`: the set the store read at boot (`None` when blank, corrupt or refused) and
+    /// the fault that read found.
+    pub fn new(boot: Option<RawParams>, load_fault: Faults, wake: fn()) -> Self {
+        BoardStorage { mirror: boot, load_fault, state: State::Idle, wake }
+    }
+
+    /// The params task takes the queued job (a copy of the set to save), marking it running.
+    pub fn take_job(&mut self) -> Option<Job> {
+        let job = match self.state {
+            State::SaveQueued => Job::Save(self.mirror.clone()?),
+            State::EraseQueued => Job::Erase,
+            State::Idle | State::Running => return None,
+        };
+        self.state = State::Running;
+        Some(job)
+    }
+
+    /// The running job ended. `Ok`: the flash now holds what the mirror says (and whatever
+    /// was wrong with it before is gone). `Err((actual, fault))`: it failed; `actual` is what
+    /// a re-read of the flash found (`None`: nothing usable) and `fault` what that read found.
+    pub fn finish(&mut self, result: Result<(), (Option<RawParams>, Faults)>) {
+        match result {
+            Ok(()) => self.load_fault = Faults::NONE,
+            Err((actual, fault)) => {
+                self.mirror = actual;
+                self.load_fault = fault;
+            }
+        }
+        self.state = State::Idle;
+    }
+
+    /// A job is queued or running.
+    pub fn busy(&self) -> bool {
+        self.state != State::Idle
+    }
+
+    fn request(&mut self, next: State) -> Result<(), StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
+        self.state = next;
+        (self.wake)();
+        Ok(())
+    }
+}
+
+impl ParamStorage for BoardStorage {
+    fn save(&mut self, set: &ParamSet) -> Result<(), StorageError> {
+        self.request(State::SaveQueued)?;
+        self.mirror = Some(set.raw().clone());
+        Ok(())
+    }
+
+    fn load(&mut self) -> Option<RawParams> {
+        self.mirror.clone()
+    }
+
+    fn load_fault(&self) -> Faults {
+        self.load_fault
+    }
+
+    fn restore_defaults(&mut self) -> Result<(), StorageError> {
+        self.request(State::EraseQueued)?;
+        self.mirror = None;
+        Ok(())
+    }
+}
+
+/// The pages to erase for "restore defaults", in a power-cut-safe order: the slot without
+/// the newest intact record first, then the newest. `slot_len` and `page` in bytes; slot A
+/// starts at 0 and slot B at `slot_len` (the core store's layout).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EraseOrder {
+    slots: [u32; 2],
+    slot_len: u32,
+    page: u32,
+    next: u32,
+}
+
+impl EraseOrder {
+    pub fn new(states: [SlotState; 2], slot_len: u32, page: u32) -> Self {
+        let seq = |s: SlotState| match s {
+            SlotState::Valid { seq, .. } => Some(seq),
+            _ => None,
+        };
+        // Serial-number comparison as the store does: B is newest when it is valid and A is
+        // not, or both are and B's sequence is ahead.
+        let [a, b] = states;
+        let b_newest = match (seq(a), seq(b)) {
+            (Some(a), Some(b)) => (b.wrapping_sub(a) as i32) > 0,
+            (None, Some(_)) => true,
+            _ => false,
+        };
+        let slots = if b_newest { [0, 1] } else { [1, 0] };
+        EraseOrder { slots, slot_len, page: page.max(1), next: 0 }
+    }
+
+    /// The next page to erase as `(from, to)`, or `None` when all are done.
+    pub fn next_page(&mut self) -> Option<(u32, u32)> {
+        let per_slot = self.slot_len.div_ceil(self.page);
+        let k = self.next;
+        let slot = *self.slots.get((k / per_slot.max(1)) as usize)?;
+        let from = slot * self.slot_len + (k % per_slot) * self.page;
+        self.next += 1;
+        Some((from, from + self.page))
+    }
+
+    pub fn pages(&self) -> u32 {
+        2 * self.slot_len.div_ceil(self.page)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use joint_core::params::ParamId;
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    static WAKES: AtomicU32 = AtomicU32::new(0);
+    fn wake() {
+        WAKES.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn set(fraction: f32) -> RawParams {
+        let mut r = RawParams::defaults();
+        r.set(ParamId::Fraction, fraction);
+        r
+    }
+
+    fn checked(fraction: f32) -> ParamSet {
+        joint_core::params::check(&set(fraction)).unwrap()
+    }
+
+    #[test]
+    fn save_hands_the_set_to_the_params_task_once_and_refuses_while_busy() {
+        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        assert_eq!(s.load(), Some(set(0.5)));
+        assert_eq!(s.take_job(), None, "nothing asked yet");
+        let w = WAKES.load(Ordering::Relaxed);
+        s.save(&checked(0.7)).unwrap();
+        assert!(WAKES.load(Ordering::Relaxed) > w, "the params task is woken");
+        assert_eq!(s.save(&checked(0.8)), Err(StorageError::Busy));
+        assert_eq!(s.restore_defaults(), Err(StorageError::Busy));
+        assert_eq!(s.load(), Some(set(0.7)), "a refused request changes nothing");
+        assert_eq!(s.take_job(), Some(Job::Save(set(0.7))));
+        assert_eq!(s.take_job(), None, "a job is handed out once");
+        assert_eq!(s.save(&checked(0.8)), Err(StorageError::Busy), "busy while running");
+        s.finish(Ok(()));
+        assert!(!s.busy());
+        assert_eq!(s.load(), Some(set(0.7)));
+    }
+
+    #[test]
+    fn a_failed_save_puts_what_the_flash_holds_back() {
+        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        s.save(&checked(0.7)).unwrap();
+        assert!(matches!(s.take_job(), Some(Job::Save(_))));
+        s.finish(Err((Some(set(0.5)), Faults::NONE)));
+        assert_eq!(s.load(), Some(set(0.5)));
+        s.save(&checked(0.9)).unwrap();
+        s.take_job();
+        s.finish(Err((None, Faults::PARAMS_CORRUPT)));
+        assert_eq!(s.load(), None);
+        assert_eq!(s.load_fault(), Faults::PARAMS_CORRUPT);
+    }
+
+    #[test]
+    fn restore_empties_the_mirror_and_queues_an_erase() {
+        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        s.restore_defaults().unwrap();
+        assert_eq!(s.load(), None);
+        assert_eq!(s.take_job(), Some(Job::Erase));
+        s.finish(Ok(()));
+        assert_eq!(s.load(), None);
+    }
+
+    /// Through the node: 0x1010 "save" queues the committed set (not the staged one), a
+    /// second store while the first is in flight is refused with 0x08000020 and changes
+    /// nothing; a boot fault is latched again after NMT reset-node; 0x1011 queues an erase.
+    #[test]
+    fn the_node_hands_store_and_restore_to_the_params_task() {
+        use joint_core::canopen::{od, Node, NodeConfig};
+        let mut n = Node::new(NodeConfig::new(5), BoardStorage::new(None, Faults::PARAMS_CORRUPT, wake), 0);
+        assert!(n.safety().faults().contains(Faults::PARAMS_CORRUPT));
+        n.process(0, None, &mut |_| {});
+        let fraction = 0x2000 + ParamId::Fraction.index() as u16;
+        n.write(fraction, 0, &0.6f32.to_le_bytes()).unwrap();
+        n.write(0x2200, 0, &[1]).unwrap();
+        n.write(fraction, 0, &0.3f32.to_le_bytes()).unwrap(); // staged, not committed
+        n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes()).unwrap();
+        let again = n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes());
+        assert_eq!(again.map_err(|a| a.code()), Err(0x0800_0020));
+        let Some(Job::Save(raw)) = n.storage_mut().take_job() else { panic!("no save job") };
+        assert_eq!(raw.get(ParamId::Fraction), 0.6);
+        n.storage_mut().finish(Ok(()));
+        // NMT reset-node: the committed-and-stored set comes back, the boot fault is gone.
+        n.process(1000, Some(&joint_core::canopen::CanFrame::new(0, &[0x81, 5]).unwrap()), &mut |_| {});
+        assert_eq!(n.params().get(ParamId::Fraction), 0.6);
+        assert!(!n.safety().faults().contains(Faults::PARAMS_CORRUPT));
+        n.write(0x1011, 1, &od::LOAD_SIGNATURE.to_le_bytes()).unwrap();
+        assert_eq!(n.storage_mut().take_job(), Some(Job::Erase));
+    }
+
+    fn pages(mut e: EraseOrder) -> Vec<(u32, u32)> {
+        let n = e.pages();
+        let v: Vec<_> = core::iter::from_fn(|| e.next_page()).collect();
+        assert_eq!(v.len() as u32, n);
+        v
+    }
+
+    #[test]
+    fn erase_starts_with_the_slot_not_holding_the_newest_record() {
+        let valid = |seq| SlotState::Valid { seq, version: 1 };
+        // A newest: B's two pages first.
+        let e = EraseOrder::new([valid(7), valid(6)], 4096, 2048);
+        assert_eq!(pages(e), [(4096, 6144), (6144, 8192), (0, 2048), (2048, 4096)]);
+        // B newest, across the sequence wrap.
+        let e = EraseOrder::new([valid(u32::MAX), valid(0)], 4096, 2048);
+        assert_eq!(pages(e).first(), Some(&(0, 2048)));
+        // Only B intact.
+        let e = EraseOrder::new([SlotState::Damaged, valid(3)], 4096, 2048);
+        assert_eq!(pages(e).first(), Some(&(0, 2048)));
+        // Nothing intact: every page still goes.
+        let e = EraseOrder::new([SlotState::Uncommitted, SlotState::Blank], 4096, 2048);
+        assert_eq!(pages(e).len(), 4);
+    }
+}
