@@ -301,6 +301,9 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
         })
         .collect();
     let best = outcomes.iter().filter(|o| o.4).min_by(|a, b| a.0.scored.mse().total_cmp(&b.0.scored.mse()));
+    // initial_state is tested against the file's model, not the refit: when the refit alone
+    // predicts better, the values are what is wrong, not the start.
+    let best = best.filter(|o| !(o.0.kind == TKind::InitialState && refit_sig && refit.scored.mse() < o.0.scored.mse()));
     let before = m0.rmse();
     let (vname, vafter, final_fit) = match best {
         Some(o) => (o.0.kind.name().to_string(), o.0.scored.rmse(), Some(o.0)),
