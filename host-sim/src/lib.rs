@@ -9,6 +9,7 @@
 
 pub mod can;
 pub mod cli;
+pub mod closed_loop;
 pub mod diagnose;
 pub mod effects;
 pub mod identify;

@@ -4,6 +4,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod closed_loop;
 pub mod diagnose;
 pub mod diagnose_bench;
 pub mod identify;
@@ -54,6 +55,8 @@ pub enum Command {
     Sim(sim_bus::SimArgs),
     Eds(eds::EdsArgs),
     BusBudget(bus_budget::BusBudgetArgs),
+    // closed loop (issue 7)
+    ClosedLoop(closed_loop::ClosedLoopArgs),
 }
 
 /// Runs the parsed command; errors carry the file/key/row/column they concern.
@@ -73,5 +76,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(args) => sim_bus::run(&args),
         Command::Eds(args) => eds::run(&args),
         Command::BusBudget(args) => bus_budget::run(&args),
+        Command::ClosedLoop(args) => closed_loop::run(&args),
     }
 }

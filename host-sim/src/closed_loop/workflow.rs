@@ -1,0 +1,191 @@
+//! The user's fix-the-gap workflow, end to end (issue 7): run closed-loop trials on a joint
+//! with an unmodelled effect and log them → `diagnose --emit-model` on that log → push the
+//! emitted model (every trial pushes its model by SDO) → run the same trials again.
+//!
+//! The diagnosis sees only the log and the model, never the plant: what is pushed after the
+//! fix is exactly the text `jointctl diagnose --emit-model` writes, except for effect sections
+//! the firmware has no term for (`load_dependent_friction`, `thermal_drift`, `backlash`,
+//! `delay`): the joint's parameter table would refuse the file, so they are dropped, named in
+//! the result, and the refitted model terms are pushed without them. Separately, and labelled
+//! as such, [`ceiling`] builds the model with the plant's *true* effect parameters: the best a
+//! perfect diagnosis could reach.
+
+use serde::Serialize;
+
+use super::{run, LoopConfig, LoopError, LoopReport, Setup};
+use crate::diagnose::{self, Options};
+use crate::log::JointLog;
+use crate::model_file::ModelFile;
+use crate::plant::PlantFile;
+use joint_core::params::ParamId;
+
+/// Effect sections of the vocabulary the firmware core compensates by feed-forward.
+pub const COMPENSABLE: [&str; 5] = ["stribeck", "asymmetric_friction", "position_ripple", "cable_spring", "dry_friction"];
+
+/// Effect sections it cannot, and why (also in docs/closed-loop.md).
+pub const NOT_COMPENSABLE: [(&str, &str); 4] = [
+    ("load_dependent_friction", "the friction grows with the transmitted torque; the joint has no measurement of that load in its control step (the only torque it knows is its own command, and feeding that back is an algebraic loop), so there is no term"),
+    ("thermal_drift", "the friction scale follows the temperature; the control step gets no temperature input, and a time-based guess would be wrong after every pause"),
+    ("backlash", "a dead zone in the transmission is structure, not an additive torque: feed-forward cannot remove it (it needs a backlash inverse or an output-side encoder)"),
+    ("delay", "a sensing/actuation delay is structure, not an additive torque: it can only be reduced (faster loop, less filtering) or lowered in gain (a smaller fraction), not compensated by a model term"),
+];
+
+/// Figures of one set of trials.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Figures {
+    pub tracking_rmse_mean: f64,
+    pub tracking_rmse_sd: f64,
+    pub stable: bool,
+    pub model_error_rmse_mean: f64,
+    pub model_error_rmse_sd: f64,
+}
+
+impl From<&LoopReport> for Figures {
+    fn from(r: &LoopReport) -> Self {
+        Figures {
+            tracking_rmse_mean: r.tracking_rmse_mean,
+            tracking_rmse_sd: r.tracking_rmse_sd,
+            stable: r.stable,
+            model_error_rmse_mean: r.model_error_rmse_mean,
+            model_error_rmse_sd: r.model_error_rmse_sd,
+        }
+    }
+}
+
+/// The result of the workflow on one plant.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outcome {
+    /// effect sections the plant has (the truth)
+    pub plant_effects: Vec<String>,
+    pub before: Figures,
+    /// diagnose's verdict and the effects its forward selection kept
+    pub verdict: String,
+    pub selected: Vec<String>,
+    /// effect sections of the emitted model that were pushed
+    pub pushed_effects: Vec<String>,
+    /// effect sections of the emitted model the firmware cannot take (dropped before the push)
+    pub dropped_effects: Vec<String>,
+    pub after: Figures,
+    /// after / before (tracking RMSE means)
+    pub ratio: f64,
+    /// after / before (model-error RMSE means: the tracking error at F = 1)
+    pub model_error_ratio: f64,
+    /// the emitted model's text, as diagnose wrote it
+    #[serde(skip)]
+    pub emitted_model: String,
+    /// the model that was pushed after the fix
+    #[serde(skip)]
+    pub pushed_model: ModelFile,
+    #[serde(skip)]
+    pub log: JointLog,
+    #[serde(skip)]
+    pub diagnosis_json: String,
+}
+
+/// Effect sections present in a plant.
+pub fn plant_effects(p: &PlantFile) -> Vec<String> {
+    let e = &p.effects;
+    let mut v = Vec::new();
+    for (name, on) in [
+        ("stribeck", e.stribeck.is_some()),
+        ("asymmetric_friction", e.asymmetric_friction.is_some()),
+        ("load_dependent_friction", e.load_dependent_friction.is_some()),
+        ("thermal_drift", e.thermal_drift.is_some()),
+        ("position_ripple", e.position_ripple.is_some()),
+        ("cable_spring", e.cable_spring.is_some()),
+        ("backlash", e.backlash.is_some()),
+        ("delay", e.delay.is_some()),
+        ("dry_friction", e.dry_friction.is_some()),
+    ] {
+        if on {
+            v.push(name.to_string());
+        }
+    }
+    v
+}
+
+/// Parses an emitted model for the push: the effect sections the firmware cannot take are
+/// removed first (returned by name), everything else must parse as a model file.
+pub fn pushable_model(text: &str, file: &str) -> Result<(ModelFile, Vec<String>, Vec<String>), LoopError> {
+    let mut table: toml::Table = toml::from_str(text)
+        .map_err(|e| LoopError::Config(format!("{file}: the emitted model is not TOML: {e}")))?;
+    let mut dropped = Vec::new();
+    for (name, _) in NOT_COMPENSABLE {
+        if table.remove(name).is_some() {
+            dropped.push(name.to_string());
+        }
+    }
+    let pushed: Vec<String> = COMPENSABLE.iter().filter(|n| table.contains_key(**n)).map(|n| n.to_string()).collect();
+    let clean = toml::to_string(&table).map_err(|e| LoopError::Config(format!("{file}: {e}")))?;
+    let mf = ModelFile::parse(&clean, file)?;
+    Ok((mf, pushed, dropped))
+}
+
+/// Runs the workflow (see the module documentation). `cfg.keep_log` is forced on for the
+/// "before" run, whose log is what diagnose sees.
+pub fn run_workflow(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, names: (&str, &str)) -> Result<Outcome, LoopError> {
+    let c_before = LoopConfig { keep_log: true, ..cfg.clone() };
+    let before = run(&Setup::new(plant, model, &c_before, names.0, names.1)?, &c_before, &mut |_, _| {})?;
+    let log = before.log.clone().ok_or_else(|| LoopError::Config("the before run kept no log".into()))?;
+    let d = diagnose::diagnose(&log, model, &Options::default()).map_err(|e| LoopError::Config(format!("diagnose: {e}")))?;
+    let (fixed, pushed, dropped) = pushable_model(&d.emitted_model, "emitted model")?;
+    let c_after = LoopConfig { keep_log: false, ..cfg.clone() };
+    let after = run(&Setup::new(plant, &fixed, &c_after, names.0, "emitted model")?, &c_after, &mut |_, _| {})?;
+    let ratio = after.tracking_rmse_mean / before.tracking_rmse_mean;
+    Ok(Outcome {
+        plant_effects: plant_effects(plant),
+        before: Figures::from(&before),
+        verdict: d.report.verdict.effect.clone(),
+        selected: d.report.verdict.effects.clone(),
+        pushed_effects: pushed,
+        dropped_effects: dropped,
+        after: Figures::from(&after),
+        ratio,
+        model_error_ratio: after.model_error_rmse_mean / before.model_error_rmse_mean,
+        emitted_model: d.emitted_model.clone(),
+        pushed_model: fixed,
+        log,
+        diagnosis_json: serde_json::to_string_pretty(&d.report).unwrap_or_default(),
+    })
+}
+
+/// The model with the plant's true parameters for its compensable effects (labelled a ceiling
+/// wherever it is reported: no diagnosis was involved). `None` when the plant has none.
+pub fn true_effect_model(plant: &PlantFile, model: &ModelFile) -> Option<ModelFile> {
+    let e = &plant.effects;
+    let mut m = model.clone();
+    let mut any = false;
+    let mut set = |id: ParamId, v: f64| {
+        m.set(id, v, None);
+        any = true;
+    };
+    if let Some(s) = &e.stribeck {
+        set(ParamId::StribeckLevel, s.level);
+        set(ParamId::StribeckSpeed, s.speed);
+    }
+    if let Some(s) = &e.asymmetric_friction {
+        set(ParamId::AsymmetricDelta, s.delta);
+    }
+    if let Some(s) = &e.position_ripple {
+        set(ParamId::RippleAmplitude, s.amplitude);
+        set(ParamId::RipplePeriod, s.period);
+        set(ParamId::RipplePhase, s.phase);
+    }
+    if let Some(s) = &e.cable_spring {
+        set(ParamId::CableK, s.k);
+        set(ParamId::CableEngage, s.engage);
+        set(ParamId::CableWidth, s.width);
+    }
+    if let Some(s) = &e.dry_friction {
+        set(ParamId::DryFrictionC, s.c);
+    }
+    any.then_some(m)
+}
+
+/// Trials with the true-parameter model ([`true_effect_model`]): the ceiling of the fix.
+pub fn ceiling(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, names: (&str, &str)) -> Result<Option<Figures>, LoopError> {
+    let Some(m) = true_effect_model(plant, model) else { return Ok(None) };
+    let c = LoopConfig { keep_log: false, ..cfg.clone() };
+    let r = run(&Setup::new(plant, &m, &c, names.0, "true effect parameters")?, &c, &mut |_, _| {})?;
+    Ok(Some(Figures::from(&r)))
+}
