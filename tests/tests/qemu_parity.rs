@@ -54,6 +54,7 @@ fn build_image(bin: &str) -> PathBuf {
 }
 
 fn run_qemu(elf: &Path) -> String {
+    use std::io::Read;
     let mut child = Command::new("qemu-system-arm")
         .args(["-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"])
         .args(["-icount", "shift=7", "-kernel"])
@@ -62,25 +63,37 @@ fn run_qemu(elf: &Path) -> String {
         .stderr(Stdio::piped())
         .spawn()
         .expect("starting qemu-system-arm (apt-get install qemu-system-arm)");
+    // Drain both pipes while QEMU runs: an image printing more than a pipe buffer (64 KiB)
+    // would otherwise block in its semihosting write until the timeout.
+    let drain = |mut r: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut v = Vec::new();
+            let _ = r.read_to_end(&mut v);
+            v
+        })
+    };
+    let stdout = drain(Box::new(child.stdout.take().expect("piped stdout")));
+    let stderr = drain(Box::new(child.stderr.take().expect("piped stderr")));
     let start = Instant::now();
-    loop {
+    let status = loop {
         match child.try_wait().expect("waiting for qemu-system-arm") {
-            Some(_) => break,
+            Some(st) => break st,
             None if start.elapsed() > QEMU_TIMEOUT => {
                 let _ = child.kill();
                 panic!("qemu-system-arm did not finish within {QEMU_TIMEOUT:?}");
             }
             None => std::thread::sleep(Duration::from_millis(20)),
         }
-    }
-    let out = child.wait_with_output().expect("reading qemu-system-arm output");
+    };
+    let out_stdout = stdout.join().expect("stdout reader");
+    let out_stderr = stderr.join().expect("stderr reader");
     assert!(
-        out.status.success(),
+        status.success(),
         "the QEMU image exited with {} (1 = panic, 2 = check failed, 3 = CPU fault); stderr:\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
+        status,
+        String::from_utf8_lossy(&out_stderr)
     );
-    String::from_utf8(out.stdout).expect("QEMU output is not UTF-8")
+    String::from_utf8(out_stdout).expect("QEMU output is not UTF-8")
 }
 
 fn qemu_output(log_var: &str, bin: &str) -> String {
