@@ -470,8 +470,8 @@ impl Setup {
         };
         Ok(Setup {
             plant,
-            fraction: f64::from(raw.get(ParamId::Fraction)),
-            assist_k: f64::from(raw.get(ParamId::AssistK)),
+            fraction: short(raw.get(ParamId::Fraction)),
+            assist_k: short(raw.get(ParamId::AssistK)),
             raw,
             delay,
             range,
@@ -481,6 +481,12 @@ impl Setup {
             model_name: model_name.to_string(),
         })
     }
+}
+
+/// An f32 parameter as the f64 with the same shortest decimal form (0.7f32 → 0.7, not
+/// 0.699999988…), for reports.
+fn short(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(f64::from(x))
 }
 
 /// Centred moving average of `x` over `w` samples (edges: the available part).

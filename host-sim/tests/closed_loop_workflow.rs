@@ -1,0 +1,66 @@
+//! The fix workflow on plants with one unmodelled effect each: closed-loop trials with the
+//! log kept → `diagnose` (the library call `jointctl diagnose --emit-model` makes) → the emitted
+//! model pushed by SDO → the same trials again. Nothing here passes the plant's true effect
+//! parameters to the joint; the ceiling runs do, and are only compared against.
+
+use host_sim::closed_loop::workflow::{ceiling, run_workflow};
+use host_sim::closed_loop::LoopConfig;
+use host_sim::model_file::ModelFile;
+use host_sim::plant::PlantFile;
+use std::path::Path;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn case(effect_file: &str) -> (host_sim::closed_loop::workflow::Outcome, host_sim::closed_loop::workflow::Figures) {
+    let plant = PlantFile::read_file(&root().join(format!("examples/plants/trunk-right-{effect_file}.toml"))).unwrap();
+    let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
+    let cfg = LoopConfig { fraction: Some(0.7), trials: 4, seconds: 10.0, seed: 1, ..LoopConfig::default() };
+    let o = run_workflow(&plant, &model, &cfg, (effect_file, "trunk-right")).unwrap();
+    let c = ceiling(&plant, &model, &cfg, (effect_file, "trunk-right")).unwrap().unwrap();
+    (o, c)
+}
+
+/// The ≤ 60 % target holds for the model error (d − C_c: the tracking error relative to what
+/// the law targets at this fraction, and the whole tracking error at F = 1); the paper's
+/// tracking RMSE moves far less at F = 0.7 because the 30 % left uncompensated by design
+/// dominates it (see docs/closed-loop.md for the figures).
+#[test]
+fn stribeck_and_cable_spring_fixed_to_60_percent() {
+    for (file, effect) in [("stribeck", "stribeck"), ("cable-spring", "cable_spring")] {
+        let (o, c) = case(file);
+        assert!(o.selected.iter().any(|e| e == effect), "{file}: diagnose selected {:?}", o.selected);
+        assert!(o.pushed_effects.iter().any(|e| e == effect), "{file}: pushed {:?}", o.pushed_effects);
+        assert!(o.before.stable && o.after.stable);
+        assert!(o.model_error_ratio <= 0.6, "{file}: model error {:?} → {:?}", o.before, o.after);
+        assert!(o.after.tracking_rmse_mean < o.before.tracking_rmse_mean, "{file}: {:?} → {:?}", o.before, o.after);
+        // the diagnosis reached the true-parameter ceiling within 5 %
+        assert!(o.after.model_error_rmse_mean <= 1.05 * c.model_error_rmse_mean, "{file}: {:?} vs ceiling {c:?}", o.after);
+    }
+}
+
+/// Position ripple: diagnose finds it and the fix reaches the ceiling, but the ripple (0.6 N·m
+/// amplitude) is close to the loop's own estimation floor (≈ 0.3 N·m, the lag of the filtered
+/// q̈), so the model error only falls to about two thirds: the 60 % target is NOT met here.
+#[test]
+fn position_ripple_found_but_short_of_60_percent() {
+    let (o, c) = case("position-ripple");
+    assert!(o.selected.iter().any(|e| e == "position_ripple"), "{:?}", o.selected);
+    assert!(o.model_error_ratio < 0.8, "{:?} → {:?}", o.before, o.after);
+    assert!(o.after.model_error_rmse_mean <= 1.05 * c.model_error_rmse_mean);
+    assert!(o.after.tracking_rmse_mean <= o.before.tracking_rmse_mean);
+}
+
+/// An effect the firmware has no term for is dropped from the emitted model before the push,
+/// and named.
+#[test]
+fn load_dependent_friction_is_not_pushed() {
+    let plant = PlantFile::read_file(&root().join("examples/plants/trunk-right-load-dependent-friction.toml")).unwrap();
+    let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
+    let cfg = LoopConfig { fraction: Some(0.7), trials: 2, seconds: 8.0, seed: 1, ..LoopConfig::default() };
+    let o = run_workflow(&plant, &model, &cfg, ("ldf", "trunk-right")).unwrap();
+    assert!(o.emitted_model.contains("[load_dependent_friction]"), "{}", o.emitted_model);
+    assert_eq!(o.dropped_effects, vec!["load_dependent_friction".to_string()]);
+    assert!(o.pushed_effects.is_empty());
+}
