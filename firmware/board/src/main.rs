@@ -433,6 +433,9 @@ mod fw {
 
     #[embassy_executor::task]
     async fn params_task(mut store: Option<Store<ParamFlash>>) {
+        // The set is kept across the save's awaits in the task's own storage; there is no
+        // allocator to box it into.
+        #[allow(clippy::large_enum_variant)]
         enum Work {
             Save(ParamSet),
             Erase,

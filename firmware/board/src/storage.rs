@@ -24,7 +24,9 @@ use joint_core::params::{ParamSet, RawParams};
 use joint_core::safety::Faults;
 use joint_core::store::SlotState;
 
-/// Work for the params task.
+/// Work for the params task. (No `Box` without an allocator: the set travels by value,
+/// once per job, from the node's lock to the params task's stack.)
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Job {
     /// Persist this (committed, validated) set.
