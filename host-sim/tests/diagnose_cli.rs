@@ -92,6 +92,11 @@ fn torque_mode_json_names_stribeck_and_the_emitted_model_runs() {
     assert!(plant.effects.stribeck.is_some());
     let cfg = SimConfig { seconds: 1.0, rate: Some(1000.0), range: Some((0.0, 2.0)), ..SimConfig::default() };
     simulate(&plant, &ModelFile::parse(MODEL, "m").unwrap().param_set().unwrap(), &cfg).unwrap();
+    // The core knows Stribeck as a model term, so the emitted file is also a model: diagnosing
+    // the same log with it closes the gap.
+    let again = run_json(&log, &em, &[]);
+    assert_eq!(again["verdict"]["effect"], "none", "{}", again["effects"]);
+    assert!(again["gap"]["holdout_rmse"].as_f64().unwrap() < 0.8 * v["gap"]["holdout_rmse"].as_f64().unwrap());
 }
 
 #[test]

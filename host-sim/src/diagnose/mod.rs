@@ -778,8 +778,17 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
 fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     use std::fmt::Write as _;
     let p = effect_params(s, k, d);
-    let g = |key: &str| p.get(key).copied().unwrap_or(0.0);
     let Some(e) = s.effects.get(k) else { return String::new() };
+    let section = e.kind().name();
+    // Sections the core also knows as model terms are clamped into its parameter ranges, so the
+    // emitted file stays a loadable model (a negative Stribeck level, say, is not one).
+    let g = |key: &str| {
+        let v = p.get(key).copied().unwrap_or(0.0);
+        match joint_core::params::PARAMS.iter().find(|d| d.section == section && d.key == key) {
+            Some(d) => v.clamp(f64::from(d.min), f64::from(d.max)),
+            None => v,
+        }
+    };
     let mut o = String::new();
     let _ = writeln!(o, "\n[{}]", e.kind().name());
     match *e {
