@@ -240,7 +240,10 @@ fn run_workflow(a: &ClosedLoopArgs, plant: &PlantFile, model: &ModelFile, cfg: &
     );
     println!("diagnose verdict: {} (selected: {})", o.verdict, o.selected.join(" → "));
     if !o.dropped_effects.is_empty() {
-        println!("not compensable by the firmware, dropped before the push: {}", o.dropped_effects.join(", "));
+        println!(
+            "the emitted model needs {}, which the firmware cannot compensate: not pushed, the old model stays (the refit was made together with that term)",
+            o.dropped_effects.join(", ")
+        );
     }
     println!(
         "after:  tracking {:.3} ± {:.3} N·m ({:.0} % of before), model error {:.3} ± {:.3} N·m ({:.0} % of before)",

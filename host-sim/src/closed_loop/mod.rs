@@ -262,7 +262,9 @@ pub struct LoopJoint {
 }
 
 impl LoopJoint {
-    fn new(pf: &PlantFile, delay: f64, k_h: f64, b_h: f64, hold: f64, seed: u64, keep_log: bool, u_max: f64) -> LoopJoint {
+    fn new(s: &Setup, hold: f64, seed: u64, keep_log: bool) -> LoopJoint {
+        let pf = &s.plant;
+        let u_max = f64::from(s.raw.get(ParamId::TorqueLimit)).max(1.0);
         let dt = 1.0e-3 / SUBSTEPS as f64;
         let node = Node::new(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0);
         LoopJoint {
@@ -270,14 +272,14 @@ impl LoopJoint {
             plant: Plant::new(pf, dt, u_max),
             x: State { q: hold, qd: 0.0, qm: hold, qdm: 0.0 },
             hist: VecDeque::new(),
-            delay_steps: (delay / dt).round() as usize,
+            delay_steps: (s.delay / dt).round() as usize,
             dq: Differentiator::new(),
             dqd: Differentiator::new(),
             q_noise: pf.sensors.q_noise,
             q_res: pf.sensors.q_resolution,
             sensors: pf.sensors.clone(),
-            k_h,
-            b_h,
+            k_h: s.k_h,
+            b_h: s.b_h,
             hold,
             path: None,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -572,8 +574,7 @@ fn stability(tr: &Trace, diverged: bool, range: (f64, f64), rate: f64) -> Stabil
 pub fn run_trial(s: &Setup, seed: u64, seconds: f64, keep_log: bool, trial: usize) -> Result<(Trial, PushInfo, Option<JointLog>), LoopError> {
     let err = |msg: String| LoopError::Bus { trial, msg };
     let hold = 0.5 * (s.range.0 + s.range.1);
-    let u_max = f64::from(s.raw.get(ParamId::TorqueLimit)).max(1.0);
-    let dev = Arc::new(Mutex::new(LoopJoint::new(&s.plant, s.delay, s.k_h, s.b_h, hold, seed, keep_log, u_max)));
+    let dev = Arc::new(Mutex::new(LoopJoint::new(s, hold, seed, keep_log)));
     let mut bus = SimBus::new(1_000_000);
     bus.attach(dev.clone());
     let shared = SharedSimBus(Arc::new(Mutex::new(bus)));

@@ -3,10 +3,13 @@
 //! emitted model (every trial pushes its model by SDO) → run the same trials again.
 //!
 //! The diagnosis sees only the log and the model, never the plant: what is pushed after the
-//! fix is exactly the text `jointctl diagnose --emit-model` writes, except for effect sections
-//! the firmware has no term for (`load_dependent_friction`, `thermal_drift`, `backlash`,
-//! `delay`): the joint's parameter table would refuse the file, so they are dropped, named in
-//! the result, and the refitted model terms are pushed without them. Separately, and labelled
+//! fix is exactly the text `jointctl diagnose --emit-model` writes. When that text holds an
+//! effect section the firmware has no term for (`load_dependent_friction`, `thermal_drift`,
+//! `backlash`, `delay`) the joint's parameter table would refuse the file, and the refitted
+//! model terms cannot be pushed without it either: they were fitted *together with* that
+//! effect (in a closed-loop log `μ·|u|·sgn(q̇)` is nearly collinear with the friction terms,
+//! since u ≈ F·d, and a refit beside it guts them). So nothing is pushed, the old model keeps
+//! running, and the result names the effect. Separately, and labelled
 //! as such, [`ceiling`] builds the model with the plant's *true* effect parameters: the best a
 //! perfect diagnosis could reach.
 
@@ -63,8 +66,11 @@ pub struct Outcome {
     pub selected: Vec<String>,
     /// effect sections of the emitted model that were pushed
     pub pushed_effects: Vec<String>,
-    /// effect sections of the emitted model the firmware cannot take (dropped before the push)
+    /// effect sections of the emitted model the firmware cannot take
     pub dropped_effects: Vec<String>,
+    /// the emitted model was pushed (false: it needs a term the firmware lacks, the old model
+    /// stayed)
+    pub pushed: bool,
     pub after: Figures,
     /// after / before (tracking RMSE means)
     pub ratio: f64,
@@ -104,8 +110,9 @@ pub fn plant_effects(p: &PlantFile) -> Vec<String> {
     v
 }
 
-/// Parses an emitted model for the push: the effect sections the firmware cannot take are
-/// removed first (returned by name), everything else must parse as a model file.
+/// Parses an emitted model: the effect sections the firmware cannot take are removed first
+/// (returned by name, third), everything else must parse as a model file; the compensable
+/// effect sections it holds come second.
 pub fn pushable_model(text: &str, file: &str) -> Result<(ModelFile, Vec<String>, Vec<String>), LoopError> {
     let mut table: toml::Table = toml::from_str(text)
         .map_err(|e| LoopError::Config(format!("{file}: the emitted model is not TOML: {e}")))?;
@@ -128,9 +135,12 @@ pub fn run_workflow(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, name
     let before = run(&Setup::new(plant, model, &c_before, names.0, names.1)?, &c_before, &mut |_, _| {})?;
     let log = before.log.clone().ok_or_else(|| LoopError::Config("the before run kept no log".into()))?;
     let d = diagnose::diagnose(&log, model, &Options::default()).map_err(|e| LoopError::Config(format!("diagnose: {e}")))?;
-    let (fixed, pushed, dropped) = pushable_model(&d.emitted_model, "emitted model")?;
+    let (emitted, pushed, dropped) = pushable_model(&d.emitted_model, "emitted model")?;
+    let push_it = dropped.is_empty();
+    let fixed = if push_it { emitted } else { model.clone() };
     let c_after = LoopConfig { keep_log: false, ..cfg.clone() };
     let after = run(&Setup::new(plant, &fixed, &c_after, names.0, "emitted model")?, &c_after, &mut |_, _| {})?;
+    let pushed = if push_it { pushed } else { Vec::new() };
     let ratio = after.tracking_rmse_mean / before.tracking_rmse_mean;
     Ok(Outcome {
         plant_effects: plant_effects(plant),
@@ -139,6 +149,7 @@ pub fn run_workflow(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, name
         selected: d.report.verdict.effects.clone(),
         pushed_effects: pushed,
         dropped_effects: dropped,
+        pushed: push_it,
         after: Figures::from(&after),
         ratio,
         model_error_ratio: after.model_error_rmse_mean / before.model_error_rmse_mean,
