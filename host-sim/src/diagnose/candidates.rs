@@ -601,5 +601,25 @@ pub fn base_from_model(m: &crate::model_file::ModelFile) -> Base {
     if v(P::OffsetC0) != 0.0 || k != 0.0 {
         push(Col::Const, v(P::OffsetC0) - k * v(P::SpringQ0));
     }
+    // Effect terms the model already carries (the core compensates them) are its own terms too:
+    // refitted with the rest, shapes kept.
+    if v(P::StribeckLevel) != 0.0 {
+        push(Col::Stribeck(v(P::StribeckSpeed)), v(P::StribeckLevel));
+    }
+    if v(P::AsymmetricDelta) != 0.0 {
+        push(Col::AbsSgn, v(P::AsymmetricDelta));
+    }
+    let ra = v(P::RippleAmplitude);
+    if ra != 0.0 {
+        let ph = v(P::RipplePhase);
+        push(Col::RipSin(v(P::RipplePeriod)), ra * ph.cos());
+        push(Col::RipCos(v(P::RipplePeriod)), ra * ph.sin());
+    }
+    if v(P::CableK) != 0.0 {
+        push(Col::Cable { engage: v(P::CableEngage), width: v(P::CableWidth) }, v(P::CableK));
+    }
+    if v(P::DryFrictionC) != 0.0 && v(P::FrictionC) == 0.0 {
+        push(Col::Sgn, v(P::DryFrictionC));
+    }
     Base { cols, beta0 }
 }

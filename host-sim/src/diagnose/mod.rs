@@ -507,7 +507,35 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
         }
     }
     if let Some(c) = coef(s, Col::Sgn) {
-        put("friction", "c", c);
+        if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 {
+            put("dry_friction", "c", c);
+        } else {
+            put("friction", "c", c);
+        }
+    }
+    // the model's own effect terms (base columns come first, so `coef` finds them)
+    if v(ParamId::StribeckLevel) != 0.0 {
+        if let Some(l) = coef(s, Col::Stribeck(v(ParamId::StribeckSpeed))) {
+            put("stribeck", "level", l);
+        }
+    }
+    if v(ParamId::AsymmetricDelta) != 0.0 {
+        if let Some(dl) = coef(s, Col::AbsSgn) {
+            put("asymmetric_friction", "delta", dl);
+        }
+    }
+    if v(ParamId::RippleAmplitude) != 0.0 {
+        let per = v(ParamId::RipplePeriod);
+        if let (Some(bs), Some(bc)) = (coef(s, Col::RipSin(per)), coef(s, Col::RipCos(per))) {
+            put("position_ripple", "amplitude", bs.hypot(bc));
+            put("position_ripple", "phase", bc.atan2(bs));
+        }
+    }
+    if v(ParamId::CableK) != 0.0 {
+        let c = Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) };
+        if let Some(kc) = coef(s, c) {
+            put("cable_spring", "k", kc);
+        }
     }
     let ws = v(ParamId::WeightS);
     if let (Some(bs), Some(bc)) = (coef(s, Col::SinSq(ws)), coef(s, Col::CosSq(ws))) {

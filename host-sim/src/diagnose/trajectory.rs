@@ -88,6 +88,15 @@ impl Sim<'_> {
                     _ => q,
                 },
                 Col::Const => 1.0,
+                // the model's own effect terms (the core compensates them)
+                Col::Stribeck(v) => {
+                    let r = qd / v;
+                    (-r * r).exp() * s
+                }
+                Col::AbsSgn => s.abs(),
+                Col::RipSin(p) => (std::f64::consts::TAU * q / p).sin(),
+                Col::RipCos(p) => (std::f64::consts::TAU * q / p).cos(),
+                Col::Cable { engage, width } => crate::effects::cable_spring(&crate::effects::CableSpring { k: 1.0, engage: *engage, width: *width }, q),
                 _ => 0.0,
             };
             if matches!(c, Col::QdAbsQd | Col::Qd | Col::Sgn) {
@@ -568,7 +577,22 @@ fn refit_values(model: &ModelFile, cols: &[Col], th: &[f64]) -> Vec<(String, f64
         }
     }
     if let Some(cc) = c(Col::Sgn) {
-        out.push(("friction.c".into(), cc));
+        let key = if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 { "dry_friction.c" } else { "friction.c" };
+        out.push((key.into(), cc));
+    }
+    if let Some(l) = c(Col::Stribeck(v(ParamId::StribeckSpeed))) {
+        out.push(("stribeck.level".into(), l));
+    }
+    if let Some(dl) = c(Col::AbsSgn) {
+        out.push(("asymmetric_friction.delta".into(), dl));
+    }
+    let per = v(ParamId::RipplePeriod);
+    if let (Some(bs), Some(bc)) = (c(Col::RipSin(per)), c(Col::RipCos(per))) {
+        out.push(("position_ripple.amplitude".into(), bs.hypot(bc)));
+        out.push(("position_ripple.phase".into(), bc.atan2(bs)));
+    }
+    if let Some(kc) = c(Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) }) {
+        out.push(("cable_spring.k".into(), kc));
     }
     let ws = v(ParamId::WeightS);
     if let (Some(bs), Some(bc)) = (c(Col::SinSq(ws)), c(Col::CosSq(ws))) {
