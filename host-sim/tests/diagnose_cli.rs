@@ -226,3 +226,19 @@ fn bad_logs_and_models_are_refused_with_the_place_named() {
     refused(&log, &m, &["q_shoulder"]);
     let _ = JointLog::read_file(&log).unwrap();
 }
+
+#[test]
+fn a_model_term_with_a_wrong_value_is_parameters_and_the_refit_closes_the_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, _) = torque_case(dir.path(), "[stribeck]\nlevel = 0.8\nspeed = 0.05\n", 6.0);
+    // The model has the Stribeck term (the core compensates it), at half its level.
+    let m = dir.path().join("half.toml");
+    std::fs::write(&m, format!("{MODEL}[stribeck]\nlevel = 0.4\nspeed = 0.05\n")).unwrap();
+    let em = dir.path().join("refit.toml");
+    let v = run_json(&log, &m, &["--emit-model", em.to_str().unwrap()]);
+    assert_eq!(v["verdict"]["effect"], "parameters", "{}", v["effects"]);
+    let level = v["refit"]["stribeck"]["level"].as_f64().unwrap();
+    assert!((level - 0.8).abs() < 0.2, "refit level {level}");
+    let again = run_json(&log, &em, &[]);
+    assert_eq!(again["verdict"]["effect"], "none", "{}", again["effects"]);
+}
