@@ -25,7 +25,19 @@
 //!
 //! Not here: node id and bit rate are compile-time constants (no LSS, no DIP switches);
 //! CAN FD is not enabled; the torque stage is an open-loop H-bridge for a brushed motor
-//! (see `board.rs`).
+//! (see `board.rs`); the bus counters have no object in the node's dictionary (defmt only).
+//!
+//! # Known problems (not run on a board yet)
+//! - **Stack**: the G431 has 32 KiB of RAM; static data takes 14.1 KiB (the node alone
+//!   9 KiB), leaving ≈ 18 KiB of stack. The core's `Node::new` needs ≈ 33 KiB of stack on a
+//!   Cortex-M4F (measured by stack painting in the `qemu-canopen` image), and this image's
+//!   frames along the boot path (`create_node` 12 KiB → `reset_node` 10.6 KiB → `check`
+//!   2.9 KiB) add up to ≈ 31 KiB: as built, boot overflows the stack into static data.
+//!   The fix is in the core (build the node and its parameter sets in place instead of
+//!   through several stack copies); this crate keeps its own frames out of line.
+//! - **Flash**: 73 KiB against the 64 KiB budget (`scripts/fw-size.sh`); ≈ 13 KiB of it is
+//!   `core::fmt` float formatting pulled in by the node's commit-error message (`{e}` of a
+//!   `ParamError`); with that message built without floats the image is 60 KiB.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -158,6 +170,13 @@ mod fw {
         }
     }
 
+    /// The node, built into its static cell. Out of line so that its temporaries (the core's
+    /// `Node::new` holds several parameter sets on the stack) are not part of `main`'s frame.
+    #[inline(never)]
+    fn create_node(boot: Option<RawParams>, fault: Faults) -> &'static mut JointNode {
+        NODE_CELL.init_with(|| Node::new(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()))
+    }
+
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
         let mut config = Config::default();
@@ -187,8 +206,7 @@ mod fw {
         let (boot, fault) = boot_params(store.as_mut());
         // The node latches `fault` (the storage's load fault) itself, and again after every
         // NMT reset-node.
-        let node: &'static mut JointNode =
-            NODE_CELL.init_with(|| Node::new(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()));
+        let node = create_node(boot, fault);
         let ratio = node.params().get(ParamId::Ratio);
         NODE.lock(|n| *n.borrow_mut() = Some(node));
 
@@ -431,45 +449,66 @@ mod fw {
         result
     }
 
+    /// What the params task does for a job. The set is kept across the save's awaits in the
+    /// task's own storage; there is no allocator to box it into.
+    #[allow(clippy::large_enum_variant)]
+    enum Work {
+        Save(ParamSet),
+        Erase,
+    }
+
+    /// Takes the node's queued job. Out of line, like the two helpers below, so that the
+    /// parameter-set temporaries are not part of the task's poll frame (the stack is shared
+    /// by every task and tight: see the module doc).
+    #[inline(never)]
+    fn take_work() -> Option<Work> {
+        let job = with_node(|n| n.storage_mut().take_job()).flatten()?;
+        // Only committed sets reach the storage, so the check passes; a set that did not
+        // would be a core bug, reported as a failed write rather than stored.
+        match job {
+            Job::Save(raw) => match check(&raw) {
+                Ok(set) => Some(Work::Save(set)),
+                Err(_) => {
+                    job_done(Err(()), None);
+                    None
+                }
+            },
+            Job::Erase => Some(Work::Erase),
+        }
+    }
+
+    /// Reports the end of a job to the node; on failure, re-reads what the flash holds.
+    #[inline(never)]
+    fn job_done(result: Result<(), ()>, store: Option<&mut Store<ParamFlash>>) {
+        match result {
+            Ok(()) => {
+                info!("parameter store updated");
+                with_node(|n| n.storage_mut().finish(Ok(())));
+            }
+            Err(()) => {
+                error!("parameter store write failed; re-reading what the flash holds");
+                let actual = boot_params(store);
+                with_node(|n| {
+                    n.storage_mut().finish(Err(actual));
+                    n.safety_mut().raise(Faults::STORE_WRITE);
+                });
+            }
+        }
+    }
+
     #[embassy_executor::task]
     async fn params_task(mut store: Option<Store<ParamFlash>>) {
-        // The set is kept across the save's awaits in the task's own storage; there is no
-        // allocator to box it into.
-        #[allow(clippy::large_enum_variant)]
-        enum Work {
-            Save(ParamSet),
-            Erase,
-        }
         loop {
             STORE_WAKE.wait().await;
-            let Some(job) = with_node(|n| n.storage_mut().take_job()).flatten() else {
+            let Some(work) = take_work() else {
                 continue;
             };
-            // Only committed sets reach the storage, so the check passes; a set that did not
-            // would be a core bug, reported as a failed write rather than stored.
-            let work = match job {
-                Job::Save(raw) => check(&raw).ok().map(Work::Save),
-                Job::Erase => Some(Work::Erase),
-            };
             let result = match (work, store.as_mut()) {
-                (Some(Work::Save(set)), Some(s)) => save(s, &set).await,
-                (Some(Work::Erase), Some(_)) => erase(&mut store).await,
+                (Work::Save(set), Some(s)) => save(s, &set).await,
+                (Work::Erase, Some(_)) => erase(&mut store).await,
                 _ => Err(()),
             };
-            match result {
-                Ok(()) => {
-                    info!("parameter store updated");
-                    with_node(|n| n.storage_mut().finish(Ok(())));
-                }
-                Err(()) => {
-                    error!("parameter store write failed; re-reading what the flash holds");
-                    let actual = boot_params(store.as_mut());
-                    with_node(|n| {
-                        n.storage_mut().finish(Err(actual));
-                        n.safety_mut().raise(Faults::STORE_WRITE);
-                    });
-                }
-            }
+            job_done(result, store.as_mut());
         }
     }
 }
