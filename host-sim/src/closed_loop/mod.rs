@@ -768,3 +768,61 @@ pub fn paper_for(name: &str) -> Option<(&'static str, (f64, f64))> {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(f: f64, stable: bool) -> SweepPoint {
+        SweepPoint {
+            fraction: f,
+            tracking_rmse_mean: 1.0,
+            tracking_rmse_sd: 0.0,
+            stable,
+            stable_share: if stable { 1.0 } else { 0.0 },
+            osc_torque_rms_max: 0.0,
+            trials: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn onset_is_where_the_unstable_tail_begins() {
+        let pts: Vec<SweepPoint> = [(0.0, true), (0.5, false), (0.8, true), (0.9, false), (1.0, false)]
+            .iter()
+            .map(|&(f, s)| point(f, s))
+            .collect();
+        // an isolated unstable point below a stable one is not the onset
+        assert_eq!(instability_onset(&pts), Some(0.9));
+        assert_eq!(instability_onset(&pts[..3]), None);
+    }
+
+    #[test]
+    fn sweep_fractions_are_exact_decimals() {
+        let f = sweep_fractions(0.1);
+        assert_eq!(f.len(), 11);
+        assert_eq!(f[7], 0.7);
+        assert_eq!(f[10], 1.0);
+    }
+
+    #[test]
+    fn moving_average_keeps_a_slow_signal_and_removes_a_fast_one() {
+        let rate = 1000.0;
+        let slow: Vec<f64> = (0..4000).map(|i| (std::f64::consts::TAU * 0.5 * i as f64 / rate).sin()).collect();
+        let fast: Vec<f64> = (0..4000).map(|i| (std::f64::consts::TAU * 15.0 * i as f64 / rate).sin()).collect();
+        let w = (limits::OSC_WINDOW * rate) as usize;
+        let hp = |x: &[f64]| {
+            let ma = moving_average(x, w);
+            rms(x.iter().zip(&ma).skip(w).take(x.len() - 2 * w).map(|(a, b)| a - b))
+        };
+        assert!(hp(&slow) < 0.05, "{}", hp(&slow));
+        assert!(hp(&fast) > 0.6, "{}", hp(&fast));
+    }
+
+    #[test]
+    fn mean_and_sample_sd() {
+        let (m, s) = mean_sd(&[1.0, 2.0, 3.0]);
+        assert_eq!(m, 2.0);
+        assert!((s - 1.0).abs() < 1e-12);
+        assert_eq!(mean_sd(&[4.0]), (4.0, 0.0));
+    }
+}

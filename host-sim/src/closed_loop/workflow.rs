@@ -200,3 +200,24 @@ pub fn ceiling(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, names: (&
     let r = run(&Setup::new(plant, &m, &c, names.0, "true effect parameters")?, &c, &mut |_, _| {})?;
     Ok(Some(Figures::from(&r)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_compensable_sections_are_named_and_compensable_ones_kept() {
+        let text = "name = \"x\"\n[friction]\nc = 1.0\n[stribeck]\nlevel = 1.0\nspeed = 0.05\n[backlash]\nwidth = 0.01\n";
+        let (m, pushed, dropped) = pushable_model(text, "t.toml").unwrap();
+        assert_eq!(pushed, vec!["stribeck".to_string()]);
+        assert_eq!(dropped, vec!["backlash".to_string()]);
+        assert_eq!(m.value(ParamId::StribeckLevel), 1.0);
+        assert_eq!(m.value(ParamId::FrictionC), 1.0);
+    }
+
+    #[test]
+    fn an_unknown_key_is_still_an_error() {
+        let e = pushable_model("[friction]\nz = 1.0\n", "t.toml").unwrap_err().to_string();
+        assert!(e.contains('z'), "{e}");
+    }
+}
