@@ -308,6 +308,22 @@ impl ParamError {
     }
 }
 
+impl ParamError {
+    /// The error named without its numbers: formatting floats costs the MCU ~13 KiB of flash,
+    /// and the limits are in the EDS and the parameter table anyway.
+    pub fn write_brief<W: core::fmt::Write>(&self, w: &mut W) -> core::fmt::Result {
+        match *self {
+            ParamError::NotFinite { param } => write!(w, "{} is not a finite number", param.name()),
+            ParamError::OutOfRange { param, value, max, .. } => {
+                let side = if value > max { "above its maximum" } else { "below its minimum" };
+                write!(w, "{} is {side}", param.name())
+            }
+            ParamError::Inconsistent { param, what } => write!(w, "{}: {what}", param.name()),
+            ParamError::Table(e) => write!(w, "{e}"),
+        }
+    }
+}
+
 impl core::fmt::Display for ParamError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
@@ -374,15 +390,33 @@ impl ParamSet {
         self.inv_ratio_m1
     }
 
-    /// The defaults, which always pass [`check`].
+    /// The defaults, which always pass [`check`] (a unit test proves it), built without the
+    /// check's copies: this runs at boot on a 32 KiB MCU.
     pub fn defaults() -> ParamSet {
-        // The table defaults are inside their own ranges (a unit test proves it); should that
-        // ever break, fall back to building the set without the range check rather than panic.
-        let raw = RawParams::defaults();
-        match check(&raw) {
-            Ok(set) => set,
-            Err(_) => build(raw),
+        build(RawParams::defaults())
+    }
+
+    /// Put `raw`, already validated, in force in place: no parameter-set-sized temporaries on
+    /// the stack (a set is ~2.9 KiB, and the board's boot and SDO paths run on ~18 KiB).
+    fn assign(&mut self, raw: &RawParams) {
+        self.raw.clone_from(raw);
+        self.derive();
+    }
+
+    /// Reset to the defaults in place.
+    fn assign_defaults(&mut self) {
+        for (v, d) in self.raw.values.iter_mut().zip(PARAMS.iter()) {
+            *v = d.default;
         }
+        // A const: copied from flash straight into place, no stack temporary.
+        self.raw.table = RawTable::EMPTY;
+        self.derive();
+    }
+
+    fn derive(&mut self) {
+        self.terms = terms_of(&self.raw);
+        self.inv_ratio_m1 = 1.0 / (self.raw.get(ParamId::Ratio) - 1.0);
+        self.lut = Lut::new(&self.raw.table);
     }
 }
 
@@ -392,9 +426,9 @@ impl Default for ParamSet {
     }
 }
 
-fn build(raw: RawParams) -> ParamSet {
+fn terms_of(raw: &RawParams) -> Terms {
     let g = |id: ParamId| raw.get(id);
-    let terms = Terms {
+    Terms {
         friction: Friction {
             a: g(ParamId::FrictionA),
             b: g(ParamId::FrictionB),
@@ -426,8 +460,12 @@ fn build(raw: RawParams) -> ParamSet {
             cable_width: g(ParamId::CableWidth),
             dry_c: g(ParamId::DryFrictionC),
         },
-    };
-    let inv_ratio_m1 = 1.0 / (g(ParamId::Ratio) - 1.0);
+    }
+}
+
+fn build(raw: RawParams) -> ParamSet {
+    let terms = terms_of(&raw);
+    let inv_ratio_m1 = 1.0 / (raw.get(ParamId::Ratio) - 1.0);
     let lut = Lut::new(&raw.table);
     ParamSet { raw, terms, inv_ratio_m1, lut }
 }
@@ -435,6 +473,12 @@ fn build(raw: RawParams) -> ParamSet {
 /// Validate a raw set. The first problem found is returned, scalar parameters in table order,
 /// then cross-parameter rules, then the gravity table.
 pub fn check(raw: &RawParams) -> Result<ParamSet, ParamError> {
+    validate(raw)?;
+    Ok(build(raw.clone()))
+}
+
+/// The rules of [`check`] without building a set (no copy of the parameters).
+pub fn validate(raw: &RawParams) -> Result<(), ParamError> {
     for d in PARAMS.iter() {
         let v = raw.get(d.id);
         if !math::is_finite(v) {
@@ -465,7 +509,7 @@ pub fn check(raw: &RawParams) -> Result<ParamSet, ParamError> {
             });
         }
     }
-    Ok(build(raw.clone()))
+    Ok(())
 }
 
 /// The parameter set in force. Replacing it is all or nothing.
@@ -484,10 +528,15 @@ impl ActiveParams {
         &self.current
     }
 
-    /// Check `raw` and put it in force; on error the previous set stays, untouched.
+    /// Check `raw` and put it in force, in place; on error the previous set stays, untouched.
     pub fn replace(&mut self, raw: &RawParams) -> Result<(), ParamError> {
-        let set = check(raw)?;
-        self.current = set;
+        validate(raw)?;
+        self.current.assign(raw);
         Ok(())
+    }
+
+    /// Put the table defaults in force, in place.
+    pub fn reset_to_defaults(&mut self) {
+        self.current.assign_defaults();
     }
 }
