@@ -27,17 +27,14 @@
 //! CAN FD is not enabled; the torque stage is an open-loop H-bridge for a brushed motor
 //! (see `board.rs`); the bus counters have no object in the node's dictionary (defmt only).
 //!
-//! # Known problems (not run on a board yet)
-//! - **Stack**: the G431 has 32 KiB of RAM; static data takes 14.1 KiB (the node alone
-//!   9 KiB), leaving ≈ 18 KiB of stack. The core's `Node::new` needs ≈ 33 KiB of stack on a
-//!   Cortex-M4F (measured by stack painting in the `qemu-canopen` image), and this image's
-//!   frames along the boot path (`create_node` 12 KiB → `reset_node` 10.6 KiB → `check`
-//!   2.9 KiB) add up to ≈ 31 KiB: as built, boot overflows the stack into static data.
-//!   The fix is in the core (build the node and its parameter sets in place instead of
-//!   through several stack copies); this crate keeps its own frames out of line.
-//! - **Flash**: 73 KiB against the 64 KiB budget (`scripts/fw-size.sh`); ≈ 13 KiB of it is
-//!   `core::fmt` float formatting pulled in by the node's commit-error message (`{e}` of a
-//!   `ParamError`); with that message built without floats the image is 60 KiB.
+//! # Memory (not run on a board yet)
+//! - **Stack**: the G431 has 32 KiB of RAM; static data takes 9.6 KiB (`scripts/fw-size.sh`).
+//!   Building the node with a stored set peaks at 16.6 KiB of stack on a Cortex-M4F,
+//!   measured by stack painting in the `qemu-canopen` image and checked (≤ 20 KiB) by
+//!   `scripts/qemu-test.sh`. The core puts parameter sets in force in place and a gravity table
+//!   holds at most 128 values, which is what brought this down from 33 KiB.
+//! - **Flash**: 62.9 KiB of the 64 KiB budget; the node's commit-error text avoids float
+//!   formatting (≈ 13 KiB of `core::fmt`) for that reason.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]

@@ -491,8 +491,10 @@ pub struct Store<F: Flash> {
 const SCAN_CHUNK: usize = 64;
 
 impl<F: Flash> Store<F> {
-    /// A store over the whole region `flash` exposes. Slot A starts at 0, slot B right after
-    /// it; each is the fewest pages that hold [`RECORD_LEN`] bytes.
+    /// A store over the whole region `flash` exposes. Slot A is the first half of the region,
+    /// slot B the second: the layout depends on the region (memory.x), never on this build's
+    /// record size, so a firmware update with a different record length still finds both
+    /// slots where the old build wrote them. A save erases only the pages its record needs.
     pub fn new(flash: F) -> Result<Self, GeometryError> {
         let ws = F::WRITE_SIZE;
         let es = F::ERASE_SIZE;
@@ -506,11 +508,11 @@ impl<F: Flash> Store<F> {
             });
         }
         let pages = RECORD_LEN.div_ceil(es);
-        let slot_len = pages * es;
         let have = flash.capacity();
-        if have < 2 * slot_len {
+        let slot_len = have / 2 / es * es;
+        if slot_len < pages * es {
             return Err(GeometryError::RegionTooSmall {
-                need: (2 * slot_len) as u32,
+                need: (2 * pages * es) as u32,
                 have: u32::try_from(have).unwrap_or(u32::MAX),
             });
         }

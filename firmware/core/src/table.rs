@@ -17,7 +17,7 @@ pub const AXES_MAX: usize = 4;
 /// Most grid points along one axis.
 pub const AXIS_POINTS_MAX: usize = 16;
 /// Most values in one table (product of the points of all axes).
-pub const CELLS_MAX: usize = 256;
+pub const CELLS_MAX: usize = 128;
 /// Highest axis source: 0 is the joint's own angle, 1..=3 the other joints' angle slots.
 pub const AXIS_SOURCE_MAX: u8 = 3;
 

@@ -13,7 +13,8 @@ use proptest::prelude::*;
 
 const PAGE: usize = 2048;
 const REGION: usize = 4 * PAGE; // what memory.x reserves on the G431
-const SLOT: usize = 2 * PAGE;
+/// One record slot: half the region.
+const SLOT: usize = REGION / 2;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum MockError {
@@ -173,12 +174,12 @@ fn sample(seed: u32) -> ParamSet {
     check(&raw).expect("sample set is valid")
 }
 
-/// The largest table there is: 16 × 16 = 256 cells, every array slot non-zero.
+/// The largest table there is: 16 × CELLS_MAX/16 cells, every array slot non-zero.
 fn full_table_set() -> ParamSet {
     let mut raw = sample(3).raw().clone();
     let t = &mut raw.table;
     t.n_axes = 2;
-    t.points = [16, 16, 0, 0];
+    t.points = [16, (CELLS_MAX / 16) as u8, 0, 0];
     for a in 0..AXES_MAX {
         for i in 0..AXIS_POINTS_MAX {
             t.grid[a][i] = (a * 100 + i) as f32 * 0.01 - 1.0;
@@ -305,18 +306,21 @@ fn crc32_is_iso_hdlc() {
 
 #[test]
 fn geometry() {
-    // 24-byte header, 8 bytes of counts, 8 bytes per scalar parameter, then the table (2320 B).
-    let expected = 24 + 8 + 8 * joint_core::params::PARAM_COUNT + 2320;
+    // 24-byte header, 8 bytes of counts, 8 bytes per scalar parameter, then the table: 16 bytes
+    // of shape, the grid, and torque and sigma per cell.
+    use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
+    let table = 16 + 4 * AXES_MAX * AXIS_POINTS_MAX + 8 * CELLS_MAX;
+    let expected = 24 + 8 + 8 * joint_core::params::PARAM_COUNT + table;
     assert_eq!(HEADER_LEN + PAYLOAD_LEN, expected);
     assert_eq!(RECORD_LEN, expected);
     let s = store(MockFlash::blank());
     assert_eq!(s.used_len() as usize, REGION);
-    assert_eq!(s.ops_per_save() as usize, 2 + expected / 8);
+    assert_eq!(s.ops_per_save() as usize, expected.div_ceil(PAGE) + expected / 8);
     assert_eq!(
-        Store::new(MockFlash::from_mem(vec![0xFF; 3 * PAGE])).err(),
+        Store::new(MockFlash::from_mem(vec![0xFF; 2 * RECORD_LEN.div_ceil(PAGE) * PAGE - PAGE])).err(),
         Some(GeometryError::RegionTooSmall {
-            need: 8192,
-            have: 6144
+            need: (2 * RECORD_LEN.div_ceil(PAGE) * PAGE) as u32,
+            have: (2 * RECORD_LEN.div_ceil(PAGE) * PAGE - PAGE) as u32
         })
     );
 }
@@ -352,7 +356,7 @@ fn round_trip_alternates_slots_and_survives_reboot() {
     let l = boot(&mem).expect("load");
     assert_eq!(
         l.params, sets[3],
-        "exact, bit for bit, full 16×16 table included"
+        "exact, bit for bit, full table included"
     );
     assert_eq!(
         (l.info.slot, l.info.seq, l.info.version),
@@ -372,13 +376,13 @@ fn four_axis_table_round_trips() {
     let t = &mut raw.table;
     t.n_axes = 4;
     t.axis_source = [0, 1, 2, 3];
-    t.points = [4, 4, 4, 4];
+    t.points = [4, 4, 4, 2];
     for a in 0..4 {
         for i in 0..4 {
             t.grid[a][i] = i as f32 - a as f32 * 0.1;
         }
     }
-    for c in 0..256 {
+    for c in 0..128 {
         t.torque[c] = c as f32 * 0.25;
         t.sigma[c] = 1.0 + c as f32;
     }
@@ -440,7 +444,8 @@ fn power_cut_sweep(history: &[ParamSet], new: &ParamSet, scramble: bool) -> u64 
     let mut dry = store(initial.clone());
     dry.save_blocking(new).expect("save");
     let total = dry.into_flash().used - initial.used;
-    assert_eq!(total, 2 * PAGE as u64 + RECORD_LEN as u64);
+    // the pages the record covers are erased, then every byte of it is programmed
+    assert_eq!(total, (RECORD_LEN.div_ceil(PAGE) * PAGE) as u64 + RECORD_LEN as u64);
 
     let old = history.last();
     let after = sample(77);
@@ -505,7 +510,7 @@ fn repeated_cuts_never_lose_the_last_committed_set() {
     // Cut the same save again and again at growing points (the board keeps losing power while
     // saving), then let it finish: the committed set is the old one until the very end.
     let mut mem = flash_with(&[sample(1)]).mem;
-    for n in (0..6000).step_by(613) {
+    for n in (0..(RECORD_LEN.div_ceil(PAGE) * PAGE + RECORD_LEN - 1) as u64).step_by(613) {
         let (m, done) = cut_save(&MockFlash::from_mem(mem.clone()), &sample(2), n, n % 2 == 0);
         assert!(!done);
         mem = m;
@@ -548,7 +553,7 @@ fn every_single_bit_flip_in_the_newest_record_is_detected() {
 fn damage_in_both_slots_is_corrupt() {
     let mut mem = flash_with(&[sample(1), sample(2)]).mem;
     mem[100] ^= 0x10;
-    mem[SLOT + 2000] ^= 0x01;
+    mem[SLOT + RECORD_LEN / 2] ^= 0x01;
     let e = boot(&mem).unwrap_err();
     assert_eq!(
         e,
@@ -845,7 +850,7 @@ fn a_set_changed_during_the_save_is_never_committed() {
 #[test]
 fn begin_save_restarts_and_progress_is_reported() {
     // two page erases plus one 8-byte write per record unit
-    let ops = (2 + RECORD_LEN / 8) as u16;
+    let ops = (RECORD_LEN.div_ceil(PAGE) + RECORD_LEN / 8) as u16;
     let mut s = store(flash_with(&[sample(1)]));
     s.load().expect("load");
     s.begin_save(&sample(2)).expect("begin");

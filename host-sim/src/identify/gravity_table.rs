@@ -8,7 +8,7 @@
 //!
 //! Grid per axis: when the samples' values fall in 2..=16 tight clusters (poses on a grid, as in
 //! the paper), the cluster centres; otherwise evenly spaced points over the covered range (8,
-//! fewer with many axes so the table stays within 256 values). Values: least squares of the
+//! fewer with many axes so the table stays within the core's `CELLS_MAX` values). Values: least squares of the
 //! multilinear interpolation to the samples, with a small second-difference penalty so cells
 //! the data do not reach are filled smoothly instead of left singular.
 //!
@@ -177,8 +177,9 @@ pub fn fit(
     let even = match n_axes {
         1 => 8,
         2 => 8,
-        3 => 6,
-        _ => 4,
+        // within the core's CELLS_MAX (128): 5³ = 125, 3⁴ = 81
+        3 => 5,
+        _ => 3,
     };
     let mut grid = Vec::with_capacity(n_axes);
     for a in 0..n_axes {
@@ -186,9 +187,12 @@ pub fn fit(
         grid.push(axis_grid(&mut v, even).ok_or_else(|| format!("axis `{}` does not vary over the static samples", axes[a]))?);
     }
     let cells: usize = grid.iter().map(Vec::len).product();
-    if cells > 256 {
-        // Clustered axes can have up to 16 points each; thin the longest until it fits.
-        return Err(format!("{cells} table values needed for the pose grid, at most 256 fit"));
+    if cells > joint_core::table::CELLS_MAX {
+        // Clustered axes can have up to 16 points each.
+        return Err(format!(
+            "{cells} table values needed for the pose grid, at most {} fit on the joint",
+            joint_core::table::CELLS_MAX
+        ));
     }
     // Normal equations of the interpolation weights.
     let mut ata = vec![0.0; cells * cells];
