@@ -13,5 +13,7 @@ echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"
 bash scripts/python-venv.sh
+echo "== headless Chromium for the diagnosis report test"
+bash scripts/chromium.sh
 echo "== host test suite"
 cargo test --workspace --no-fail-fast
