@@ -122,8 +122,11 @@ impl JointLog {
                 return Err(LogError::NotUtf8 { file: file.to_string(), line });
             }
         };
-        let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
-        let header = lines.next().unwrap_or("");
+        let (header, rest) = match text.find('\n') {
+            Some(p) => (text.get(..p).unwrap_or(""), text.get(p + 1..).unwrap_or("")),
+            None => (text, ""),
+        };
+        let header = header.strip_suffix('\r').unwrap_or(header);
         if header.trim().is_empty() {
             return Err(LogError::Empty { file: file.to_string() });
         }
@@ -164,77 +167,12 @@ impl JointLog {
         }
         // Parse into plain vectors first; Option wrappers are set at the end so that nothing
         // half-filled ever escapes.
-        let mut known: [Vec<f64>; KNOWN.len()] = Default::default();
-        let est_rows = text.len() / (names.len() * 8).max(1);
-        for (k, present) in known_present.iter().enumerate() {
-            if *present {
-                if let Some(v) = known.get_mut(k) {
-                    v.reserve(est_rows);
-                }
-            }
+        let layout = Layout { file, names: &names, slots: &slots, known_present, n_others: log.others.len() };
+        let rows = layout.rows_parallel(rest).map_or_else(|| layout.rows(rest, 1), Ok)?;
+        for ((_, v), parsed) in log.others.iter_mut().zip(rows.others) {
+            *v = parsed;
         }
-        let mut line_no = 1usize;
-        let mut pending_blank: Option<usize> = None;
-        for line in lines {
-            line_no += 1;
-            if line.trim().is_empty() {
-                pending_blank.get_or_insert(line_no);
-                continue;
-            }
-            if let Some(blank) = pending_blank {
-                // A blank line followed by data: the file was cut or glued together.
-                return Err(LogError::Ragged { file: file.to_string(), line: blank, found: 0, expected: names.len() });
-            }
-            let mut n_cells = 0usize;
-            for (col, cell) in line.split(',').enumerate() {
-                n_cells += 1;
-                let Some(slot) = slots.get(col) else { continue };
-                let target = match *slot {
-                    Slot::Skip => continue,
-                    Slot::Known(k) => known.get_mut(k),
-                    Slot::Other(o) => log.others.get_mut(o).map(|(_, v)| v),
-                };
-                let cell = cell.trim();
-                let name = || names.get(col).cloned().unwrap_or_default();
-                if cell.is_empty() {
-                    return Err(LogError::EmptyCell { file: file.to_string(), line: line_no, column: name() });
-                }
-                let v: f64 = match cell.parse() {
-                    Ok(v) => v,
-                    Err(_) => {
-                        return Err(LogError::NotNumeric {
-                            file: file.to_string(),
-                            line: line_no,
-                            column: name(),
-                            cell: cell.chars().take(40).collect(),
-                        })
-                    }
-                };
-                if !v.is_finite() {
-                    return Err(LogError::NotFinite {
-                        file: file.to_string(),
-                        line: line_no,
-                        column: name(),
-                        cell: cell.to_string(),
-                    });
-                }
-                if let Some(t) = target {
-                    t.push(v);
-                }
-            }
-            if n_cells != names.len() {
-                return Err(LogError::Ragged { file: file.to_string(), line: line_no, found: n_cells, expected: names.len() });
-            }
-            // Time check right away so the error names this line.
-            if let Some(tcol) = known.first() {
-                if let [.., prev, t] = tcol.as_slice() {
-                    let (prev, t) = (*prev, *t);
-                    if t <= prev {
-                        return Err(LogError::TimeNotIncreasing { file: file.to_string(), line: line_no, t, prev });
-                    }
-                }
-            }
-        }
+        let known = rows.known;
         let [t, q, qd, qdd, u, tau, temp] = known;
         if t.is_empty() {
             return Err(LogError::NoRows { file: file.to_string() });
@@ -297,6 +235,148 @@ impl JointLog {
     }
 }
 
+/// What the header fixed: where each cell goes. Shared by the one- and two-thread row parsers.
+struct Layout<'a> {
+    file: &'a str,
+    names: &'a [String],
+    slots: &'a [Slot],
+    known_present: [bool; KNOWN.len()],
+    n_others: usize,
+}
+
+/// Parsed data rows: known columns by KNOWN index, `q_` columns in header order.
+struct Rows {
+    known: [Vec<f64>; KNOWN.len()],
+    others: Vec<Vec<f64>>,
+    /// first line of a run of blank lines at the end of the text parsed
+    pending_blank: Option<usize>,
+}
+
+impl Layout<'_> {
+    /// Parses the data rows in `text`; `header_line` is the line number just before its first
+    /// line (1 for the whole body after the header), so errors name the file's own line.
+    fn rows(&self, text: &str, header_line: usize) -> Result<Rows, LogError> {
+        let file = self.file;
+        let names = self.names;
+        let mut known: [Vec<f64>; KNOWN.len()] = Default::default();
+        let mut others: Vec<Vec<f64>> = vec![Vec::new(); self.n_others];
+        let est_rows = text.len() / (names.len() * 8).max(1);
+        for (k, present) in self.known_present.iter().enumerate() {
+            if *present {
+                if let Some(v) = known.get_mut(k) {
+                    v.reserve(est_rows);
+                }
+            }
+        }
+        for v in others.iter_mut() {
+            v.reserve(est_rows);
+        }
+        let mut line_no = header_line;
+        let mut pending_blank: Option<usize> = None;
+        for line in text.split('\n') {
+            let line = line.strip_suffix('\r').unwrap_or(line);
+            line_no += 1;
+            if line.trim().is_empty() {
+                pending_blank.get_or_insert(line_no);
+                continue;
+            }
+            if let Some(blank) = pending_blank {
+                // A blank line followed by data: the file was cut or glued together.
+                return Err(LogError::Ragged { file: file.to_string(), line: blank, found: 0, expected: names.len() });
+            }
+            let mut n_cells = 0usize;
+            for (col, cell) in line.split(',').enumerate() {
+                n_cells += 1;
+                let Some(slot) = self.slots.get(col) else { continue };
+                let target = match *slot {
+                    Slot::Skip => continue,
+                    Slot::Known(k) => known.get_mut(k),
+                    Slot::Other(o) => others.get_mut(o),
+                };
+                let cell = cell.trim();
+                let name = || names.get(col).cloned().unwrap_or_default();
+                if cell.is_empty() {
+                    return Err(LogError::EmptyCell { file: file.to_string(), line: line_no, column: name() });
+                }
+                let v: f64 = match cell.parse() {
+                    Ok(v) => v,
+                    Err(_) => {
+                        return Err(LogError::NotNumeric {
+                            file: file.to_string(),
+                            line: line_no,
+                            column: name(),
+                            cell: cell.chars().take(40).collect(),
+                        })
+                    }
+                };
+                if !v.is_finite() {
+                    return Err(LogError::NotFinite {
+                        file: file.to_string(),
+                        line: line_no,
+                        column: name(),
+                        cell: cell.to_string(),
+                    });
+                }
+                if let Some(t) = target {
+                    t.push(v);
+                }
+            }
+            if n_cells != names.len() {
+                return Err(LogError::Ragged { file: file.to_string(), line: line_no, found: n_cells, expected: names.len() });
+            }
+            // Time check right away so the error names this line.
+            if let Some(tcol) = known.first() {
+                if let [.., prev, t] = tcol.as_slice() {
+                    let (prev, t) = (*prev, *t);
+                    if t <= prev {
+                        return Err(LogError::TimeNotIncreasing { file: file.to_string(), line: line_no, t, prev });
+                    }
+                }
+            }
+        }
+        Ok(Rows { known, others, pending_blank })
+    }
+
+    /// Large bodies are parsed as two halves (split at a line end) on two threads. Only a clean
+    /// result is taken from here: on any error in either half, a blank line before the second
+    /// half's data, or time not increasing across the seam, `None` sends the caller to the
+    /// one-thread parser, which finds the first problem with its exact line and column.
+    fn rows_parallel(&self, text: &str) -> Option<Rows> {
+        const MIN_PARALLEL: usize = 1 << 20;
+        if text.len() < MIN_PARALLEL || std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+            return None;
+        }
+        let mid = text.len() / 2;
+        let nl = mid + text.as_bytes().get(mid..)?.iter().position(|&b| b == b'\n')?;
+        let (a, b) = (text.get(..nl)?, text.get(nl + 1..)?);
+        let (ra, rb) = std::thread::scope(|s| {
+            let ha = s.spawn(|| self.rows(a, 1).ok());
+            let rb = self.rows(b, 1).ok();
+            (ha.join().ok().flatten(), rb)
+        });
+        let (mut ra, rb) = (ra?, rb?);
+        let b_has_rows = rb.known.first().is_some_and(|v| !v.is_empty());
+        if b_has_rows {
+            if ra.pending_blank.is_some() {
+                return None;
+            }
+            if let (Some(last), Some(first)) = (ra.known.first()?.last(), rb.known.first()?.first()) {
+                if first <= last {
+                    return None;
+                }
+            }
+        }
+        for (x, y) in ra.known.iter_mut().zip(&rb.known) {
+            x.extend_from_slice(y);
+        }
+        for (x, y) in ra.others.iter_mut().zip(&rb.others) {
+            x.extend_from_slice(y);
+        }
+        ra.pending_blank = ra.pending_blank.or(rb.pending_blank);
+        Some(ra)
+    }
+}
+
 /// Shortest representation that reads back to the same f64; exponent form for very small or
 /// very large magnitudes so a cell never becomes hundreds of characters long.
 fn push_num(buf: &mut String, v: f64) {
@@ -331,4 +411,77 @@ pub fn write_atomic(
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+
+    /// A body over the two-thread threshold: `n` rows of t,q,qd with t = k/1000.
+    fn big(n: usize) -> Vec<String> {
+        (0..n).map(|k| format!("{},{},{}", k as f64 / 1000.0, 0.123456789 * k as f64, -1.5e-3 * k as f64)).collect()
+    }
+
+    fn text(rows: &[String]) -> String {
+        format!("t,q,qd\n{}\n", rows.join("\n"))
+    }
+
+    /// The line of the first row of the second half, as `rows_parallel` splits the body.
+    fn seam_row(rows: &[String]) -> usize {
+        let s = text(rows);
+        let body = &s[s.find('\n').unwrap() + 1..];
+        let mid = body.len() / 2;
+        let nl = mid + body.as_bytes()[mid..].iter().position(|&b| b == b'\n').unwrap();
+        body[..=nl].matches('\n').count()
+    }
+
+    #[test]
+    fn two_thread_parse_equals_one_thread_parse() {
+        let rows = big(60_000);
+        let s = text(&rows);
+        assert!(s.len() > 1 << 20, "the test body must take the two-thread path");
+        let log = JointLog::parse(s.as_bytes(), "big.csv").unwrap();
+        assert_eq!(log.len(), 60_000);
+        for (k, row) in rows.iter().enumerate() {
+            let v: Vec<f64> = row.split(',').map(|c| c.parse().unwrap()).collect();
+            assert_eq!((log.t[k], log.q[k], log.qd.as_ref().unwrap()[k]), (v[0], v[1], v[2]), "row {k}");
+        }
+    }
+
+    #[test]
+    fn errors_at_and_around_the_seam_name_the_file_line() {
+        let rows = big(60_000);
+        let seam = seam_row(&rows);
+        assert!(seam > 1000 && seam < 59_000);
+        // time going back exactly at the first row of the second half
+        let mut r = rows.clone();
+        r[seam] = format!("0.0005,{},1", 0.5);
+        match JointLog::parse(text(&r).as_bytes(), "f") {
+            Err(LogError::TimeNotIncreasing { line, .. }) => assert_eq!(line, seam + 2),
+            other => panic!("{other:?}"),
+        }
+        // a blank line at the end of the first half followed by data
+        let mut r = rows.clone();
+        r[seam - 1] = String::new();
+        match JointLog::parse(text(&r).as_bytes(), "f") {
+            Err(LogError::Ragged { line, found: 0, .. }) => assert_eq!(line, seam + 1),
+            other => panic!("{other:?}"),
+        }
+        // errors in both halves: the earlier one is reported
+        let mut r = rows.clone();
+        r[seam + 10] = "x,1,1".into();
+        r[100] = "0.1,,1".into();
+        match JointLog::parse(text(&r).as_bytes(), "f") {
+            Err(LogError::EmptyCell { line, column, .. }) => assert_eq!((line, column.as_str()), (102, "q")),
+            other => panic!("{other:?}"),
+        }
+        // an error only in the second half
+        let mut r = rows;
+        r[seam + 10] = "1e999,1,1".into();
+        match JointLog::parse(text(&r).as_bytes(), "f") {
+            Err(LogError::NotFinite { line, column, .. }) => assert_eq!((line, column.as_str()), (seam + 12, "t")),
+            other => panic!("{other:?}"),
+        }
+    }
 }

@@ -226,17 +226,31 @@ fn try_kinds(
     if threads == 1 || kinds.len() < 2 {
         return kinds.iter().filter_map(|&k| work(k)).collect();
     }
-    let mut out: Vec<Option<Scored>> = vec![None; kinds.len()];
-    std::thread::scope(|s| {
-        let chunks: Vec<_> = out.chunks_mut(kinds.len().div_ceil(threads)).zip(kinds.chunks(kinds.len().div_ceil(threads))).collect();
-        for (slot, ks) in chunks {
-            let work = &work;
-            s.spawn(move || {
-                for (o, &k) in slot.iter_mut().zip(ks) {
-                    *o = work(k);
-                }
-            });
+    // Kinds differ a lot in cost (grid searches vs. one fit), so threads take the next kind
+    // from a shared counter instead of fixed halves; results keep the order of `kinds`.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let out: Vec<Option<Scored>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads.min(kinds.len()))
+            .map(|_| {
+                let (work, next) = (&work, &next);
+                s.spawn(move || {
+                    let mut done = Vec::new();
+                    loop {
+                        let pos = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&k) = kinds.get(pos) else { break };
+                        done.push((pos, work(k)));
+                    }
+                    done
+                })
+            })
+            .collect();
+        let mut all: Vec<(usize, Option<Scored>)> = Vec::with_capacity(kinds.len());
+        for h in handles {
+            // A panicking worker is a bug; re-raise it here rather than drop its kinds.
+            all.extend(h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
         }
+        all.sort_by_key(|&(pos, _)| pos);
+        all.into_iter().map(|(_, r)| r).collect()
     });
     out.into_iter().flatten().collect()
 }
