@@ -464,10 +464,9 @@ fn terms_of(raw: &RawParams) -> Terms {
 }
 
 fn build(raw: RawParams) -> ParamSet {
-    let terms = terms_of(&raw);
-    let inv_ratio_m1 = 1.0 / (raw.get(ParamId::Ratio) - 1.0);
-    let lut = Lut::new(&raw.table);
-    ParamSet { raw, terms, inv_ratio_m1, lut }
+    let mut set = ParamSet { raw, terms: Terms::default(), inv_ratio_m1: 0.0, lut: Lut::default() };
+    set.derive();
+    set
 }
 
 /// Validate a raw set. The first problem found is returned, scalar parameters in table order,

@@ -172,16 +172,12 @@ pub fn validate(t: &RawTable) -> Result<(), TableError> {
     Ok(())
 }
 
-/// Cell index and fraction of `x` along one axis, clamped to the grid.
-#[inline]
-fn locate(grid: &[f32; AXIS_POINTS_MAX], points: usize, x: f32) -> (usize, f32) {
-    let last = points.saturating_sub(1).max(1);
-    let g0 = grid.first().copied().unwrap_or(0.0);
-    let gl = grid.get(last).copied().unwrap_or(g0);
-    let x = math::clamp(x, g0, gl);
-    // Binary search for the cell [i, i+1] that holds x; ≤ 4 steps for 16 points.
-    let mut lo = 0usize;
-    let mut hi = last;
+/// Binary search for the cell `[i, i+1]` of a grid with last index `last` that holds `x`
+/// (already clamped to the grid); ≤ 4 steps for 16 points.
+#[inline(always)]
+fn search_cell(grid: &[f32; AXIS_POINTS_MAX], last: usize, x: f32) -> usize {
+    let gl = grid.get(last).copied().unwrap_or(0.0);
+    let (mut lo, mut hi) = (0usize, last);
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
         if grid.get(mid).copied().unwrap_or(gl) <= x {
@@ -190,6 +186,17 @@ fn locate(grid: &[f32; AXIS_POINTS_MAX], points: usize, x: f32) -> (usize, f32) 
             hi = mid;
         }
     }
+    lo
+}
+
+/// Cell index and fraction of `x` along one axis, clamped to the grid.
+#[inline]
+fn locate(grid: &[f32; AXIS_POINTS_MAX], points: usize, x: f32) -> (usize, f32) {
+    let last = points.saturating_sub(1).max(1);
+    let g0 = grid.first().copied().unwrap_or(0.0);
+    let gl = grid.get(last).copied().unwrap_or(g0);
+    let x = math::clamp(x, g0, gl);
+    let lo = search_cell(grid, last, x);
     let a = grid.get(lo).copied().unwrap_or(g0);
     let b = grid.get(lo + 1).copied().unwrap_or(gl);
     let span = b - a;
@@ -345,16 +352,7 @@ impl Lut {
             // `as usize` saturates at 0 for negatives; the min keeps the last cell.
             (((x - g0) * inv_step) as usize).min(last - 1)
         } else {
-            let (mut lo, mut hi) = (0usize, last);
-            while hi - lo > 1 {
-                let mid = (lo + hi) / 2;
-                if grid.get(mid).copied().unwrap_or(gl) <= x {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            lo
+            search_cell(grid, last, x)
         };
         let a = grid.get(i).copied().unwrap_or(g0);
         let inv = inv_span.get(i).copied().unwrap_or(0.0);
