@@ -2,8 +2,9 @@
 //! position modes the characterisation tests need, torque and rate limits, and a filtered
 //! differentiator for the encoder.
 //!
-//! `C_c = J·q̈ + C_β(q̇) + gravity(q, …) + C_0 + spring(q, q̇)`, where gravity is the weight term,
-//! the weight term plus the table, or the weight term fused with the table (see [`gravity`]).
+//! `C_c = J·q̈ + C_β(q̇) + gravity(q, …) + C_0 + spring(q, q̇)`, where gravity is the model
+//! (weight term plus the analytic gravity series), the model plus the table, or the model fused
+//! with the table (see [`gravity`]).
 //! In assist mode the output torque is `assist_k·q + assist_cmd + fraction·C_c`, limited to
 //! ±torque_limit and to rate_limit·dt per step; the motor command is that torque / (N − 1).
 //!
@@ -14,6 +15,7 @@
 use crate::math;
 use crate::model::INPUT_LIMITS;
 use crate::params::{ParamId, ParamSet};
+use crate::series;
 use crate::table;
 
 /// Largest host assist command accepted as is, N·m (larger finite values are clamped to it).
@@ -78,23 +80,34 @@ pub struct Output {
     pub bad_input: bool,
 }
 
-/// Gravity torque of the model: the weight term alone; the weight term plus the table (table
-/// present, `sigma_model = 0`); or weight and table fused (`sigma_model > 0`, arm paper §3.2.3).
+/// Gravity torque. The model side `τ_m` is the weight term plus the analytic gravity series
+/// ([`crate::series`], over `[q, others…]`); with a table present it is combined with the table:
+/// - `sigma_model = 0`: `τ_m + table` (the table as a term);
+/// - `sigma_model > 0`: inverse-variance fusion with the clamp `τ_m ± k·σ_m` (arm paper
+///   §3.2.3), where the data estimate is the table itself, or `τ_m + table` when the table is
+///   declared the model's residual ([`crate::table::RawTable::residual`]).
+///
+/// An empty series adds nothing (not even `+ 0.0`, which would turn a −0 weight torque into +0),
+/// so sets without one keep their exact bits.
 #[inline]
 pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
     let w = p.terms().weight.torque(q);
+    let [o0, o1, o2] = *others;
+    let angles = [q, o0, o1, o2];
+    let s = p.series();
+    let tau_m = if s.n_terms == 0 { w } else { w + series::eval(s, &angles) };
     let t = p.table();
     if t.n_axes == 0 {
-        return w;
+        return tau_m;
     }
     let sigma_m = p.get(ParamId::TableSigmaModel);
     let fused = sigma_m > 0.0;
-    let [o0, o1, o2] = *others;
-    let (tau_t, sigma_t) = p.lut().eval_sources(t, &[q, o0, o1, o2], fused);
+    let (tau_t, sigma_t) = p.lut().eval_sources(t, &angles, fused);
     if fused {
-        table::fuse(w, sigma_m, tau_t, sigma_t, p.get(ParamId::TableClampK))
+        let data = if t.residual { tau_m + tau_t } else { tau_t };
+        table::fuse(tau_m, sigma_m, data, sigma_t, p.get(ParamId::TableClampK))
     } else {
-        w + tau_t
+        tau_m + tau_t
     }
 }
 

@@ -18,6 +18,7 @@ pub mod math;
 pub mod model;
 pub mod params;
 pub mod safety;
+pub mod series;
 pub mod store;
 pub mod table;
 pub mod vectors;

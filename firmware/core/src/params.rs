@@ -10,6 +10,8 @@
 
 use crate::math;
 use crate::model::{Extra, Friction, Spring, Terms, Weight};
+pub use crate::series::RawSeries;
+use crate::series::{self, SeriesError};
 pub use crate::table::RawTable;
 use crate::table::{self, Lut, TableError};
 
@@ -257,6 +259,8 @@ pub static PARAMS: [ParamDesc; PARAM_COUNT] = [
 pub struct RawParams {
     pub values: [f32; PARAM_COUNT],
     pub table: RawTable,
+    /// the analytic multi-angle gravity term (empty: none)
+    pub series: RawSeries,
 }
 
 impl RawParams {
@@ -266,7 +270,7 @@ impl RawParams {
         for (v, d) in values.iter_mut().zip(PARAMS.iter()) {
             *v = d.default;
         }
-        RawParams { values, table: RawTable::EMPTY }
+        RawParams { values, table: RawTable::EMPTY, series: RawSeries::EMPTY }
     }
 
     pub fn get(&self, id: ParamId) -> f32 {
@@ -294,6 +298,7 @@ pub enum ParamError {
     OutOfRange { param: ParamId, value: f32, min: f32, max: f32 },
     Inconsistent { param: ParamId, what: &'static str },
     Table(TableError),
+    Series(SeriesError),
 }
 
 impl ParamError {
@@ -303,7 +308,7 @@ impl ParamError {
             ParamError::NotFinite { param }
             | ParamError::OutOfRange { param, .. }
             | ParamError::Inconsistent { param, .. } => Some(param),
-            ParamError::Table(_) => None,
+            ParamError::Table(_) | ParamError::Series(_) => None,
         }
     }
 }
@@ -320,6 +325,7 @@ impl ParamError {
             }
             ParamError::Inconsistent { param, what } => write!(w, "{}: {what}", param.name()),
             ParamError::Table(e) => write!(w, "{e}"),
+            ParamError::Series(e) => write!(w, "{e}"),
         }
     }
 }
@@ -344,6 +350,7 @@ impl core::fmt::Display for ParamError {
                 write!(f, "{} ({}.{}): {}", d.name, d.section, d.key, what)
             }
             ParamError::Table(e) => write!(f, "{e}"),
+            ParamError::Series(e) => write!(f, "{e}"),
         }
     }
 }
@@ -381,6 +388,11 @@ impl ParamSet {
     }
 
     #[inline]
+    pub fn series(&self) -> &RawSeries {
+        &self.raw.series
+    }
+
+    #[inline]
     pub fn lut(&self) -> &Lut {
         &self.lut
     }
@@ -410,6 +422,7 @@ impl ParamSet {
         }
         // A const: copied from flash straight into place, no stack temporary.
         self.raw.table = RawTable::EMPTY;
+        self.raw.series = RawSeries::EMPTY;
         self.derive();
     }
 
@@ -470,7 +483,7 @@ fn build(raw: RawParams) -> ParamSet {
 }
 
 /// Validate a raw set. The first problem found is returned, scalar parameters in table order,
-/// then cross-parameter rules, then the gravity table.
+/// then cross-parameter rules, then the gravity table and the gravity series.
 pub fn check(raw: &RawParams) -> Result<ParamSet, ParamError> {
     validate(raw)?;
     Ok(build(raw.clone()))
@@ -494,6 +507,7 @@ pub fn validate(raw: &RawParams) -> Result<(), ParamError> {
         });
     }
     table::validate(&raw.table).map_err(ParamError::Table)?;
+    series::validate(&raw.series).map_err(ParamError::Series)?;
     if raw.get(ParamId::TableSigmaModel) > 0.0 {
         if raw.table.n_axes == 0 {
             return Err(ParamError::Inconsistent {

@@ -18,12 +18,21 @@
 //!  0  magic "JPRM"          4  format version u16    6  header length u16 (= 24)
 //!  8  sequence u32         12  payload length u32   16  CRC-32 u32    20  reserved u32 (0)
 //! 24  payload (version 1):
-//!       u16 parameter count N, u16 entry size (8), u32 reserved
+//!       u16 parameter count N, u16 entry size (8), u32 model-block length E (0 = none)
 //!       N × { u32 name id = CRC-32 of the parameter's name, f32 value }
 //!       table: u8 n_axes, u8 has_sigma, u8 A, u8 M, u16 C, u16 reserved,
 //!              axis_source[A] u8, points[A] u8, grid A×M f32, torque C f32, sigma C f32
 //!       (A, M, C = AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX of the firmware that wrote it)
+//!       model block, only when E > 0 (E = 4 + 12·T):
+//!              u8 series terms n, u8 T, u8 term size (12), u8 flags (bit 0: table is residual),
+//!              T × { f32 amplitude, f32 phase, 4 × i8 multipliers }
+//!       (T = series::TERMS_MAX of the writer)
 //! ```
+//! The model block (arm gravity: the analytic series and the residual flag) was added inside
+//! version 1 in the word that read 0 before: a set without a series and without a residual
+//! table is written byte for byte as before, and an older firmware meets a record with the
+//! block as a length mismatch ([`LayoutError::Length`]) and refuses it rather than running a
+//! residual table as a torque of its own.
 //! The CRC (CRC-32/ISO-HDLC) covers the payload followed by header bytes 0..16; the reserved
 //! word must read 0.
 //!
@@ -69,6 +78,7 @@
 //! the record is never committed ([`SaveError::SourceChanged`]) and the old set stays.
 
 use crate::params::{self, ParamError, ParamSet, RawParams, PARAMS, PARAM_COUNT};
+use crate::series::{TERMS_MAX, TERM_BYTES};
 use crate::safety::Faults;
 use crate::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 
@@ -189,10 +199,28 @@ const GRID_OFF: usize = POINTS_OFF + AXES_MAX;
 const TORQUE_OFF: usize = GRID_OFF + 4 * AXES_MAX * AXIS_POINTS_MAX;
 const SIGMA_OFF: usize = TORQUE_OFF + 4 * CELLS_MAX;
 
-/// Payload bytes this firmware writes.
+/// Payload bytes this firmware writes for a set without a model block.
 pub const PAYLOAD_LEN: usize = SIGMA_OFF + 4 * CELLS_MAX;
-/// Record bytes (header + payload), rounded up to the program unit.
+/// Record bytes (header + payload) without a model block, rounded up to the program unit.
 pub const RECORD_LEN: usize = (HEADER_LEN + PAYLOAD_LEN).div_ceil(UNIT) * UNIT;
+/// Bytes of the model block (series and residual flag) when present.
+pub const MODEL_BLOCK_LEN: usize = 4 + TERM_BYTES * TERMS_MAX;
+/// The longest record (with the model block): what a slot must hold.
+pub const RECORD_MAX_LEN: usize = (HEADER_LEN + PAYLOAD_LEN + MODEL_BLOCK_LEN).div_ceil(UNIT) * UNIT;
+
+/// Model-block bytes of `raw`: present only when it has a series or a residual table.
+fn model_block_len(raw: &RawParams) -> usize {
+    if raw.series.n_terms > 0 || raw.table.residual {
+        MODEL_BLOCK_LEN
+    } else {
+        0
+    }
+}
+
+/// Payload bytes of `raw`'s record.
+fn payload_len(raw: &RawParams) -> usize {
+    PAYLOAD_LEN + model_block_len(raw)
+}
 
 /// The id a parameter is stored under: CRC-32 of its name.
 pub fn name_id(name: &str) -> u32 {
@@ -207,13 +235,14 @@ fn le_byte(word: u32, i: usize) -> u8 {
 fn payload_byte(raw: &RawParams, i: usize) -> u8 {
     let t = &raw.table;
     if i < PARAMS_OFF {
+        let e = model_block_len(raw) as u16;
         let head: [u8; 8] = [
             (PARAM_COUNT & 0xFF) as u8,
             (PARAM_COUNT >> 8) as u8,
             ENTRY_LEN as u8,
             0,
-            0,
-            0,
+            (e & 0xFF) as u8,
+            (e >> 8) as u8,
             0,
             0,
         ];
@@ -259,21 +288,30 @@ fn payload_byte(raw: &RawParams, i: usize) -> u8 {
     } else if i < PAYLOAD_LEN {
         let v = t.sigma.get((i - SIGMA_OFF) / 4).copied().unwrap_or(0.0);
         le_byte(v.to_bits(), (i - SIGMA_OFF) % 4)
+    } else if i < payload_len(raw) {
+        let j = i - PAYLOAD_LEN;
+        match j {
+            0 => raw.series.n_terms,
+            1 => TERMS_MAX as u8,
+            2 => TERM_BYTES as u8,
+            3 => u8::from(t.residual),
+            _ => raw.series.term_bytes((j - 4) / TERM_BYTES).get((j - 4) % TERM_BYTES).copied().unwrap_or(0),
+        }
     } else {
         // Padding up to the program unit: left erased.
         0xFF
     }
 }
 
-/// Header bytes 0..16 (the part the CRC covers) for `seq`.
-fn header16(seq: u32) -> [u8; 16] {
+/// Header bytes 0..16 (the part the CRC covers) for `seq` and a payload of `len` bytes.
+fn header16(seq: u32, len: usize) -> [u8; 16] {
     let mut h = [0u8; 16];
     let fields: [(usize, &[u8]); 5] = [
         (0, &MAGIC),
         (4, &FORMAT_VERSION.to_le_bytes()),
         (6, &(HEADER_LEN as u16).to_le_bytes()),
         (8, &seq.to_le_bytes()),
-        (12, &(PAYLOAD_LEN as u32).to_le_bytes()),
+        (12, &(len as u32).to_le_bytes()),
     ];
     for (off, bytes) in fields {
         if let Some(dst) = h.get_mut(off..off + bytes.len()) {
@@ -326,6 +364,11 @@ pub enum LayoutError {
     TableInconsistent,
     /// The stored table does not fit this firmware's table limits.
     TableTooLarge { n_axes: u8, points: u8, cells: u32 },
+    /// The model block's own sizes disagree with its length, or it holds more series terms
+    /// than it has room for.
+    ModelBlock,
+    /// The stored series has more terms than this firmware's series can hold.
+    SeriesTooLarge { n_terms: u8 },
 }
 
 /// Why [`Store::load`] returned no parameter set. The firmware then runs on defaults and
@@ -475,6 +518,8 @@ struct Job {
     crc: u32,
     running: Crc32,
     done: u16,
+    /// payload bytes of the record being saved
+    payload: u32,
 }
 
 /// The parameter store over a flash region.
@@ -507,7 +552,7 @@ impl<F: Flash> Store<F> {
                 erase_size: es as u32,
             });
         }
-        let pages = RECORD_LEN.div_ceil(es);
+        let pages = RECORD_MAX_LEN.div_ceil(es);
         let have = flash.capacity();
         let slot_len = have / 2 / es * es;
         if slot_len < pages * es {
@@ -528,6 +573,7 @@ impl<F: Flash> Store<F> {
                 crc: 0,
                 running: Crc32::new(),
                 done: 0,
+                payload: PAYLOAD_LEN as u32,
             },
         })
     }
@@ -717,6 +763,7 @@ impl<F: Flash> Store<F> {
         let head = self.read_bytes::<8>(p)?;
         let n = usize::from(u16::from_le_bytes([byte(&head, 0), byte(&head, 1)]));
         let entry = u16::from_le_bytes([byte(&head, 2), byte(&head, 3)]);
+        let block = u32::from_le_bytes([byte(&head, 4), byte(&head, 5), byte(&head, 6), byte(&head, 7)]) as usize;
         if usize::from(entry) != ENTRY_LEN {
             return Ok(Err(LayoutError::EntrySize { found: entry }));
         }
@@ -769,7 +816,8 @@ impl<F: Flash> Store<F> {
         let grid_off = pts_off + a_max;
         let torque_off = grid_off + 4 * a_max * m_max;
         let sigma_off = torque_off + 4 * c_max;
-        let expected = sigma_off + 4 * c_max;
+        let block_off = sigma_off + 4 * c_max;
+        let expected = block_off.saturating_add(block);
         if expected as u32 != len {
             return Ok(Err(LayoutError::Length {
                 expected: expected as u32,
@@ -844,6 +892,22 @@ impl<F: Flash> Store<F> {
                 *ds = sg;
             }
         }
+        if block > 0 {
+            let h = self.read_bytes::<4>(p + block_off as u32)?;
+            let (n_terms, t_max, size, flags) = (byte(&h, 0), usize::from(byte(&h, 1)), byte(&h, 2), byte(&h, 3));
+            if usize::from(size) != TERM_BYTES || block != 4 + TERM_BYTES * t_max || usize::from(n_terms) > t_max || flags > 1 {
+                return Ok(Err(LayoutError::ModelBlock));
+            }
+            if usize::from(n_terms) > TERMS_MAX {
+                return Ok(Err(LayoutError::SeriesTooLarge { n_terms }));
+            }
+            raw.table.residual = flags == 1;
+            raw.series.n_terms = n_terms;
+            for k in 0..t_max.min(TERMS_MAX) {
+                let b = self.read_bytes::<TERM_BYTES>(p + (block_off + 4 + TERM_BYTES * k) as u32)?;
+                raw.series.set_term_bytes(k, &b);
+            }
+        }
         let migrated = (a_max, m_max, c_max) != (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX);
         Ok(Ok((raw, defaulted, unknown, migrated)))
     }
@@ -862,17 +926,19 @@ impl<F: Flash> Store<F> {
             Newest::Some { slot, seq } => (1 - slot, seq.wrapping_add(1)),
             _ => (0, 1),
         };
+        let len = payload_len(raw);
         let mut c = Crc32::new();
-        for i in 0..PAYLOAD_LEN {
+        for i in 0..len {
             c.update_byte(payload_byte(raw, i));
         }
-        c.update(&header16(seq));
+        c.update(&header16(seq, len));
         self.job = Job {
             slot,
             seq,
             crc: c.finish(),
             running: Crc32::new(),
             done: 0,
+            payload: len as u32,
         };
         self.phase = Phase::Erase { page: 0 };
         Ok(())
@@ -889,9 +955,11 @@ impl<F: Flash> Store<F> {
         self.phase = Phase::Idle;
     }
 
-    /// Flash operations in one save (erases + programs).
+    /// Flash operations in one save (erases + programs): of the save in progress, else of a
+    /// record without a model block.
     pub fn ops_per_save(&self) -> u16 {
-        (self.pages_per_slot as usize + RECORD_LEN / UNIT) as u16
+        let record = (HEADER_LEN + self.job.payload as usize).div_ceil(UNIT) * UNIT;
+        (self.pages_per_slot as usize + record / UNIT) as u16
     }
 
     /// Do the next flash operation of the save started by `begin_save` (one page erase or one
@@ -940,16 +1008,20 @@ impl<F: Flash> Store<F> {
             }
             Phase::Payload { off } => {
                 let mut unit = [0xFFu8; UNIT];
+                let len = self.job.payload as usize;
                 for (k, b) in unit.iter_mut().enumerate() {
                     let i = off as usize + k;
-                    *b = payload_byte(raw, i);
-                    if i < PAYLOAD_LEN {
+                    // Past the job's length: padding, left erased (a set that grew a model
+                    // block since begin_save fails the CRC check below anyway).
+                    *b = if i < len { payload_byte(raw, i) } else { 0xFF };
+                    if i < len {
                         self.job.running.update_byte(*b);
                     }
                 }
                 self.program(base + HEADER_LEN as u32 + off, &unit)?;
                 let next = off + UNIT as u32;
-                self.phase = if (next as usize) < RECORD_LEN - HEADER_LEN {
+                let record = (HEADER_LEN + len).div_ceil(UNIT) * UNIT;
+                self.phase = if (next as usize) < record - HEADER_LEN {
                     Phase::Payload { off: next }
                 } else {
                     Phase::Header { unit: 2 }
@@ -957,7 +1029,7 @@ impl<F: Flash> Store<F> {
                 Ok(None)
             }
             Phase::Header { unit } => {
-                let h = header16(self.job.seq);
+                let h = header16(self.job.seq, self.job.payload as usize);
                 let mut w = [0u8; UNIT];
                 match unit {
                     2 => {

@@ -37,6 +37,11 @@ pub struct RawTable {
     /// per-value standard deviation, N·m (> 0), used only by fusion.
     pub sigma: [f32; CELLS_MAX],
     pub has_sigma: bool,
+    /// The table holds the residual of the analytic model (weight + gravity series): its data
+    /// estimate is `τ_m + table`, fused with `τ_m` (arm paper §3.2.3 with the data side
+    /// learned on the model's error). `false` (the default, and every older set): the table is
+    /// a gravity torque of its own.
+    pub residual: bool,
 }
 
 impl RawTable {
@@ -48,6 +53,7 @@ impl RawTable {
         torque: [0.0; CELLS_MAX],
         sigma: [0.0; CELLS_MAX],
         has_sigma: false,
+        residual: false,
     };
 
     /// Number of values the grid defines (product of points), 0 for no table.

@@ -19,6 +19,7 @@ use crate::fixed::{self, FixedParams, Fx};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, RawParams};
 use crate::table::{RawTable, TableError};
+use crate::series::SeriesError;
 
 /// Seed of the session's generator (any non-zero value works; this one is the contract
 /// between the QEMU image and the host, both read it from here).
@@ -261,6 +262,16 @@ pub fn result_code(r: &Result<(), ParamError>) -> (u32, u32) {
         Err(ParamError::OutOfRange { param, .. }) => (2, *param as u32),
         Err(ParamError::Inconsistent { param, .. }) => (3, *param as u32),
         Err(ParamError::Table(e)) => (4, table_error_code(e)),
+        Err(ParamError::Series(e)) => (5, series_error_code(e)),
+    }
+}
+
+fn series_error_code(e: &SeriesError) -> u32 {
+    match *e {
+        SeriesError::TooManyTerms { n_terms } => 0x100 | u32::from(n_terms),
+        SeriesError::Amplitude { term } => 0x200 | u32::from(term),
+        SeriesError::Phase { term } => 0x300 | u32::from(term),
+        SeriesError::Multiplier { term, slot } => 0x400 | (u32::from(term) << 4) | u32::from(slot),
     }
 }
 

@@ -36,6 +36,7 @@ use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
+use crate::series::{RawSeries, TERMS_MAX, TERM_BYTES};
 use crate::safety::{Faults, Safety, SafetyConfig};
 use crate::table::{AXES_MAX, AXIS_POINTS_MAX, AXIS_SOURCE_MAX, CELLS_MAX};
 
@@ -226,9 +227,9 @@ impl ParamStorage for MemoryStorage {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
-    /// changed outside pre-operational
+    /// changed outside pre-operational, 6 gravity series
     pub code: u8,
-    /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table errors
+    /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
     pub message: heapless::String<120>,
 }
@@ -267,6 +268,7 @@ enum Big {
     Grid,
     Torque,
     Sigma,
+    Series,
 }
 
 enum Value {
@@ -1072,6 +1074,7 @@ impl<S: ParamStorage> Node<S> {
             Big::ErrorMessage => self.commit_error.as_ref().map_or(0, |e| e.message.len()),
             Big::Grid => 4 * AXIS_POINTS_MAX * (t.n_axes as usize).min(AXES_MAX),
             Big::Torque | Big::Sigma => 4 * t.cells().min(CELLS_MAX),
+            Big::Series => TERM_BYTES * (self.staged.series.n_terms as usize).min(TERMS_MAX),
         }
     }
 
@@ -1100,6 +1103,7 @@ impl<S: ParamStorage> Node<S> {
             }
             Big::Torque => f(t.torque.get(i / 4)),
             Big::Sigma => f(t.sigma.get(i / 4)),
+            Big::Series => self.staged.series.term_bytes(i / TERM_BYTES).get(i % TERM_BYTES).copied().unwrap_or(0),
         }
     }
 
@@ -1153,11 +1157,14 @@ impl<S: ParamStorage> Node<S> {
                 1 => t.n_axes,
                 2..=5 => t.axis_source.get(s as usize - 2).copied().unwrap_or(0),
                 6..=9 => t.points.get(s as usize - 6).copied().unwrap_or(0),
-                _ => u8::from(t.has_sigma),
+                10 => u8::from(t.has_sigma),
+                _ => u8::from(t.residual),
             }),
             Key::TableGrid => Value::Big(Big::Grid),
             Key::TableTorque => Value::Big(Big::Torque),
             Key::TableSigma => Value::Big(Big::Sigma),
+            Key::SeriesCount => put_u8(self.staged.series.n_terms),
+            Key::SeriesTerms => Value::Big(Big::Series),
             Key::Commit | Key::ClearFaults => return Err(Abort::WriteOnly),
             Key::ErrorCode => put_u8(self.commit_error.as_ref().map_or(0, |e| e.code)),
             Key::ErrorParam => put_u16(self.commit_error.as_ref().map_or(0xFFFF, |e| e.param)),
@@ -1333,6 +1340,28 @@ impl<S: ParamStorage> Node<S> {
                 }
                 Ok(())
             }
+            Key::SeriesCount => {
+                if u as usize > TERMS_MAX {
+                    return Err(Abort::TooHigh);
+                }
+                self.staged.series.n_terms = u as u8;
+                Ok(())
+            }
+            Key::SeriesTerms => {
+                // Whole terms only (check_len); NaN/∞ refused here like the table's values, the
+                // ranges of amplitude, phase and multipliers at commit (series::validate).
+                let mut series = RawSeries::EMPTY;
+                series.n_terms = self.staged.series.n_terms;
+                for (k, c) in data.chunks_exact(TERM_BYTES).enumerate() {
+                    series.set_term_bytes(k, c);
+                    let bad = |x: Option<&f32>| !x.is_some_and(|&v| math::is_finite(v));
+                    if bad(series.amplitude.get(k)) || bad(series.phase.get(k)) {
+                        return Err(Abort::InvalidValue);
+                    }
+                }
+                self.staged.series = series;
+                Ok(())
+            }
             Key::Commit => match u {
                 1 => self.commit(),
                 0 => {
@@ -1387,7 +1416,11 @@ impl<S: ParamStorage> Node<S> {
                 if v > 1 {
                     return Err(Abort::TooHigh);
                 }
-                t.has_sigma = v == 1;
+                if s == 10 {
+                    t.has_sigma = v == 1;
+                } else {
+                    t.residual = v == 1;
+                }
                 return Ok(());
             }
         };
@@ -1436,6 +1469,7 @@ impl<S: ParamStorage> Node<S> {
                     ),
                     ParamError::Inconsistent { .. } => (3, Abort::InvalidValue),
                     ParamError::Table(_) => (4, Abort::InvalidValue),
+                    ParamError::Series(_) => (6, Abort::InvalidValue),
                 };
                 let param = e.param().map_or(0xFFFF, |p| p.index() as u16);
                 self.set_commit_error(code, param, format_args!("{}", Brief(&e)));
@@ -1515,11 +1549,13 @@ fn check_len(info: &SubInfo, n: usize) -> Result<(), Abort> {
             let max = match info.key {
                 Key::TableGrid => 4 * AXES_MAX * AXIS_POINTS_MAX,
                 Key::TableTorque | Key::TableSigma => 4 * CELLS_MAX,
+                Key::SeriesTerms => TERM_BYTES * TERMS_MAX,
                 _ => 0,
             };
+            let unit = if info.key == Key::SeriesTerms { TERM_BYTES } else { 4 };
             if n > max {
                 Err(Abort::TooLong)
-            } else if !n.is_multiple_of(4) {
+            } else if !n.is_multiple_of(unit) {
                 Err(Abort::TypeLength)
             } else {
                 Ok(())

@@ -8,8 +8,10 @@
 //! Layout (CiA 301 communication area, then manufacturer objects from 0x2000):
 //! - `0x2000 + i`: scalar parameter `PARAMS[i]` (`friction_a` = 0x2000 …), REAL32, read/write
 //!   into the **staged** set; the range and safety flag come from the table;
-//! - `0x2100` gravity table shape (record of U8), `0x2101..=0x2103` grid/torque/sigma as
-//!   DOMAINs of little-endian f32 (segmented SDO);
+//! - `0x2100` gravity table shape (record of U8, sub 11: the table is the model's residual),
+//!   `0x2101..=0x2103` grid/torque/sigma as DOMAINs of little-endian f32 (segmented SDO);
+//! - `0x2104` gravity series term count (U8), `0x2105` its terms as a DOMAIN of 12-byte
+//!   records (f32 amplitude, f32 phase, 4 × i8 multipliers; see [`crate::series`]);
 //! - `0x2200` commit (write 1: check the staged set and swap it in whole; write 0: discard the
 //!   staged changes), `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active;
 //! - `0x2300` joint state (PDO-mappable scaled integers), `0x2310` host command, `0x2311` the
@@ -114,6 +116,10 @@ pub enum Key {
     TableGrid,
     TableTorque,
     TableSigma,
+    /// 0x2104
+    SeriesCount,
+    /// 0x2105
+    SeriesTerms,
     Commit,
     ErrorCode,
     ErrorParam,
@@ -173,6 +179,8 @@ pub const TABLE_SHAPE: u16 = 0x2100;
 pub const TABLE_GRID: u16 = 0x2101;
 pub const TABLE_TORQUE: u16 = 0x2102;
 pub const TABLE_SIGMA: u16 = 0x2103;
+pub const SERIES_COUNT: u16 = 0x2104;
+pub const SERIES_TERMS: u16 = 0x2105;
 pub const COMMIT: u16 = 0x2200;
 pub const COMMIT_ERROR: u16 = 0x2201;
 pub const CLEAR_FAULTS: u16 = 0x2202;
@@ -214,7 +222,7 @@ const JOINT_STATE_NAMES: [&str; 8] = [
     "temperature",
     "gain_permille",
 ];
-const SHAPE_NAMES: [&str; 10] = [
+const SHAPE_NAMES: [&str; 11] = [
     "n_axes",
     "axis_source_0",
     "axis_source_1",
@@ -225,6 +233,7 @@ const SHAPE_NAMES: [&str; 10] = [
     "points_2",
     "points_3",
     "has_sigma",
+    "residual",
 ];
 const IDENTITY_NAMES: [&str; 4] = [
     "vendor_id",
@@ -311,11 +320,13 @@ pub fn indices() -> impl Iterator<Item = u16> {
         PRODUCER_HEARTBEAT,
         IDENTITY,
     ];
-    const HIGH: [u16; 11] = [
+    const HIGH: [u16; 13] = [
         TABLE_SHAPE,
         TABLE_GRID,
         TABLE_TORQUE,
         TABLE_SIGMA,
+        SERIES_COUNT,
+        SERIES_TERMS,
         COMMIT,
         COMMIT_ERROR,
         CLEAR_FAULTS,
@@ -339,7 +350,7 @@ const SUBS_2: &[u8] = &[0, 1, 2];
 const SUBS_3: &[u8] = &[0, 1, 2, 3];
 const SUBS_4: &[u8] = &[0, 1, 2, 3, 4];
 const SUBS_8: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8];
-const SUBS_10: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
+const SUBS_11: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
 const TPDO_COMM_SUBS: &[u8] = &[0, 1, 2, 3, 5];
 
 /// The object at `index`, if the dictionary has it.
@@ -401,10 +412,12 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
             let d = PARAMS.get((i - PARAM_BASE) as usize)?;
             o(d.name, Var, SUB0)
         }
-        TABLE_SHAPE => o("gravity_table_shape", Record, SUBS_10),
+        TABLE_SHAPE => o("gravity_table_shape", Record, SUBS_11),
         TABLE_GRID => o("gravity_table_grid", Var, SUB0),
         TABLE_TORQUE => o("gravity_table_torque", Var, SUB0),
         TABLE_SIGMA => o("gravity_table_sigma", Var, SUB0),
+        SERIES_COUNT => o("gravity_series_count", Var, SUB0),
+        SERIES_TERMS => o("gravity_series_terms", Var, SUB0),
         COMMIT => o("params_commit", Var, SUB0),
         COMMIT_ERROR => o("params_commit_error", Record, SUBS_3),
         CLEAR_FAULTS => o("clear_faults", Var, SUB0),
@@ -544,6 +557,8 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         TABLE_GRID => mk("gravity_table_grid", Domain, Rw, Key::TableGrid),
         TABLE_TORQUE => mk("gravity_table_torque", Domain, Rw, Key::TableTorque),
         TABLE_SIGMA => mk("gravity_table_sigma", Domain, Rw, Key::TableSigma),
+        SERIES_COUNT => mk("gravity_series_count", Unsigned8, Rw, Key::SeriesCount),
+        SERIES_TERMS => mk("gravity_series_terms", Domain, Rw, Key::SeriesTerms),
         COMMIT => mk("params_commit", Unsigned8, Wo, Key::Commit),
         COMMIT_ERROR => match sub {
             1 => mk("code", Unsigned8, Ro, Key::ErrorCode),
