@@ -11,12 +11,26 @@
 //! every other name (`"q_<joint>"`) gets the next free slot 1..=3 in order of first appearance;
 //! [`ModelFile::other_columns`] returns that mapping so a log's `q_<name>` columns can feed the
 //! core's `Input::others`.
+//!
+//! Optional extension (not in spec §2, which it does not change): `[gravity_series]`, the
+//! analytic multi-angle gravity term of the core ([`joint_core::series`]),
+//! `τ_s = Σ amplitude[k]·sin(Σ_i mult[k][i]·angle_i + phase[k])`:
+//! ```toml
+//! [gravity_series]
+//! angles = ["q", "q_j2", "q_j3"]   # the angles the multipliers refer to (log columns, like table axes)
+//! amplitude = [2.38, -0.59]        # N·m
+//! phase = [0.0, 1.5707963]         # rad
+//! mult = [[1, 0, 0], [1, -1, 1]]   # one integer vector per term, |m| ≤ 4
+//! table_residual = true            # optional: the gravity table holds this model's residual
+//! ```
+//! Angles other than `q` share the slots 1..=3 with the table's axes (series angles first). Keys
+//! are checked strictly: an unknown key is an error naming it, a bad term names its index.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use joint_core::params::{self, ParamDesc, ParamError, ParamId, ParamSet, RawParams, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::params::{self, ParamDesc, ParamError, ParamId, ParamSet, RawParams, RawSeries, RawTable, PARAMS, PARAM_COUNT};
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 use serde::Deserialize;
 use toml::Spanned;
@@ -36,6 +50,18 @@ pub(crate) struct GravityTableToml {
     pub sigma_model: Option<Spanned<f64>>,
     #[serde(default)]
     pub clamp_k: Option<Spanned<f64>>,
+}
+
+/// `[gravity_series]` as written in the file (see the module documentation).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct GravitySeriesToml {
+    pub angles: Spanned<Vec<String>>,
+    pub amplitude: Spanned<Vec<f64>>,
+    pub phase: Spanned<Vec<f64>>,
+    pub mult: Spanned<Vec<Vec<i64>>>,
+    #[serde(default)]
+    pub table_residual: Option<Spanned<bool>>,
 }
 
 /// Declares a serde struct holding the model sections plus extra fields (the plant file adds its
@@ -99,7 +125,21 @@ model_toml_struct! {
         pub cable_spring: Option<Section>,
         #[serde(default)]
         pub dry_friction: Option<Section>,
+        #[serde(default)]
+        pub gravity_series: Option<GravitySeriesToml>,
     }
+}
+
+/// The gravity series as the file gives it (names, f64), before it becomes a core `RawSeries`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SeriesSpec {
+    /// the angles the multipliers refer to: `q` or `q_<name>` log columns
+    pub angles: Vec<String>,
+    pub amplitude: Vec<f64>,
+    pub phase: Vec<f64>,
+    pub mult: Vec<Vec<i64>>,
+    /// the gravity table is the residual of the model (weight + series)
+    pub table_residual: bool,
 }
 
 /// The gravity table as the file gives it (f64, names), before it becomes a core `RawTable`.
@@ -120,6 +160,9 @@ pub struct ModelFile {
     lines: [Option<usize>; PARAM_COUNT],
     pub table: Option<TableSpec>,
     table_line: Option<usize>,
+    /// the optional `[gravity_series]` extension
+    pub series: Option<SeriesSpec>,
+    series_line: Option<usize>,
     /// file name for error messages
     pub file: String,
 }
@@ -137,6 +180,8 @@ pub enum ModelError {
     Table { file: String, line: usize, key: &'static str, msg: String },
     #[error("{file}: {location}[{section}] {key}: {msg}")]
     Param { file: String, location: String, section: &'static str, key: &'static str, msg: String },
+    #[error("{file}: line {line}: [gravity_series] {msg}")]
+    Series { file: String, line: usize, msg: String },
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -156,6 +201,8 @@ impl ModelFile {
             lines: [None; PARAM_COUNT],
             table: None,
             table_line: None,
+            series: None,
+            series_line: None,
             file: file.to_string(),
         }
     }
@@ -185,7 +232,20 @@ impl ModelFile {
             ("cable_spring", toml.cable_spring.as_ref()),
             ("dry_friction", toml.dry_friction.as_ref()),
         ]);
-        Self::from_parts(toml.name.clone(), &sections, toml.gravity_table.as_ref(), text, file)
+        let mut mf = Self::from_parts(toml.name.clone(), &sections, toml.gravity_table.as_ref(), text, file)?;
+        if let Some(g) = &toml.gravity_series {
+            mf.series_line = Some(line_of(text, g.angles.span().start));
+            mf.series = Some(SeriesSpec {
+                angles: g.angles.get_ref().clone(),
+                amplitude: g.amplitude.get_ref().clone(),
+                phase: g.phase.get_ref().clone(),
+                mult: g.mult.get_ref().clone(),
+                table_residual: g.table_residual.as_ref().is_some_and(|r| *r.get_ref()),
+            });
+            // Shape and term errors now, with the file's line, not only when the set is built.
+            mf.raw_params()?;
+        }
+        Ok(mf)
     }
 
     pub(crate) fn from_parts(
@@ -256,14 +316,16 @@ impl ModelFile {
         PARAMS.iter().find(|d| d.section == section && d.key == key).map(|d| self.value(d.id))
     }
 
-    /// Log columns feeding the core's `others[0..3]`, in slot order.
+    /// Log columns feeding the core's `others[0..3]`, in slot order of first appearance: the
+    /// series' angles first (a written-back file lists all four slots there, in order, so its
+    /// slots survive a round trip), then the table's axes.
     pub fn other_columns(&self) -> Vec<String> {
         let mut v: Vec<String> = Vec::new();
-        if let Some(t) = &self.table {
-            for a in &t.axes {
-                if a != "q" && !v.contains(a) {
-                    v.push(a.clone());
-                }
+        let table = self.table.iter().flat_map(|t| t.axes.iter());
+        let series = self.series.iter().flat_map(|s| s.angles.iter());
+        for a in series.chain(table) {
+            if a != "q" && !v.contains(a) {
+                v.push(a.clone());
             }
         }
         v
@@ -289,6 +351,7 @@ impl ModelFile {
                     msg: format!("{e}{what}"),
                 }
             }
+            None if matches!(e, ParamError::Series(_)) => self.series_error(e.to_string()),
             None => ModelError::Table {
                 file: self.file.clone(),
                 line: self.table_line.unwrap_or(0),
@@ -296,6 +359,75 @@ impl ModelFile {
                 msg: e.to_string(),
             },
         }
+    }
+
+    fn series_error(&self, msg: String) -> ModelError {
+        ModelError::Series { file: self.file.clone(), line: self.series_line.unwrap_or(0), msg }
+    }
+
+    /// The series as the core's `RawSeries` (slots as [`ModelFile::other_columns`] assigns
+    /// them). Terms are checked here with their index; the core checks them again at `check`.
+    fn raw_series(&self, s: &SeriesSpec) -> Result<RawSeries, ModelError> {
+        use joint_core::series::{AMPLITUDE_MAX, MULT_MAX, PHASE_MAX, TERMS_MAX};
+        let n = s.amplitude.len();
+        if n > TERMS_MAX {
+            return Err(self.series_error(format!("{n} terms, at most {TERMS_MAX} fit")));
+        }
+        if s.phase.len() != n || s.mult.len() != n {
+            return Err(self.series_error(format!(
+                "amplitude, phase and mult need one entry per term: {n}, {}, {} given",
+                s.phase.len(),
+                s.mult.len()
+            )));
+        }
+        if s.angles.is_empty() || s.angles.len() > 4 {
+            return Err(self.series_error(format!("angles: {} given, 1..=4 supported", s.angles.len())));
+        }
+        let others = self.other_columns();
+        if others.len() > 3 {
+            return Err(self.series_error(format!("{} other joints named by the table and the series, at most 3 fit", others.len())));
+        }
+        let mut slot_of = Vec::new();
+        for (i, a) in s.angles.iter().enumerate() {
+            if s.angles.iter().take(i).any(|b| b == a) {
+                return Err(self.series_error(format!("angles: `{a}` appears twice")));
+            }
+            if a != "q" && !(a.len() > 2 && a.starts_with("q_")) {
+                return Err(self.series_error(format!("angles: `{a}` is not a log angle column (`q` or `q_<name>`)")));
+            }
+            slot_of.push(if a == "q" { 0 } else { 1 + others.iter().position(|o| o == a).unwrap_or(0) });
+        }
+        let mut rs = RawSeries::EMPTY;
+        for k in 0..n {
+            let a = s.amplitude.get(k).copied().unwrap_or(f64::NAN);
+            let p = s.phase.get(k).copied().unwrap_or(f64::NAN);
+            let m = s.mult.get(k).cloned().unwrap_or_default();
+            if !(a.is_finite() && a.abs() <= f64::from(AMPLITUDE_MAX)) {
+                return Err(self.series_error(format!("term {k}: amplitude = {a}: must be finite, |a| ≤ {AMPLITUDE_MAX} N·m")));
+            }
+            if !(p.is_finite() && p.abs() <= f64::from(PHASE_MAX)) {
+                return Err(self.series_error(format!("term {k}: phase = {p}: must be finite, |φ| ≤ {PHASE_MAX} rad")));
+            }
+            if m.len() != s.angles.len() {
+                return Err(self.series_error(format!("term {k}: mult has {} entries, one per angle ({}) needed", m.len(), s.angles.len())));
+            }
+            let mut v = [0i8; 4];
+            for (i, &x) in m.iter().enumerate() {
+                if x.abs() > i64::from(MULT_MAX) {
+                    return Err(self.series_error(format!("term {k}: mult[{i}] = {x}: |m| ≤ {MULT_MAX}")));
+                }
+                if let Some(d) = slot_of.get(i).and_then(|&sl| v.get_mut(sl)) {
+                    *d = x as i8;
+                }
+            }
+            if let (Some(da), Some(dp), Some(dm)) = (rs.amplitude.get_mut(k), rs.phase.get_mut(k), rs.mult.get_mut(k)) {
+                *da = a as f32;
+                *dp = p as f32;
+                *dm = v;
+            }
+        }
+        rs.n_terms = n as u8;
+        Ok(rs)
     }
 
     fn table_error(&self, key: &'static str, msg: String) -> ModelError {
@@ -313,6 +445,15 @@ impl ModelFile {
         }
         if let Some(t) = &self.table {
             raw.table = self.raw_table(t)?;
+        }
+        if let Some(s) = &self.series {
+            raw.series = self.raw_series(s)?;
+            if s.table_residual {
+                if raw.table.n_axes == 0 {
+                    return Err(self.series_error("table_residual = true needs a [gravity_table]".into()));
+                }
+                raw.table.residual = true;
+            }
         }
         Ok(raw)
     }
@@ -423,6 +564,22 @@ impl ModelFile {
             let sigma = t.has_sigma.then(|| t.sigma.iter().take(cells).map(|&x| f32_to_f64_shortest(x)).collect());
             mf.table = Some(TableSpec { axes, grid, torque, sigma });
         }
+        let s = &raw.series;
+        if s.n_terms > 0 || t.residual {
+            // All four angle slots, named as the table names them.
+            let name = |slot: usize| match slot {
+                0 => "q".to_string(),
+                s => other_columns.get(s - 1).cloned().unwrap_or_else(|| format!("q_other{s}")),
+            };
+            let n = s.n_terms as usize;
+            mf.series = Some(SeriesSpec {
+                angles: (0..4).map(name).collect(),
+                amplitude: s.amplitude.iter().take(n).map(|&x| f32_to_f64_shortest(x)).collect(),
+                phase: s.phase.iter().take(n).map(|&x| f32_to_f64_shortest(x)).collect(),
+                mult: s.mult.iter().take(n).map(|m| m.iter().map(|&x| i64::from(x)).collect()).collect(),
+                table_residual: t.residual,
+            });
+        }
         mf
     }
 
@@ -453,6 +610,22 @@ impl ModelFile {
             for d in descs {
                 let v = self.explicit(d.id).unwrap_or(0.0);
                 let _ = writeln!(out, "{} = {}  # {}", d.key, toml_num(v), d.unit);
+            }
+        }
+        if let Some(s) = &self.series {
+            let _ = writeln!(out, "\n[gravity_series]");
+            let angles: Vec<String> = s.angles.iter().map(|a| toml_string(a)).collect();
+            let _ = writeln!(out, "angles = [{}]", angles.join(", "));
+            let _ = writeln!(out, "amplitude = [{}]  # N·m", num_list(&s.amplitude));
+            let _ = writeln!(out, "phase = [{}]  # rad", num_list(&s.phase));
+            let mult: Vec<String> = s
+                .mult
+                .iter()
+                .map(|m| format!("[{}]", m.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")))
+                .collect();
+            let _ = writeln!(out, "mult = [{}]", mult.join(", "));
+            if s.table_residual {
+                let _ = writeln!(out, "table_residual = true");
             }
         }
         out

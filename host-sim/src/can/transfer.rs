@@ -3,7 +3,8 @@
 //!
 //! The push is one SDO transfer after another (CiA 301 allows one transfer per server at a
 //! time): scalar values are expedited (request + response, 2 frames each); the gravity table
-//! goes as its shape bytes and three segmented DOMAIN transfers. Nothing runs on the joint
+//! goes as its shape bytes and three segmented DOMAIN transfers, the gravity series as its term
+//! count and one DOMAIN of 12-byte terms. Nothing runs on the joint
 //! until the commit object is written, and the node checks the whole staged set then, so a
 //! push cut off anywhere before the commit leaves the old set running (the staged changes stay
 //! pending: `params_pending` = 1, discarded by the next push or by writing 0 to the commit
@@ -13,7 +14,8 @@ use super::master::{Master, SdoError};
 use joint_core::canopen::node::NMT_PRE_OPERATIONAL;
 use joint_core::canopen::od;
 use joint_core::canopen::sdo::Abort;
-use joint_core::params::{ParamId, RawParams, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::params::{ParamId, RawParams, RawSeries, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::series::{TERMS_MAX, TERM_BYTES};
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 
 /// One step of a push, for progress bars.
@@ -64,6 +66,7 @@ fn table_ops(t: &RawTable) -> Vec<(u16, u8, Vec<u8>, String)> {
         v.push(shape(6 + a as u8, *pts, &format!("points_{a}")));
     }
     v.push(shape(10, u8::from(t.has_sigma), "has_sigma"));
+    v.push(shape(11, u8::from(t.residual), "residual"));
     if t.n_axes > 0 {
         let n = (t.n_axes as usize).min(AXES_MAX);
         let cells = t.cells().min(CELLS_MAX);
@@ -72,6 +75,16 @@ fn table_ops(t: &RawTable) -> Vec<(u16, u8, Vec<u8>, String)> {
         if t.has_sigma {
             v.push((od::TABLE_SIGMA, 0, f32s(t.sigma.iter().take(cells).copied()), "gravity_table_sigma".into()));
         }
+    }
+    v
+}
+
+fn series_ops(s: &RawSeries) -> Vec<(u16, u8, Vec<u8>, String)> {
+    let n = (s.n_terms as usize).min(TERMS_MAX);
+    let mut v = vec![(od::SERIES_COUNT, 0, vec![s.n_terms], "gravity_series_count".to_string())];
+    if n > 0 {
+        let data = (0..n).flat_map(|k| s.term_bytes(k)).collect();
+        v.push((od::SERIES_TERMS, 0, data, "gravity_series_terms".to_string()));
     }
     v
 }
@@ -89,7 +102,8 @@ pub fn push(
         let data = raw.get(d.id).to_le_bytes().to_vec();
         ops.push(Op::Write { index: od::PARAM_BASE + d.id.index() as u16, sub: 0, data, what: d.name.to_string(), safety: d.safety });
     }
-    let table = table_ops(&raw.table);
+    let mut table = table_ops(&raw.table);
+    table.extend(series_ops(&raw.series));
     for (index, sub, data, what) in &table {
         ops.push(Op::Write { index: *index, sub: *sub, data: data.clone(), what: what.clone(), safety: false });
     }
@@ -194,6 +208,7 @@ pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
             }
         }
         t.has_sigma = byte(m, 10)? == 1;
+        t.residual = byte(m, 11)? == 1;
         let g = m.read(node, od::TABLE_GRID, 0)?;
         for (a, row) in t.grid.iter_mut().enumerate() {
             for (k, x) in row.iter_mut().enumerate() {
@@ -212,6 +227,14 @@ pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
         }
     }
     raw.table = t;
+    let n = m.read(node, od::SERIES_COUNT, 0)?.first().copied().unwrap_or(0);
+    raw.series.n_terms = n;
+    if n > 0 {
+        let d = m.read(node, od::SERIES_TERMS, 0)?;
+        for (k, c) in d.chunks_exact(TERM_BYTES).enumerate() {
+            raw.series.set_term_bytes(k, c);
+        }
+    }
     let pending = m.read(node, od::PENDING, 0)?.first().copied().unwrap_or(0) == 1;
     Ok((raw, pending))
 }
