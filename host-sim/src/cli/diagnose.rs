@@ -87,7 +87,13 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
             e.holdout_rmse_after,
             100.0 * e.shrink,
             e.p_value,
-            if e.significant { "significant" } else { "" }
+            if e.significant {
+                "significant"
+            } else if e.implausible.is_some() {
+                "implausible sign"
+            } else {
+                ""
+            }
         );
     }
     println!(
@@ -98,4 +104,7 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
         100.0 * r.verdict.shrink,
         if r.verdict.effects.len() > 1 { format!("; forward selection: {}", r.verdict.effects.join(" → ")) } else { String::new() }
     );
+    for w in &r.warnings {
+        println!("warning: {w}");
+    }
 }

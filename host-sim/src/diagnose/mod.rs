@@ -109,6 +109,9 @@ pub struct EffectOut {
     pub p_value: f64,
     /// optional: relative held-out MSE gain over the reference
     pub gain: f64,
+    /// optional: set when the fitted term has the wrong sign for its physics (never selected)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub implausible: Option<&'static str>,
     pub regimes: Vec<RegimeShrink>,
 }
 
@@ -165,6 +168,33 @@ pub struct Report {
     pub unknown_columns: Vec<String>,
     /// optional: vocabulary effects that were not tried on this model/log, and why
     pub not_applicable: Vec<NotApplicable>,
+    /// optional: physically impossible values in the refit of the model's own terms, each
+    /// naming the parameter (the log does not determine it; the verdict is read with care)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// Warnings for refit values no joint can have: negative inertia, friction that feeds energy
+/// in, negative stiffness. A least-squares refit gets them when the log does not separate a
+/// term from the others (q̈ noise-dominated, a saturated or chattering torque, too little
+/// excitation); the numbers still lower the held-out error, so they are reported, not hidden.
+pub(crate) fn refit_warnings(effects: &[EffectOut]) -> Vec<String> {
+    let Some(p) = effects.iter().find(|e| e.effect == "parameters") else { return Vec::new() };
+    let mut w = Vec::new();
+    for (key, what) in [
+        ("inertia.j", "inertia cannot be negative: the log's q̈ does not determine it (noise-dominated or too little acceleration; give a filtered `qdd` column)"),
+        ("friction.a", "friction cannot feed energy in: the log does not separate friction from the other terms"),
+        ("friction.b", "friction cannot feed energy in: the log does not separate friction from the other terms"),
+        ("friction.c", "friction cannot feed energy in: the log does not separate friction from the other terms"),
+        ("spring.k", "a negative stiffness: the log does not determine the spring"),
+    ] {
+        if let Some(&v) = p.params.get(key) {
+            if v < 0.0 {
+                w.push(format!("refit {key} = {v:.4} is negative; {what}"));
+            }
+        }
+    }
+    w
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -582,6 +612,7 @@ fn effect_out(o: &Outcome, reference: &'static str, m0: &Scored, regimes: &Regim
         t_stat: finite_or(o.t, 1e9),
         p_value: o.p,
         gain: o.gain,
+        implausible: o.implausible,
         regimes: regime_shrinks(m0, &o.scored, regimes),
     }
 }
@@ -663,6 +694,7 @@ fn build_report(
     let mut effects: Vec<EffectOut> = vec![effect_out(&sel.refit, "model", &sel.m0, regimes, d, model)];
     effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
+    let warnings = refit_warnings(&effects);
     let selected: Vec<Step> = sel
         .chosen
         .iter()
@@ -742,6 +774,7 @@ fn build_report(
         resid,
         unknown_columns: log.unknown.clone(),
         not_applicable: torque_not_applicable(base, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
+        warnings,
     }
 }
 

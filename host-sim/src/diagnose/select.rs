@@ -18,7 +18,7 @@
 //! q̈ a refit can always shave a little off by shrinking coefficients (errors in variables),
 //! which is not a physical effect.
 
-use super::candidates::{search, Base, Data, Design, Effect, Kind};
+use super::candidates::{search, Base, Data, Design, Effect, Kind, ThermSrc};
 
 /// How the samples were split.
 #[derive(Clone, Debug)]
@@ -182,6 +182,51 @@ pub struct Outcome {
     pub p: f64,
     pub gain: f64,
     pub significant: bool,
+    /// why the fitted term is not the physical effect its name says (then never significant)
+    pub implausible: Option<&'static str>,
+}
+
+/// Checks the sign of the last effect's fitted amplitude against its physics. A term fitted
+/// with the wrong sign lowers the residual because it mimics something else (a rising friction
+/// curve is not a Stribeck dip, a cable that pushes is not a cable), so naming the effect and
+/// emitting its section would mislead; it stays in the ranking, marked, but is never selected.
+/// - `stribeck`: friction above the Coulomb level near rest, `level > 0`;
+/// - `load_dependent_friction`: friction grows with the transmitted load, `mu > 0`;
+/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0`;
+/// - `dry_friction`: Coulomb friction opposes the motion, `c > 0`.
+/// - `thermal_drift`: either sign (lubricant thins or a seal swells), but the friction it
+///   scales, `1 + coefficient·(T − T_ref)` times the refitted shape, must stay positive over
+///   the log: a drift that reverses the friction is a trend in something else.
+/// Asymmetry, ripple, backlash and delay (shapes searched over positive values only) have no
+/// sign rule.
+pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
+    let e = s.effects.last()?;
+    let &(start, _) = s.design.spans.get(s.effects.len() - 1)?;
+    let amp = s.beta.get(start).copied()?;
+    if let Effect::Thermal { src, .. } = *e {
+        // T − T_ref at the ends of its range over the whole log
+        let (lo, hi) = match src {
+            ThermSrc::Temp { mean } => match &d.temp {
+                Some(tp) => tp.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x - mean), b.max(x - mean))),
+                None => (0.0, 0.0),
+            },
+            ThermSrc::Time { tau, t0, mean } => {
+                let at = |t: f64| 1.0 - (-(t - t0) / tau).exp() - mean;
+                (at(d.t.first().copied().unwrap_or(t0)), at(d.t.last().copied().unwrap_or(t0)))
+            }
+        };
+        if 1.0 + amp * lo <= 0.0 || 1.0 + amp * hi <= 0.0 {
+            return Some("fitted thermal drift would reverse the friction within the log");
+        }
+        return None;
+    }
+    match e.kind() {
+        Kind::Stribeck if amp <= 0.0 => Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect"),
+        Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
+        Kind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
+        Kind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
+        _ => None,
+    }
 }
 
 /// Everything the selection found.
@@ -278,13 +323,15 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     let (t, p, gain) = compare(&m0, &refit_s);
     let open = |r: &Scored| r.rmse() > AT_FLOOR * floor;
     let at_floor = !open(&m0);
-    let refit = Outcome { name: "parameters", scored: refit_s, t, p, gain, significant: !at_floor && p < alpha_each && gain >= MIN_GAIN };
+    let refit =
+        Outcome { name: "parameters", scored: refit_s, t, p, gain, significant: !at_floor && p < alpha_each && gain >= MIN_GAIN, implausible: None };
 
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
-        let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN;
-        Outcome { name, scored: s, t, p, gain, significant }
+        let implausible = implausible(&s, d);
+        let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
+        Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
     let t0 = std::time::Instant::now();
     let first = try_kinds(&Kind::ALL, d, base, &[], &grid_idx, &fit_idx, split, bits, n_regimes);
@@ -316,7 +363,7 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     let best_first = match best_first {
         Some(b) => Some(b),
         None if !at_floor && max_effects >= 2 => {
-            let mut strong: Vec<&Outcome> = candidates.iter().filter(|o| o.gain >= MIN_GAIN).collect();
+            let mut strong: Vec<&Outcome> = candidates.iter().filter(|o| o.gain >= MIN_GAIN && o.implausible.is_none()).collect();
             strong.sort_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
             strong.truncate(3);
             let pair_alpha = ALPHA / (m_tests + 3.0);
@@ -328,11 +375,12 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
                     let Some(eb) = search(kb, d, base, &[ea], &grid_idx) else { continue };
                     let pair = fit_and_score(d, base, &[ea, eb], &fit_idx, split, bits, n_regimes);
                     let tests = [compare(&refit.scored, &pair), compare(&m0, &pair), compare(&a.scored, &pair), compare(&b.scored, &pair)];
-                    if tests.iter().all(|&(_, p, g)| p < pair_alpha && g >= MIN_GAIN)
+                    if implausible(&pair, d).is_none()
+                        && tests.iter().all(|&(_, p, g)| p < pair_alpha && g >= MIN_GAIN)
                         && best_pair.as_ref().map(|(_, bp)| pair.mse() < bp.scored.mse()).unwrap_or(true)
                     {
                         let (t, p, gain) = compare(&a.scored, &pair);
-                        let second = Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true };
+                        let second = Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true, implausible: None };
                         let mut first = (*a).clone();
                         first.significant = true;
                         best_pair = Some((first, second));

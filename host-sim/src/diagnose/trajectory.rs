@@ -299,6 +299,17 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
     let refit_sig = !at_floor && rp < alpha_each && rg >= MIN_GAIN;
     // initial_state is judged against the file's model (it keeps the model's values); every
     // effect against the refit.
+    // The same sign rules as torque mode (`select::implausible`): the first effect parameter is
+    // the amplitude.
+    let implausible = |f: &Fitted| -> Option<&'static str> {
+        let amp = f.theta.get(cols.len()).copied()?;
+        match f.kind {
+            TKind::Stribeck if amp <= 0.0 => Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect"),
+            TKind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
+            TKind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
+            _ => None,
+        }
+    };
     let outcomes: Vec<(&Fitted, f64, f64, f64, bool)> = fitted
         .iter()
         .map(|f| {
@@ -306,7 +317,8 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
             let (t, p, g) = compare(reference, &f.scored);
             // and, like in torque mode, better than the file's model itself
             let (_, p0, g0) = compare(&m0, &f.scored);
-            (f, t, p, g, !at_floor && p < alpha_each && g >= MIN_GAIN && p0 < alpha_each && g0 >= MIN_GAIN)
+            let ok = implausible(f).is_none();
+            (f, t, p, g, ok && !at_floor && p < alpha_each && g >= MIN_GAIN && p0 < alpha_each && g0 >= MIN_GAIN)
         })
         .collect();
     let best = outcomes.iter().filter(|o| o.4).min_by(|a, b| a.0.scored.mse().total_cmp(&b.0.scored.mse()));
@@ -385,6 +397,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
         t_stat: rt.clamp(-1e9, 1e9),
         p_value: rp,
         gain: rg,
+        implausible: None,
         regimes: regime_shrinks(&refit.scored),
     });
     for (f, t, p, g, sig) in &outcomes {
@@ -399,6 +412,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
             t_stat: t.clamp(-1e9, 1e9),
             p_value: *p,
             gain: *g,
+            implausible: implausible(f),
             regimes: regime_shrinks(&f.scored),
         });
     }
@@ -436,6 +450,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
         Some(f) if f.kind != TKind::InitialState => nest(refit_values(model, &cols, &f.theta)),
         _ => nest(refit_values(model, &cols, &beta0)),
     };
+    let warnings = super::refit_warnings(&effects);
     let report = Report {
         mode: "trajectory",
         samples: n,
@@ -499,6 +514,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
             }
             v
         },
+        warnings,
     };
     // Emitted model: refitted values plus the winning effect's section.
     let mut mf = model.clone();
