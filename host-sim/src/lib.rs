@@ -7,6 +7,7 @@
 //!   firmware core's control step against the plant;
 //! - [`cli`]: the `jointctl` subcommands, one module each.
 
+pub mod arm;
 pub mod can;
 pub mod cli;
 pub mod closed_loop;

@@ -4,6 +4,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod arm;
 pub mod closed_loop;
 pub mod diagnose;
 pub mod diagnose_bench;
@@ -59,6 +60,8 @@ pub enum Command {
     BusBudget(bus_budget::BusBudgetArgs),
     // closed loop (issue 7)
     ClosedLoop(closed_loop::ClosedLoopArgs),
+    // arm gravity fusion (issue 7)
+    ArmGravity(arm::ArmArgs),
 }
 
 /// Runs the parsed command; errors carry the file/key/row/column they concern.
@@ -79,5 +82,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eds(args) => eds::run(&args),
         Command::BusBudget(args) => bus_budget::run(&args),
         Command::ClosedLoop(args) => closed_loop::run(&args),
+        Command::ArmGravity(args) => arm::run(&args),
     }
 }
