@@ -208,7 +208,7 @@ mod tests {
                 want += f64::from(s.amplitude[k]) * libm::sin(arg);
             }
             let got = f64::from(eval(&s, &angles));
-            worst = worst.max((got - want).abs());
+            worst = worst.max(libm::fabs(got - want));
         }
         // f32 arithmetic on |args| < 20 rad and |a| ≤ 3: a few ulps of the largest term.
         assert!(worst < 2.0e-5, "worst |f32 − f64| = {worst}");
