@@ -456,13 +456,16 @@ pub fn format_report(r: &ArmReport) -> String {
         o.max_unclamped_over_band
     );
     let w = &r.sweep;
+    let held: Vec<String> =
+        (0..4).filter(|&j| j + 1 != w.joint).map(|j| format!("q{} = {:.0}°", j + 1, w.held_deg[j])).collect();
     let _ = writeln!(
         s,
-        "\njoint {} swept across its range edge ({}°), others at {:?}°; error (N·m) = prediction − measured, band ±{:.3}",
+        "\njoint {} swept across its range edge ({}°), {}; error (N·m) = prediction − measured, band k·σ_m = {:.3}",
         w.joint,
         r.range_deg[w.joint - 1],
-        w.held_deg.map(|x| x.round())
-    , w.band);
+        held.join(", "),
+        w.band
+    );
     let _ = writeln!(s, "  q°      measured   CAD err  table err  fused err  no-clamp err  |τ_f−τ_m|");
     for (i, q) in w.q_deg.iter().enumerate() {
         if (q.round() as i64) % 10 != 0 {
