@@ -71,6 +71,14 @@ fn a_bad_series_is_refused_over_can_and_the_old_set_stays() {
     let good = sets[0].clone();
     let pushed = b.joints[0].lock().unwrap().node.params().raw().clone();
     assert_eq!(pushed, good, "the push put the whole set in force, series included");
+    // pulled back over SDO, and through the model TOML, it is the same set
+    let (pulled, pending) = transfer::pull(&mut b.master, node_id(0)).unwrap();
+    assert!(!pending);
+    assert_eq!(pulled, good);
+    let cols = vec!["q_j2".to_string(), "q_j3".to_string(), "q_j4".to_string()];
+    let text = ModelFile::from_raw(&good, Some("joint 1"), &cols).to_toml_string();
+    assert!(text.contains("[gravity_series]") && text.contains("table_residual = true"), "{text}");
+    assert_eq!(ModelFile::parse(&text, "j1.toml").unwrap().raw_params().unwrap(), good);
 
     let refuse = |b: &mut arm::bus::ArmBus, raw: &joint_core::params::RawParams, want: &str| {
         let e = transfer::push(&mut b.master, node_id(0), raw, PushOptions { pre_operational: true, save: false }, &mut |_| {})
