@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: the firmware size budget, the firmware on an emulated Cortex-M4F (QEMU) with
-# bit-parity against the PC, the core's no-panic lints, and the host test suite (core, CANopen,
-# host-sim, identification, diagnosis, python-canopen interop, end-to-end).
+# bit-parity against the PC, the control step's instruction budget, the core's no-panic lints,
+# and the host test suite (core, CANopen, host-sim, identification, diagnosis, python-canopen
+# interop, end-to-end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -9,6 +10,8 @@ echo "== firmware image size (budget: flash ≤ 64 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh
 echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
 bash scripts/qemu-test.sh
+echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400)"
+bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"

@@ -93,18 +93,18 @@ pub struct Output {
 pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
     let w = p.terms().weight.torque(q);
     let [o0, o1, o2] = *others;
-    let angles = [q, o0, o1, o2];
     let s = p.series();
-    let tau_m = if s.n_terms == 0 { w } else { w + series::eval(s, &angles) };
-    let t = p.table();
-    if t.n_axes == 0 {
+    let tau_m = if s.n_terms == 0 { w } else { w + series::eval(s, &[q, o0, o1, o2]) };
+    // The table's shape and flags come from the Lut (precomputed next to what the lookup reads).
+    let lut = p.lut();
+    if lut.n_axes() == 0 {
         return tau_m;
     }
     let sigma_m = p.get(ParamId::TableSigmaModel);
     let fused = sigma_m > 0.0;
-    let (tau_t, sigma_t) = p.lut().eval_sources(t, &angles, fused);
+    let (tau_t, sigma_t) = lut.eval_sources(p.table(), &[q, o0, o1, o2], fused);
     if fused {
-        let data = if t.residual { tau_m + tau_t } else { tau_t };
+        let data = if lut.residual() { tau_m + tau_t } else { tau_t };
         table::fuse(tau_m, sigma_m, data, sigma_t, p.get(ParamId::TableClampK))
     } else {
         tau_m + tau_t

@@ -153,7 +153,9 @@ pub fn validate(s: &RawSeries) -> Result<(), SeriesError> {
 /// The argument is summed in a fixed order (q, o0, o1, o2, then φ) so every target computes
 /// the same bits. Inputs are the control step's clamped angles, so the argument stays far
 /// inside the range where [`math::sin`] is exact to its polynomial.
-#[inline]
+/// Kept out of line on purpose: inlined into the control step, its loop's register use costs
+/// every step ~12 instructions even with an empty series (`scripts/fw-bench.sh`).
+#[inline(never)]
 pub fn eval(s: &RawSeries, angles: &[f32; 4]) -> f32 {
     let n = (s.n_terms as usize).min(TERMS_MAX);
     let mut acc = 0.0f32;

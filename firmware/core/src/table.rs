@@ -277,6 +277,8 @@ pub fn fuse(tau_model: f32, sigma_model: f32, tau_data: f32, sigma_data: f32, k:
 #[derive(Clone, Debug, PartialEq)]
 pub struct Lut {
     n: u8,
+    /// copied from the table: its data is the residual of the analytic model
+    residual: bool,
     /// where each axis reads its angle (copied from the table)
     source: [u8; AXES_MAX],
     points: [u8; AXES_MAX],
@@ -291,6 +293,7 @@ impl Default for Lut {
     fn default() -> Self {
         Lut {
             n: 0,
+            residual: false,
             source: [0; AXES_MAX],
             points: [0; AXES_MAX],
             stride: [0; AXES_MAX],
@@ -309,6 +312,7 @@ impl Lut {
         }
         let n = (t.n_axes as usize).min(AXES_MAX);
         lut.n = n as u8;
+        lut.residual = t.residual;
         lut.source = t.axis_source;
         let mut s = 1usize;
         for axis in (0..n).rev() {
@@ -365,6 +369,18 @@ impl Lut {
         // No clamp: x is inside the grid, so the fraction leaves [0, 1] only by the rounding of
         // the uniform-grid index, a few ulps, which moves the result by as little.
         (i, (x - a) * inv)
+    }
+
+    /// Axes of the table (0: no table).
+    #[inline]
+    pub fn n_axes(&self) -> u8 {
+        self.n
+    }
+
+    /// The table holds the analytic model's residual ([`RawTable::residual`]).
+    #[inline]
+    pub fn residual(&self) -> bool {
+        self.residual
     }
 
     /// Torque and (when `with_sigma`) σ with axis `a` at angle `x[a]`.
