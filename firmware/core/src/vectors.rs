@@ -10,7 +10,9 @@
 //! The script loads the trunk-paper right joint, then the same joint with the elastic
 //! joint's spring, then a 2-D gravity table fused with the weight model; it tries parameter
 //! sets that must be refused (NaN, out of range, non-increasing grid, inconsistent filter)
-//! and keeps stepping to show the old set stays in force; it also runs a stretch where
+//! and keeps stepping to show the old set stays in force; then an arm joint whose gravity is
+//! a 9-term sine series over four joint angles with the table as its residual, and a series
+//! that must be refused while it is in force; it also runs a stretch where
 //! q̇ and q̈ come from the core's [`Differentiator`] fed with encoder-like positions, and
 //! the fixed-point path. The parameter builders are reused by the cost benchmark.
 
@@ -132,6 +134,61 @@ pub fn trunk_table_fused() -> RawParams {
     p.table = t;
     p.set(ParamId::TableSigmaModel, 0.3);
     p.set(ParamId::TableClampK, 1.0);
+    p
+}
+
+/// Terms of [`arm_series_residual`]'s gravity series: `(a, φ, [n_q, n_o0, n_o1, n_o2])`, the
+/// shape of an arm joint's Appendix A torque expanded into sines (own angle, sums and
+/// differences with the other joints' angles, one harmonic).
+pub const ARM_SERIES_TERMS: [(f32, f32, [i8; 4]); 9] = [
+    (3.1, 0.0, [1, 0, 0, 0]),
+    (-1.2, 0.4, [1, 1, 0, 0]),
+    (0.8, -0.3, [1, 1, 1, 0]),
+    (0.45, 1.2, [1, 1, 1, 1]),
+    (-0.6, 0.0, [1, 0, -1, 0]),
+    (0.25, 2.5, [2, 0, 0, -1]),
+    (0.15, -1.0, [0, 1, 2, 0]),
+    (-0.3, 0.7, [1, -1, 1, -1]),
+    (0.2, 0.1, [3, 0, 0, 0]),
+];
+
+/// An arm joint (arm paper): the trunk joint's friction and spring with a 9-term gravity
+/// series over its own and three other joints' angles as the analytic model, and the 5 × 4
+/// table of [`trunk_table_fused`] refilled with a small residual and declared the residual
+/// of that model, fused with σ_m = 0.6 N·m, clamp k = 1.
+pub fn arm_series_residual() -> RawParams {
+    let mut p = trunk_table_fused();
+    for (k, (a, ph, m)) in ARM_SERIES_TERMS.iter().enumerate() {
+        if let (Some(da), Some(dp), Some(dm)) =
+            (p.series.amplitude.get_mut(k), p.series.phase.get_mut(k), p.series.mult.get_mut(k))
+        {
+            *da = *a;
+            *dp = *ph;
+            *dm = *m;
+        }
+    }
+    p.series.n_terms = ARM_SERIES_TERMS.len() as u8;
+    let mut cell = 0usize;
+    for &g0 in TABLE_GRID_Q.iter() {
+        for &g1 in TABLE_GRID_OTHER.iter() {
+            if let Some(tq) = p.table.torque.get_mut(cell) {
+                *tq = 0.4 * math::sin(1.3 * g0 - 0.5 * g1) + 0.05 * g1 - 0.2;
+            }
+            cell += 1;
+        }
+    }
+    p.table.residual = true;
+    p.set(ParamId::TableSigmaModel, 0.6);
+    p
+}
+
+/// [`arm_series_residual`] with one multiplier beyond ±[`crate::series::MULT_MAX`]: refused,
+/// and the series in force must stay.
+pub fn arm_series_bad_multiplier() -> RawParams {
+    let mut p = arm_series_residual();
+    if let Some(m) = p.series.mult.get_mut(4).and_then(|m| m.get_mut(2)) {
+        *m = 5;
+    }
     p
 }
 
@@ -456,6 +513,11 @@ pub fn session<F: FnMut(&Record)>(sink: &mut F) -> Summary {
         r.offer(grid, false);
     }
     r.random_steps(STEPS_PER_PHASE / 4);
+    // The arm joint: gravity series over four angles, the table as its residual.
+    r.offer(&arm_series_residual(), true);
+    r.random_steps(STEPS_PER_PHASE);
+    r.offer(&arm_series_bad_multiplier(), false);
+    r.random_steps(STEPS_PER_PHASE / 4);
     r.differentiated_steps(DIFF_STEPS);
     r.summary
 }
@@ -510,12 +572,12 @@ mod tests {
     #[test]
     fn session_facts() {
         let s = session(&mut |_| {});
-        assert_eq!(s.accepted, 3);
-        assert_eq!(s.rejected, 5);
+        assert_eq!(s.accepted, 4);
+        assert_eq!(s.rejected, 6);
         assert_eq!(s.rejected_but_changed, 0);
         assert_eq!(s.unexpected_results, 0);
         assert_eq!(s.unsafe_outputs, 0);
-        assert_eq!(s.records, s.steps + 8);
+        assert_eq!(s.records, s.steps + 10);
     }
 
     #[test]
@@ -548,10 +610,22 @@ mod tests {
     }
 
     #[test]
+    fn arm_phase_runs_the_series_and_the_residual_table() {
+        let arm = check(&arm_series_residual()).unwrap();
+        let plain = check(&trunk_table_fused()).unwrap();
+        let g = |p, o2: f32| crate::control::gravity(p, 0.8, &[0.3, -0.4, o2]);
+        // Only the series reads the third other joint; the table differs as well.
+        assert!(g(&arm, 0.7) != g(&arm, -0.2));
+        assert_eq!(g(&plain, 0.7).to_bits(), g(&plain, -0.2).to_bits());
+        assert!(arm.table().residual && !plain.table().residual);
+    }
+
+    #[test]
     fn builders_pass_check_and_rejects_fail() {
-        for raw in [trunk_right(), friction_weight_only(), trunk_spring(), trunk_table_fused()] {
+        for raw in [trunk_right(), friction_weight_only(), trunk_spring(), trunk_table_fused(), arm_series_residual()] {
             assert!(check(&raw).is_ok());
         }
+        assert!(check(&arm_series_bad_multiplier()).is_err());
         for (name, raw) in rejected_sets().iter() {
             assert!(check(raw).is_err(), "{name} was accepted");
         }
