@@ -30,7 +30,8 @@ pub mod watch;
     long_about = "Host tool for the exoskeleton/robot-arm joint boards.\n\n\
         Files: a joint log is a CSV (t, q, qd, qdd, u, tau, temp, q_<joint> columns, SI units); \
         a model is a TOML with [friction], [weight], [inertia], [offset], [spring], \
-        [gravity_table], [compensation] sections, optionally [controller] and the effect terms \
+        [gravity_table], [compensation] sections, optionally [controller], [gravity_series] \
+        (a multi-angle sine series, docs/arm-gravity.md) and the effect terms \
         the joint can compensate ([stribeck], [asymmetric_friction], [position_ripple], \
         [cable_spring], [dry_friction]); a plant is a model plus the unmodelled \
         effects and sensor noise of a simulated joint. See shared/spec/formats.md.",
