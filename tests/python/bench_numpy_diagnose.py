@@ -6,7 +6,9 @@ the CSV, smooth q̇ (±5 ms), tag regimes, split into 20 interleaved blocks (6 h
 guards, 10 units per held-out block), refit the model's terms by least squares, search every
 effect's shape on 20 000 thinned training rows (same grids and golden-section steps), fit each
 candidate on ≤ 150 000 training rows, score on the held-out rows per unit and regime, test with
-the same two unit t-tests, run forward selection, and compute the residual correlations.
+the same two unit t-tests, run forward selection, and compute the residual correlations. The
+final fits remove the logged q̈'s white-noise variance from its normal equation (errors in
+variables), as the Rust code does, and the floor margin is then 1.02.
 
 Usage: bench_numpy_diagnose.py [--lstsq] LOG.csv MODEL.toml   (prints timings and the verdict)
   --lstsq: every grid point solved with np.linalg.lstsq on the full design (how a plain NumPy
@@ -21,7 +23,7 @@ import tomllib
 import numpy as np
 from scipy import stats
 
-ALPHA, MIN_GAIN, AT_FLOOR = 0.05, 0.02, 1.05
+ALPHA, MIN_GAIN = 0.05, 0.02
 NAIVE = False
 
 
@@ -201,12 +203,20 @@ def main(log_path, model_path):
         rsse = (M[:, hold] * r2).sum(1)
         return {"effects": effects, "beta": beta, "mse": r2.mean(), "usse": usse, "un": un, "rsse": rsse}
 
+    # white noise on the logged q̈ (column 0 of X): (1.4826·median|Δq̈|)²/2, upper median as in Rust
+    dq = np.abs(np.diff(qdd))
+    qdd_nv = (1.4826 * np.partition(dq, len(dq) // 2)[len(dq) // 2]) ** 2 / 2
+    at_floor_k = 1.02 if qdd_nv > 0 else 1.05
+
     def fit_score(effects):
         A, yy = design(effects, fit_idx)
-        sc = np.linalg.norm(A, axis=0)
-        sc[sc == 0] = 1
-        coef, *_ = np.linalg.lstsq(A / sc, yy, rcond=None)
-        return score(effects, coef / sc)
+        G, bv = A.T @ A, A.T @ yy
+        noise = len(fit_idx) * qdd_nv
+        if 0 < noise < 0.5 * G[0, 0]:
+            G[0, 0] -= noise
+        dg = np.sqrt(np.maximum(np.diag(G), 1e-300))
+        z = np.linalg.solve(G / np.outer(dg, dg) + 1e-12 * np.eye(len(dg)), bv / dg)
+        return score(effects, z / dg)
 
     def compare(ref, cand):
         ok = (ref["un"] > 0) & (ref["usse"] > 0) & (cand["usse"] > 0)
@@ -293,7 +303,7 @@ def main(log_path, model_path):
     alpha_each = ALPHA / (len(kinds) + 3)
     m0 = score([], beta0)
     refit = fit_score([])
-    at_floor = math.sqrt(m0["mse"]) <= AT_FLOOR * floor
+    at_floor = math.sqrt(m0["mse"]) <= at_floor_k * floor
     p, g = compare(m0, refit)
     refit_sig = (not at_floor) and p < alpha_each and g >= MIN_GAIN
     cands = []
@@ -307,7 +317,7 @@ def main(log_path, model_path):
     if sig:
         cur = min(sig, key=lambda cd: cd[1]["mse"])
         chosen.append(cur)
-        while len(chosen) < 3 and math.sqrt(cur[1]["mse"]) > AT_FLOOR * floor:
+        while len(chosen) < 3 and math.sqrt(cur[1]["mse"]) > at_floor_k * floor:
             effs = cur[1]["effects"]
             nxt = []
             A, yy = design(effs, grid_idx)

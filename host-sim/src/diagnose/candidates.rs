@@ -38,6 +38,25 @@ pub struct Data {
     pub ws: f64,
     pub wsin: Vec<f64>,
     pub wcos: Vec<f64>,
+    /// variance of the white noise on the log's own `qdd` column (0 when q̈ was derived here):
+    /// the final fits remove its share from the q̈ column's Gram diagonal, so the inertia is not
+    /// shrunk by the noise in its regressor (errors in variables)
+    pub qdd_noise_var: f64,
+}
+
+/// Variance of white noise on a sampled signal from its first differences, robustly:
+/// `(1.4826·median|Δx|)² / 2`. A smooth signal adds almost nothing to the differences at the
+/// sampling rate, so what is left is the noise; coloured (filtered) noise differs less from
+/// sample to sample and is under-estimated, so the correction it feeds errs on the small side.
+pub fn white_noise_var(x: &[f64]) -> f64 {
+    let mut d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|v| v.is_finite()).collect();
+    if d.len() < 10 {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    let sigma = 1.4826 * *m;
+    sigma * sigma / 2.0
 }
 
 /// Where a thermal candidate reads its temperature.
