@@ -28,7 +28,7 @@ const TWO_OVER_PI: f32 = core::f32::consts::FRAC_2_PI;
 const REDUCED_MAX: f32 = 0.8;
 
 /// `(r, quadrant)` with `x = quadrant·π/2 + r`, `|r| ≤ π/4` (for |x| up to ~1e4; beyond that the
-/// reduction loses accuracy but stays finite and deterministic).
+/// reduction loses accuracy but stays finite and deterministic, up to ~2e9, see [`sin_huge`]).
 #[inline(always)]
 fn reduce(x: f32) -> (f32, i32) {
     // `as i32` saturates and maps NaN to 0: never UB, never a panic.
@@ -55,15 +55,8 @@ fn cos_poly(r: f32) -> f32 {
         + 1.0
 }
 
-/// sin(x) in single precision, identical bits on every IEEE-754 target.
-#[inline]
-pub fn sin(x: f32) -> f32 {
-    let (r, k) = reduce(x);
-    if abs(r) > REDUCED_MAX {
-        // |x| beyond ~2e9: the quadrant count saturated. Never reached from the control step
-        // (inputs are clamped); libm is exact there, just slower.
-        return libm::sinf(x);
-    }
+#[inline(always)]
+fn sin_quadrant(r: f32, k: i32) -> f32 {
     match k & 3 {
         0 => sin_poly(r),
         1 => cos_poly(r),
@@ -72,19 +65,55 @@ pub fn sin(x: f32) -> f32 {
     }
 }
 
-/// cos(x) in single precision, identical bits on every IEEE-754 target.
-#[inline]
-pub fn cos(x: f32) -> f32 {
-    let (r, k) = reduce(x);
-    if abs(r) > REDUCED_MAX {
-        return libm::cosf(x);
-    }
+#[inline(always)]
+fn cos_quadrant(r: f32, k: i32) -> f32 {
     match k & 3 {
         0 => cos_poly(r),
         1 => -sin_poly(r),
         2 => -cos_poly(r),
         _ => sin_poly(r),
     }
+}
+
+/// sin of an argument beyond the reduction's range (|x| ≳ 2e9 rad, the quadrant count
+/// saturated): x is first taken modulo the f32 value of 2π (`fmodf` is exact and integer code,
+/// so still the same bits everywhere). The result is finite and in [−1, 1] but no longer a
+/// sine: 2π's rounding in f32 times |x|/2π swamps it. No input of the control step gets there
+/// (angles are clamped); `libm::sinf`/`cosf`, exact there, cost 4.3 KiB of the board's flash
+/// for that unreachable path. Out of line and cold, so the common path is a plain tail call.
+#[cold]
+#[inline(never)]
+fn sin_huge(x: f32) -> f32 {
+    let (r, k) = reduce(libm::fmodf(x, core::f32::consts::TAU));
+    sin_quadrant(r, k)
+}
+
+/// cos of an argument beyond the reduction's range; see [`sin_huge`].
+#[cold]
+#[inline(never)]
+fn cos_huge(x: f32) -> f32 {
+    let (r, k) = reduce(libm::fmodf(x, core::f32::consts::TAU));
+    cos_quadrant(r, k)
+}
+
+/// sin(x) in single precision, identical bits on every IEEE-754 target.
+#[inline]
+pub fn sin(x: f32) -> f32 {
+    let (r, k) = reduce(x);
+    if abs(r) > REDUCED_MAX {
+        return sin_huge(x);
+    }
+    sin_quadrant(r, k)
+}
+
+/// cos(x) in single precision, identical bits on every IEEE-754 target.
+#[inline]
+pub fn cos(x: f32) -> f32 {
+    let (r, k) = reduce(x);
+    if abs(r) > REDUCED_MAX {
+        return cos_huge(x);
+    }
+    cos_quadrant(r, k)
 }
 
 #[inline(always)]

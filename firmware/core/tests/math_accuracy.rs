@@ -57,3 +57,19 @@ fn sign_smooth_and_clamp_edge_cases() {
     assert!(!math::is_finite(f32::INFINITY) && !math::is_finite(f32::NAN) && math::is_finite(1e38));
     assert!(math::sin(1e30).is_finite() && math::sin(f32::MAX).is_finite());
 }
+
+/// Beyond |x| ≈ 3.4e9 rad the quadrant count saturates; sin/cos then reduce modulo f32 2π
+/// (`fmodf`, exact) instead of linking libm's large-argument sinf/cosf (4.3 KiB of flash):
+/// finite, bounded, a consistent sin/cos pair, and the same as the wrapped argument gives.
+#[test]
+fn huge_arguments_stay_finite_bounded_and_consistent() {
+    for &x in &[1.0e10f32, -1.0e10, 1.0e30, -1.0e30, f32::MAX, f32::MIN] {
+        let (s, c) = (math::sin(x), math::cos(x));
+        assert!(math::abs(s) <= 1.0 && math::abs(c) <= 1.0, "{x}: {s} {c}");
+        assert!(math::abs(s * s + c * c - 1.0) < 1e-6, "{x}");
+        let w = libm::fmodf(x, core::f32::consts::TAU);
+        assert_eq!(s.to_bits(), math::sin(w).to_bits(), "{x}");
+        assert_eq!(c.to_bits(), math::cos(w).to_bits(), "{x}");
+    }
+    assert!(math::sin(f32::INFINITY).is_nan() && math::cos(f32::NEG_INFINITY).is_nan() && math::sin(f32::NAN).is_nan());
+}

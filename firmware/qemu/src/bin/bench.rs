@@ -235,7 +235,7 @@ fn run() -> i32 {
     let t = table.terms();
     let tbl = table.table();
     let comps: [(&str, u32); 7] = [
-        ("math::sin (libm sinf)", each(&inp, |i| joint_core::math::sin(i.q))),
+        ("math::sin (core f32 routine)", each(&inp, |i| joint_core::math::sin(i.q))),
         ("Friction::torque", each(&inp, |i| t.friction.torque(i.qd))),
         ("Weight::torque", each(&inp, |i| t.weight.torque(i.q))),
         ("table::interpolate (2-D, one value array)", each(&inp, |i| {
