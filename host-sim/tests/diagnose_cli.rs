@@ -156,6 +156,41 @@ fn trajectory_mode_finds_stribeck_in_a_free_oscillation() {
     assert!(v["verdict"]["shrink"].as_f64().unwrap() > 0.5);
 }
 
+/// A released elastic joint with Coulomb friction is at rest after ~1.3 s of a 4 s log. The rest
+/// stretch (both in the log and in the model) is left out, so the held-out part is motion: the
+/// withheld backlash is found (with the rest in the held-out part, it was the rest that got
+/// tested and the verdict was wrong), and the exact model is still `none`.
+#[test]
+fn trajectory_mode_leaves_out_a_trailing_rest_and_finds_backlash() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = "[spring]\nk = 7.3035\nb = 0.0416\nq0 = 0.0\n[inertia]\nj = 0.0085\n[friction]\nc = 0.01\n";
+    let sensors = "[joint_range]\nmin = -0.5236\nmax = 0.5236\n[sensors]\nq_resolution = 0.001534\n";
+    let mf = ModelFile::parse(model, "m").unwrap();
+    let m = dir.path().join("m.toml");
+    std::fs::write(&m, model).unwrap();
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Free],
+        seconds: 4.0,
+        rate: Some(1000.0),
+        range: Some((-0.5236, 0.5236)),
+        torque_columns: false,
+        ..SimConfig::default()
+    };
+    for (effect, expect) in [("[backlash]\nwidth = 0.03\n", "backlash"), ("", "none")] {
+        let plant = PlantFile::parse(&format!("{model}{effect}{sensors}"), "p").unwrap();
+        let (log, _) = simulate(&plant, &mf.param_set().unwrap(), &cfg).unwrap();
+        let l = dir.path().join(format!("free-{expect}.csv"));
+        log.write_file(&l).unwrap();
+        let v = run_json(&l, &m, &[]);
+        assert_eq!(v["mode"], "trajectory");
+        let tail = &v["split"]["rest_tail"];
+        let left_out = tail["samples"].as_u64().unwrap();
+        assert!(left_out > 2000 && tail["from_t"].as_f64().unwrap() < 2.0, "{tail}");
+        assert_eq!(v["samples"].as_u64().unwrap(), v["split"]["train"].as_u64().unwrap() + v["split"]["holdout"].as_u64().unwrap() + left_out);
+        assert_eq!(v["verdict"]["effect"], expect, "{}", v["effects"]);
+    }
+}
+
 /// Runs diagnose expecting failure; asserts the message contains every `needle` and that none
 /// of the output files exist.
 fn refused(log: &Path, model: &Path, needles: &[&str]) {

@@ -71,6 +71,9 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
 fn print_summary(r: &diagnose::Report, secs: f64) {
     let u = r.gap.unit;
     println!("{} mode, {} samples ({} train / {} held out, {}), {:.2} s", r.mode, r.samples, r.split.train, r.split.holdout, r.split.method, secs);
+    if let Some(rt) = &r.split.rest_tail {
+        println!("  the last {} samples (from t = {:.3} s) left out: the log and the model are both at rest there", rt.samples, rt.from_t);
+    }
     println!(
         "gap: RMSE {:.4} {u} (held out {:.4}), noise floor ≈ {:.4} {u}",
         r.gap.rmse, r.gap.holdout_rmse, r.gap.noise_floor

@@ -65,6 +65,18 @@ pub struct SplitInfo {
     pub held_blocks: Vec<usize>,
     pub guard_samples: usize,
     pub test_units: usize,
+    /// optional (trajectory mode): a trailing stretch where neither the log nor the model moves,
+    /// left out of the split so the held-out part is motion, not rest
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rest_tail: Option<RestTail>,
+}
+
+/// The trailing rest left out of a trajectory-mode analysis.
+#[derive(Clone, Debug, Serialize)]
+pub struct RestTail {
+    /// time of the first sample left out, s
+    pub from_t: f64,
+    pub samples: usize,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -757,6 +769,7 @@ fn build_report(
             held_blocks: (0..split.blocks).filter(|b| matches!(b % 10, 2 | 5 | 8)).map(|b| b + 1).collect(),
             guard_samples: split.guard,
             test_units: split.n_units,
+            rest_tail: None,
         },
         gap: Gap {
             rmse: (total / d.n as f64).sqrt(),

@@ -199,7 +199,89 @@ fn score_traj(sim_q: &[f64], q: &[f64], hold_from: usize, units: usize, bits: &[
     s
 }
 
+/// Index after which neither `a` nor `b` moves any more: both stay within 2 % of their own range
+/// of their final value (the median of the last 2 %). `None` when either never settles.
+fn settled_from(a: &[f64], b: &[f64]) -> Option<usize> {
+    let last_moving = |x: &[f64]| -> Option<usize> {
+        let n = x.len();
+        let k = (n / 50).max(10).min(n);
+        let mut tail: Vec<f64> = x[n - k..].to_vec();
+        tail.sort_by(|p, q| p.total_cmp(q));
+        let end = tail[k / 2];
+        let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+        let thr = 0.02 * (hi - lo);
+        if !(thr > 0.0) {
+            return Some(0);
+        }
+        Some(x.iter().rposition(|&v| (v - end).abs() > thr).map_or(0, |i| i + 1))
+    };
+    Some(last_moving(a)?.max(last_moving(b)?))
+}
+
+/// Trajectory mode. A free response usually ends at rest; when the last stretch of the log is
+/// rest in the data **and** in the model's simulation (≥ 30 % of the log), it carries nothing
+/// to test and would make the held-out part (the last 30 %) empty of motion, so the analysis
+/// keeps the samples up to the end of motion plus a margin (10 % of that or 0.25 s, whichever
+/// is longer, so where each comes to rest still counts) and says so in `split.rest_tail`.
 pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Options) -> Result<Diagnosis, DiagError> {
+    let n = log.len();
+    if let Some(m0_sim) = model_free_response(log, model) {
+        if let Some(moving_until) = settled_from(&log.q, &m0_sim) {
+            let dt = super::median_dt(&log.t);
+            let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
+            let keep = moving_until.saturating_add(margin);
+            if moving_until >= 100 && keep < n && (n - keep) as f64 >= 0.3 * n as f64 {
+                let cut = truncated(log, keep);
+                let mut d = diagnose_window(&cut, model, params, opts)?;
+                d.report.samples = n;
+                d.report.split.rest_tail = Some(super::RestTail { from_t: log.t[keep], samples: n - keep });
+                return Ok(d);
+            }
+        }
+    }
+    diagnose_window(log, model, params, opts)
+}
+
+/// The first `keep` samples of a log.
+fn truncated(log: &JointLog, keep: usize) -> JointLog {
+    let cut = |v: &Option<Vec<f64>>| v.as_ref().map(|x| x[..keep].to_vec());
+    JointLog {
+        t: log.t[..keep].to_vec(),
+        q: log.q[..keep].to_vec(),
+        qd: cut(&log.qd),
+        qdd: cut(&log.qdd),
+        u: cut(&log.u),
+        tau: cut(&log.tau),
+        temp: cut(&log.temp),
+        others: log.others.iter().map(|(k, v)| (k.clone(), v[..keep].to_vec())).collect(),
+        unknown: log.unknown.clone(),
+    }
+}
+
+/// The file's model integrated over the whole log from its first sample (`None` if it cannot be).
+fn model_free_response(log: &JointLog, model: &ModelFile) -> Option<Vec<f64>> {
+    let j = model.value(ParamId::InertiaJ);
+    if !(j > 0.0) || log.len() < 3 {
+        return None;
+    }
+    let dt = super::median_dt(&log.t);
+    let (qd_raw, _) = super::velocities(log, dt);
+    let base = base_from_model(model);
+    let cols: Vec<Col> = base.cols.iter().copied().filter(|c| *c != Col::Qdd).collect();
+    let beta0: Vec<f64> = base.cols.iter().zip(&base.beta0).filter(|(c, _)| **c != Col::Qdd).map(|(_, b)| *b).collect();
+    let sim = Sim {
+        t: &log.t,
+        u: log.u.as_deref(),
+        j,
+        band: model.value(ParamId::FrictionVBand),
+        q0: model.value(ParamId::SpringQ0),
+        cols,
+        init: (log.q[0], qd_raw[0]),
+    };
+    sim.run(TKind::Parameters, &beta0, log.len())
+}
+
+fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Options) -> Result<Diagnosis, DiagError> {
     let _ = (params, opts);
     let n = log.len();
     let dt = super::median_dt(&log.t);
@@ -462,6 +544,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Opt
             held_blocks: vec![],
             guard_samples: 0,
             test_units: units,
+            rest_tail: None,
         },
         gap: Gap {
             rmse: (total / n as f64).sqrt(),
