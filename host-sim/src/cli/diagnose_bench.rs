@@ -23,9 +23,14 @@ pub struct DiagnoseBenchArgs {
     /// Random seed for plants, effect sizes, noise and scenarios
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Seconds per scenario (three scenarios per log, at 1 kHz)
+    /// Seconds per scenario (three scenarios per log, at 1 kHz; torque mode only: a free
+    /// response lasts 2–4 s)
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
+    /// Which mode the logs are diagnosed in: `torque` (sweeps, holds, hand motion with u and
+    /// tau logged) or `trajectory` (free responses of an elastic joint, angles only)
+    #[arg(long, default_value = "torque", value_parser = ["torque", "trajectory"])]
+    pub mode: String,
     /// Write the full bench report (every case, the confusion matrix) as JSON here
     #[arg(long, value_name = "OUT.json")]
     pub json: Option<PathBuf>,
@@ -42,7 +47,8 @@ pub fn run(a: &DiagnoseBenchArgs) -> anyhow::Result<()> {
     if let Some(d) = &a.dump {
         std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create", d.display()))?;
     }
-    let rep = bench::run(a.cases, a.seed, a.seconds, a.dump.as_deref(), |r| {
+    let mode = if a.mode == "trajectory" { bench::Mode::Trajectory } else { bench::Mode::Torque };
+    let rep = bench::run_mode(mode, a.cases, a.seed, a.seconds, a.dump.as_deref(), |r| {
         eprintln!(
             "case {:>3}: {:<8} truth {:<40} → {:<40} {} ({:.2} s)",
             r.case,

@@ -10,6 +10,10 @@
 //! so any `--cases` ≥ 13 covers them all. The diagnosis gets only the log and the model: it does
 //! not know the case kind, the plant, or the noise.
 //!
+//! `--mode trajectory` draws free responses instead: an elastic joint of the elastic-joint
+//! paper's size released from 0.2–0.4 rad, only angles logged, with one of the effects a free
+//! response can show (see [`TRAJ_KINDS`]) or none, or its damping and stiffness off.
+//!
 //! Scoring: a case is correct when the set of effects the diagnosis reports (forward selection,
 //! or `parameters`, or `none`) equals the withheld set. An over-claim is a `none` case reported
 //! as anything else.
@@ -43,6 +47,30 @@ pub const KINDS: [&str; 13] = [
     "none",
 ];
 
+/// Case kinds of the trajectory-mode bench (free responses: no `u`/`tau` columns), in the order
+/// they cycle. Effects that need an input or a load (load-dependent friction, delay) or a
+/// temperature are not among them: a free response with `u = 0` carries no trace of them.
+pub const TRAJ_KINDS: [&str; 9] = [
+    "none",
+    "stribeck",
+    "asymmetric_friction",
+    "position_ripple",
+    "cable_spring",
+    "backlash",
+    "dry_friction",
+    "parameters",
+    "none",
+];
+
+/// Which mode the bench's logs are diagnosed in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// joints driven through sweeps, holds and hand motion, with `u` and `tau` logged
+    Torque,
+    /// an elastic joint released from an angle, only `q`, `qd`, `qdd` logged
+    Trajectory,
+}
+
 /// Effects that pairs are drawn from (each identifiable in torque mode on a rigid joint).
 const PAIRABLE: [&str; 6] = ["stribeck", "load_dependent_friction", "position_ripple", "cable_spring", "delay", "thermal_drift"];
 
@@ -54,6 +82,7 @@ pub struct CaseResult {
     pub correct: bool,
     pub joint: &'static str,
     pub scenarios: String,
+    /// the log's noise level: torque noise (N·m) in torque mode, angle noise (rad) in trajectory mode
     pub tau_noise: f64,
     pub effect_sections: String,
     pub holdout_rmse_before: f64,
@@ -149,7 +178,99 @@ fn effect_section(kind: &str, rng: &mut ChaCha8Rng, range: (f64, f64), rate: f64
     }
 }
 
+/// An elastic joint of the elastic-joint paper's size, for free responses: `J·q̈ + B·q̇ +
+/// c·sgn(q̇) + K·q = 0` (ω ≈ 20–40 rad/s). `coulomb = false`: no Coulomb term in the model.
+fn free_joint(rng: &mut ChaCha8Rng, coulomb: bool) -> (Joint, f64) {
+    let k = rng.random_range(5.0..10.0);
+    let kb = rng.random_range(0.02..0.06);
+    let j = rng.random_range(0.006..0.012);
+    let c = rng.random_range(0.005..0.015);
+    let mut m = format!("[inertia]\nj = {j}\n\n[spring]\nk = {k}\nb = {kb}\nq0 = 0.0\n");
+    if coulomb {
+        m += &format!("\n[friction]\nc = {c}\n");
+    }
+    (Joint { name: if coulomb { "free" } else { "free_no_coulomb" }, model: m, plant_model: None, range: (-0.5, 0.5) }, c)
+}
+
+/// The plant section of one effect in a free response, sized against the joint's Coulomb level
+/// `c` and spring torque (K·0.3 rad ≈ 1.5–3 N·m).
+fn free_effect_section(kind: &str, rng: &mut ChaCha8Rng, c: f64) -> String {
+    match kind {
+        "stribeck" => format!("[stribeck]\nlevel = {}\nspeed = {}\n", c * rng.random_range(1.0..3.0), rng.random_range(0.1..0.5)),
+        "asymmetric_friction" => {
+            let s = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            format!("[asymmetric_friction]\ndelta = {}\n", s * c * rng.random_range(0.5..1.0))
+        }
+        "position_ripple" => format!(
+            "[position_ripple]\namplitude = {}\nperiod = {}\nphase = {}\n",
+            rng.random_range(0.02..0.06),
+            rng.random_range(0.03..0.1),
+            rng.random_range(-3.0..3.0)
+        ),
+        "cable_spring" => format!("[cable_spring]\nk = {}\nengage = {}\n", rng.random_range(1.0..3.0), rng.random_range(0.05..0.2)),
+        "backlash" => format!("[backlash]\nwidth = {}\n", rng.random_range(0.02..0.06)),
+        "dry_friction" => format!("[dry_friction]\nc = {}\n", rng.random_range(0.01..0.03)),
+        _ => String::new(),
+    }
+}
+
+/// One trajectory-mode case: the joint released from 0.2–0.4 rad, 2–4 s logged at 1 kHz.
+fn run_traj_case(case: usize, seed: u64) -> Result<(CaseResult, JointLog, ModelFile), String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ case as u64);
+    let kind = TRAJ_KINDS[case % TRAJ_KINDS.len()];
+    let (mut joint, c) = free_joint(&mut rng, kind != "dry_friction");
+    if kind == "parameters" {
+        let text = joint.model.clone();
+        let scale = |key: &str, f: f64, t: &str| -> String {
+            t.lines()
+                .map(|l| match l.strip_prefix(&format!("{key} = ")) {
+                    Some(v) => format!("{key} = {}", v.parse::<f64>().unwrap_or(0.0) * f),
+                    None => l.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+                + "\n"
+        };
+        let t = scale("b", rng.random_range(1.5..2.0), &text);
+        let t = scale("k", rng.random_range(0.9..0.95), &t);
+        joint.plant_model = Some(t);
+    }
+    let q_noise = rng.random_range(0.0001..0.0005);
+    let sensors = format!("[sensors]\nq_noise = {q_noise}\nqd_noise = {}\nqdd_noise = 0.5\n", rng.random_range(0.002..0.01));
+    let effects = free_effect_section(kind, &mut rng, c);
+    let plant_text = format!(
+        "{}\n{effects}\n{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
+        joint.plant_model.as_ref().unwrap_or(&joint.model),
+        joint.range.0,
+        joint.range.1
+    );
+    let plant = PlantFile::parse(&plant_text, "bench-plant").map_err(|e| format!("case {case}: {e}\n{plant_text}"))?;
+    let model = ModelFile::parse(&joint.model, "bench-model").map_err(|e| format!("case {case}: {e}"))?;
+    let ctrl = model.param_set().map_err(|e| e.to_string())?;
+    let start = rng.random_range(0.2..0.4) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Free],
+        seconds: rng.random_range(2.0..4.0),
+        seed: seed ^ (case as u64).wrapping_mul(7919),
+        rate: Some(1000.0),
+        plant_rate: 10_000.0,
+        range: Some(joint.range),
+        free_start: Some(start),
+        torque_columns: false,
+    };
+    let (log, _) = simulate(&plant, &ctrl, &cfg).map_err(|e| format!("case {case}: {e}"))?;
+    score_case(case, kind, vec![kind.to_string()], joint.name, "free".into(), q_noise, effects, log, model)
+}
+
 /// Builds and runs one case; `Err` only for a bench bug (a plant that does not parse).
+pub fn run_case_in(mode: Mode, case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, JointLog, ModelFile), String> {
+    match mode {
+        Mode::Torque => run_case(case, seed, seconds),
+        Mode::Trajectory => run_traj_case(case, seed),
+    }
+}
+
+/// Builds and runs one torque-mode case; `Err` only for a bench bug (a plant that does not parse).
 pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, JointLog, ModelFile), String> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ case as u64);
     let kind = KINDS[case % KINDS.len()];
@@ -229,6 +350,23 @@ pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, Joi
         torque_columns: true,
     };
     let (log, _) = simulate(&plant, &ctrl, &cfg).map_err(|e| format!("case {case}: {e}"))?;
+    let scen = scenarios.iter().map(|s| format!("{s:?}").to_lowercase()).collect::<Vec<_>>().join(",");
+    score_case(case, kind, truth, joint.name, scen, tau_noise, effects, log, model)
+}
+
+/// Diagnoses one case's log blind and scores it against the withheld set.
+#[allow(clippy::too_many_arguments)]
+fn score_case(
+    case: usize,
+    kind: &str,
+    truth: Vec<String>,
+    joint: &'static str,
+    scenarios: String,
+    noise: f64,
+    effects: String,
+    log: JointLog,
+    model: ModelFile,
+) -> Result<(CaseResult, JointLog, ModelFile), String> {
     let t0 = std::time::Instant::now();
     let d = super::diagnose(&log, &model, &super::Options::default()).map_err(|e| format!("case {case}: {e}"))?;
     let seconds_taken = t0.elapsed().as_secs_f64();
@@ -248,9 +386,9 @@ pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, Joi
         correct: truth_label == pred_label,
         truth: truth_label,
         predicted: pred_label,
-        joint: joint.name,
-        scenarios: scenarios.iter().map(|s| format!("{s:?}").to_lowercase()).collect::<Vec<_>>().join(","),
-        tau_noise,
+        joint,
+        scenarios,
+        tau_noise: noise,
         effect_sections: effects.replace('\n', " ").trim().to_string(),
         holdout_rmse_before: r.verdict.holdout_rmse_before,
         shrink,
@@ -260,8 +398,20 @@ pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, Joi
     Ok((res, log, model))
 }
 
-/// Runs `cases` cases with `seed`; `seconds` per scenario (three scenarios per log).
+/// Runs `cases` torque-mode cases with `seed`; `seconds` per scenario (three scenarios per log).
 pub fn run(
+    cases: usize,
+    seed: u64,
+    seconds: f64,
+    dump: Option<&std::path::Path>,
+    progress: impl FnMut(&CaseResult),
+) -> Result<BenchReport, String> {
+    run_mode(Mode::Torque, cases, seed, seconds, dump, progress)
+}
+
+/// Runs `cases` cases of `mode` with `seed` (`seconds` only applies to torque mode).
+pub fn run_mode(
+    mode: Mode,
     cases: usize,
     seed: u64,
     seconds: f64,
@@ -270,7 +420,7 @@ pub fn run(
 ) -> Result<BenchReport, String> {
     let mut out = Vec::with_capacity(cases);
     for c in 0..cases {
-        let (r, log, model) = run_case(c, seed, seconds)?;
+        let (r, log, model) = run_case_in(mode, c, seed, seconds)?;
         if let Some(dir) = dump {
             log.write_file(&dir.join(format!("case-{c}.csv"))).map_err(|e| e.to_string())?;
             let text = format!("# bench case {c}: withheld {} ({})\n{}", r.truth, r.effect_sections, model.to_toml_string());

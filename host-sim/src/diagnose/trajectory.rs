@@ -317,15 +317,32 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
     let r0: Vec<f64> = log.q.iter().zip(&m0_sim).map(|(a, b)| a - b).collect();
     let floor = super::noise_floor(&r0);
 
-    // LM fit of one kind from several starts; residuals on the training samples only.
+    let qmin = log.q.iter().take(hold_from).copied().fold(f64::INFINITY, f64::min);
+    let qmax = log.q.iter().take(hold_from).copied().fold(f64::NEG_INFINITY, f64::max);
+    let span = (qmax - qmin).max(1e-3);
+    // Ripple periods searched: short (gear mesh, cogging, wave generator: ≤ 0.2 rad) and at
+    // least three periods inside the angles travelled, as in torque mode.
+    let ripple_max = (span / 3.0).min(0.2);
+    // LM fit of one kind from several starts; residuals on the training samples only. With many
+    // starts (a searched period) each gets 4 iterations first and only the 3 best go on.
+    let lm = |kind: TKind, th0: &[f64], iters: usize| {
+        let steps: Vec<f64> = th0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
+        levenberg_marquardt(th0, &steps, iters, |th| {
+            let s = sim.run(kind, th, hold_from)?;
+            Some(train_idx.iter().map(|&i| s[i] - log.q[i]).collect())
+        })
+    };
     let fit = |kind: TKind, starts: Vec<Vec<f64>>| -> Option<Fitted> {
+        let starts = if starts.len() > 4 {
+            let mut pre: Vec<(Vec<f64>, f64)> = starts.iter().filter_map(|th0| lm(kind, th0, 4)).collect();
+            pre.sort_by(|a, b| a.1.total_cmp(&b.1));
+            pre.into_iter().take(3).map(|(th, _)| th).collect()
+        } else {
+            starts
+        };
         let mut best: Option<(Vec<f64>, f64)> = None;
         for th0 in starts {
-            let steps: Vec<f64> = th0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
-            let r = levenberg_marquardt(&th0, &steps, 30, |th| {
-                let s = sim.run(kind, th, hold_from)?;
-                Some(train_idx.iter().map(|&i| s[i] - log.q[i]).collect())
-            });
+            let r = lm(kind, &th0, 30);
             if let Some((th, c)) = r {
                 if best.as_ref().map(|b| c < b.1).unwrap_or(true) {
                     best = Some((th, c));
@@ -333,6 +350,10 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
             }
         }
         let (theta, _) = best?;
+        // A period that ran off its range is no ripple (a huge period is a constant torque).
+        if kind == TKind::Ripple && !theta.get(cols.len() + 2).is_some_and(|lp| (0.01..=1.5 * ripple_max).contains(&lp.exp())) {
+            return None;
+        }
         let s = sim.run(kind, &theta, n)?;
         let scored = score_traj(&s, &log.q, hold_from, units, &regimes.bits, nreg, theta.clone());
         Some(Fitted { kind, theta, sim: s, scored })
@@ -345,16 +366,22 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
         v.extend_from_slice(e);
         v
     };
-    let qmin = log.q.iter().take(hold_from).copied().fold(f64::INFINITY, f64::min);
-    let qmax = log.q.iter().take(hold_from).copied().fold(f64::NEG_INFINITY, f64::max);
-    let span = (qmax - qmin).max(1e-3);
     let has = |c: Col| cols.contains(&c);
     let mut kinds: Vec<(TKind, Vec<Vec<f64>>)> = vec![
         (TKind::InitialState, vec![with(&[log.q[0], qd_raw[0]])]),
         (TKind::Stribeck, [0.02f64, 0.1, 0.5].iter().map(|v| with(&[0.0, v.ln()])).collect()),
         (TKind::Asymmetric, vec![with(&[0.0])]),
         (TKind::Thermal, [0.3f64, 3.0].iter().map(|f| with(&[0.0, (f * (log.t[n - 1] - log.t[0])).ln()])).collect()),
-        (TKind::Ripple, [0.02f64, 0.05, 0.1].iter().filter(|p| **p < span / 2.0).map(|p| with(&[0.01, 0.01, p.ln()])).collect()),
+        // The period is where the fit is multimodal (a start more than ~10 % off locks onto a
+        // wrong period): starts every 15 % from 0.015 rad to `ripple_max`.
+        (
+            TKind::Ripple,
+            (0..40)
+                .map(|i| 0.015 * 1.15f64.powi(i))
+                .take_while(|p| *p <= ripple_max)
+                .map(|p| with(&[0.01, 0.01, p.ln()]))
+                .collect(),
+        ),
         (TKind::Cable, [0.3f64, 0.5, 0.7].iter().map(|f| with(&[0.0, qmin + f * span])).collect()),
     ];
     if has(Col::Q) {
@@ -404,9 +431,14 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
         })
         .collect();
     let best = outcomes.iter().filter(|o| o.4).min_by(|a, b| a.0.scored.mse().total_cmp(&b.0.scored.mse()));
-    // initial_state is tested against the file's model, not the refit: when the refit alone
-    // predicts better, the values are what is wrong, not the start.
-    let best = best.filter(|o| !(o.0.kind == TKind::InitialState && refit_sig && refit.scored.mse() < o.0.scored.mse()));
+    // initial_state is tested against the file's model, not the refit; but its fit refits the
+    // model's values too (it nests the refit), so when the refit is significant on its own the
+    // start must also beat the refit: otherwise the values are what is wrong, not the start.
+    let beats_refit = |f: &Fitted| {
+        let (_, p, g) = compare(&refit.scored, &f.scored);
+        p < alpha_each && g >= MIN_GAIN
+    };
+    let best = best.filter(|o| !(o.0.kind == TKind::InitialState && refit_sig && !beats_refit(o.0)));
     let before = m0.rmse();
     let (vname, vafter, final_fit) = match best {
         Some(o) => (o.0.kind.name().to_string(), o.0.scored.rmse(), Some(o.0)),
