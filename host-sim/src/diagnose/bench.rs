@@ -178,6 +178,33 @@ fn effect_section(kind: &str, rng: &mut ChaCha8Rng, range: (f64, f64), rate: f64
     }
 }
 
+/// The case's plant (the joint's own values, the effects, the sensors, the range), the model the
+/// diagnosis sees, and that model as the controller's parameter set.
+fn files(case: usize, joint: &Joint, effects: &str, sensors: &str) -> Result<(PlantFile, ModelFile, joint_core::params::ParamSet), String> {
+    let plant_text = format!(
+        "{}\n{effects}{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
+        joint.plant_model.as_ref().unwrap_or(&joint.model),
+        joint.range.0,
+        joint.range.1
+    );
+    let plant = PlantFile::parse(&plant_text, "bench-plant").map_err(|e| format!("case {case}: {e}\n{plant_text}"))?;
+    let model = ModelFile::parse(&joint.model, "bench-model").map_err(|e| format!("case {case}: {e}"))?;
+    let ctrl = model.param_set().map_err(|e| e.to_string())?;
+    Ok((plant, model, ctrl))
+}
+
+/// `text` (a model TOML) with every `key = v` line's value multiplied by `f`.
+fn scaled(text: &str, key: &str, f: f64) -> String {
+    text.lines()
+        .map(|l| match l.strip_prefix(&format!("{key} = ")) {
+            Some(v) => format!("{key} = {}", v.parse::<f64>().unwrap_or(0.0) * f),
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n"
+}
+
 /// An elastic joint of the elastic-joint paper's size, for free responses: `J·q̈ + B·q̇ +
 /// c·sgn(q̇) + K·q = 0` (ω ≈ 20–40 rad/s). `coulomb = false`: no Coulomb term in the model.
 fn free_joint(rng: &mut ChaCha8Rng, coulomb: bool) -> (Joint, f64) {
@@ -220,33 +247,13 @@ fn run_traj_case(case: usize, seed: u64) -> Result<(CaseResult, JointLog, ModelF
     let kind = TRAJ_KINDS[case % TRAJ_KINDS.len()];
     let (mut joint, c) = free_joint(&mut rng, kind != "dry_friction");
     if kind == "parameters" {
-        let text = joint.model.clone();
-        let scale = |key: &str, f: f64, t: &str| -> String {
-            t.lines()
-                .map(|l| match l.strip_prefix(&format!("{key} = ")) {
-                    Some(v) => format!("{key} = {}", v.parse::<f64>().unwrap_or(0.0) * f),
-                    None => l.to_string(),
-                })
-                .collect::<Vec<_>>()
-                .join("\n")
-                + "\n"
-        };
-        let t = scale("b", rng.random_range(1.5..2.0), &text);
-        let t = scale("k", rng.random_range(0.9..0.95), &t);
-        joint.plant_model = Some(t);
+        let t = scaled(&joint.model, "b", rng.random_range(1.5..2.0));
+        joint.plant_model = Some(scaled(&t, "k", rng.random_range(0.9..0.95)));
     }
     let q_noise = rng.random_range(0.0001..0.0005);
     let sensors = format!("[sensors]\nq_noise = {q_noise}\nqd_noise = {}\nqdd_noise = 0.5\n", rng.random_range(0.002..0.01));
     let effects = free_effect_section(kind, &mut rng, c);
-    let plant_text = format!(
-        "{}\n{effects}\n{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
-        joint.plant_model.as_ref().unwrap_or(&joint.model),
-        joint.range.0,
-        joint.range.1
-    );
-    let plant = PlantFile::parse(&plant_text, "bench-plant").map_err(|e| format!("case {case}: {e}\n{plant_text}"))?;
-    let model = ModelFile::parse(&joint.model, "bench-model").map_err(|e| format!("case {case}: {e}"))?;
-    let ctrl = model.param_set().map_err(|e| e.to_string())?;
+    let (plant, model, ctrl) = files(case, &joint, &effects, &sensors)?;
     let start = rng.random_range(0.2..0.4) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let cfg = SimConfig {
         scenarios: vec![ScenarioKind::Free],
@@ -295,20 +302,8 @@ pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, Joi
     };
     if kind == "parameters" {
         // The plant's viscous and Coulomb levels and inertia differ from the model's.
-        let text = joint.model.clone();
-        let scale = |key: &str, f: f64, t: &str| -> String {
-            t.lines()
-                .map(|l| match l.strip_prefix(&format!("{key} = ")) {
-                    Some(v) => format!("{key} = {}", v.parse::<f64>().unwrap_or(0.0) * f),
-                    None => l.to_string(),
-                })
-                .collect::<Vec<_>>()
-                .join("\n")
-                + "\n"
-        };
-        let t = scale("b", rng.random_range(1.3..1.6), &text);
-        let t = scale("c", rng.random_range(0.5..0.75), &t);
-        joint.plant_model = Some(t);
+        let t = scaled(&joint.model, "b", rng.random_range(1.3..1.6));
+        joint.plant_model = Some(scaled(&t, "c", rng.random_range(0.5..0.75)));
     }
     let rate = 1000.0;
     let tau_noise = rng.random_range(0.03..0.15);
@@ -330,15 +325,7 @@ pub fn run_case(case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, Joi
     ];
     let scenarios = orders[rng.random_range(0..orders.len())].clone();
     let secs = seconds * rng.random_range(0.8..1.2);
-    let plant_text = format!(
-        "{}\n{effects}{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
-        joint.plant_model.as_ref().unwrap_or(&joint.model),
-        joint.range.0,
-        joint.range.1
-    );
-    let plant = PlantFile::parse(&plant_text, "bench-plant").map_err(|e| format!("case {case}: {e}\n{plant_text}"))?;
-    let model = ModelFile::parse(&joint.model, "bench-model").map_err(|e| format!("case {case}: {e}"))?;
-    let ctrl = model.param_set().map_err(|e| e.to_string())?;
+    let (plant, model, ctrl) = files(case, &joint, &effects, &sensors)?;
     let cfg = SimConfig {
         scenarios: scenarios.clone(),
         seconds: secs,

@@ -266,6 +266,13 @@ fn model_free_response(log: &JointLog, model: &ModelFile) -> Option<Vec<f64>> {
     }
     let dt = super::median_dt(&log.t);
     let (qd_raw, _) = super::velocities(log, dt);
+    let (sim, beta0) = model_sim(log, model, j, qd_raw[0]);
+    sim.run(TKind::Parameters, &beta0, log.len())
+}
+
+/// The simulator of the model's own terms (q̈ is its integrated state, not a regressor) from the
+/// log's first angle and `qd0`, and the model's values of those terms.
+fn model_sim<'a>(log: &'a JointLog, model: &ModelFile, j: f64, qd0: f64) -> (Sim<'a>, Vec<f64>) {
     let base = base_from_model(model);
     let cols: Vec<Col> = base.cols.iter().copied().filter(|c| *c != Col::Qdd).collect();
     let beta0: Vec<f64> = base.cols.iter().zip(&base.beta0).filter(|(c, _)| **c != Col::Qdd).map(|(_, b)| *b).collect();
@@ -276,9 +283,9 @@ fn model_free_response(log: &JointLog, model: &ModelFile) -> Option<Vec<f64>> {
         band: model.value(ParamId::FrictionVBand),
         q0: model.value(ParamId::SpringQ0),
         cols,
-        init: (log.q[0], qd_raw[0]),
+        init: (log.q[0], qd0),
     };
-    sim.run(TKind::Parameters, &beta0, log.len())
+    (sim, beta0)
 }
 
 fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Options) -> Result<Diagnosis, DiagError> {
@@ -293,18 +300,8 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
             "trajectory mode integrates the model: its [inertia] j must be > 0 (the log has no u/tau for torque mode)".into(),
         ));
     }
-    let base = base_from_model(model);
-    let cols: Vec<Col> = base.cols.iter().copied().filter(|c| *c != Col::Qdd).collect();
-    let beta0: Vec<f64> = base.cols.iter().zip(&base.beta0).filter(|(c, _)| **c != Col::Qdd).map(|(_, b)| *b).collect();
-    let sim = Sim {
-        t: &log.t,
-        u: log.u.as_deref(),
-        j,
-        band: model.value(ParamId::FrictionVBand),
-        q0: model.value(ParamId::SpringQ0),
-        cols: cols.clone(),
-        init: (log.q[0], qd_raw[0]),
-    };
+    let (sim, beta0) = model_sim(log, model, j, qd_raw[0]);
+    let cols = sim.cols.clone();
     let hold_from = (0.7 * n as f64).round() as usize;
     let units = 20usize.min((n - hold_from) / 5).max(3);
     let regimes = Regimes::build(&log.t, &log.q, &qd, &qdd, log.temp.as_deref(), dt);
