@@ -48,6 +48,9 @@ fn an_exact_model_on_a_long_noisy_log_is_not_a_parameter_change() {
     let refit = r.effects.iter().find(|e| e.effect == "parameters").unwrap();
     println!("verdict {} ; refit {:?} (shrink {:.2} %, p {:.2e})", r.verdict.effect, refit.params, 100.0 * refit.shrink, refit.p_value);
     assert_eq!(r.verdict.effect, "none", "{:?}", r.verdict);
+    // the report says what it corrected for (optional gap.qdd_noise_sd)
+    let sd = r.gap.qdd_noise_sd.unwrap();
+    assert!((sd / QDD_NOISE - 1.0).abs() < 0.1, "q̈ noise sd {sd}");
     // The refitted inertia is not pulled towards zero by the noise (uncorrected: ≈ 5 % low here).
     if let Some(j) = refit.params.get("inertia.j").or_else(|| refit.params.get("j")) {
         assert!((j - 0.4).abs() < 0.01, "refit inertia {j}");

@@ -78,6 +78,9 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
         "gap: RMSE {:.4} {u} (held out {:.4}), noise floor ≈ {:.4} {u}",
         r.gap.rmse, r.gap.holdout_rmse, r.gap.noise_floor
     );
+    if let Some(sd) = r.gap.qdd_noise_sd {
+        println!("  the log's q̈ carries white noise of ≈ {sd:.3} rad/s²: removed from the inertia's fit (errors in variables)");
+    }
     println!("where (share of squared residual, RMSE):");
     for g in &r.regimes {
         println!("  {:<16} {:>6.1} %  {:.4} {u}   {}", g.name, 100.0 * g.share, g.rmse, g.where_);

@@ -87,7 +87,10 @@ pub struct Gap {
     pub unit: &'static str,
     /// optional: the held-out RMSE after the selected effects is at the floor (within 5 %, or
     /// 2 % when the log's own q̈ noise is corrected for)
-    pub at_noise_floor: bool,
+    pub at_noise_floor: bool,    /// optional (torque mode with a logged `qdd`): the white noise estimated on q̈, rad/s²,
+    /// whose variance the fits remove from the inertia's normal equation
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub qdd_noise_sd: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -777,6 +780,7 @@ fn build_report(
             noise_floor: floor,
             unit: "N·m",
             at_noise_floor: final_rmse <= select::at_floor_factor(d) * floor,
+            qdd_noise_sd: (d.qdd_noise_var > 0.0).then(|| d.qdd_noise_var.sqrt()),
         },
         regimes: regimes_out,
         effects,

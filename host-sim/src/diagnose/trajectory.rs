@@ -581,6 +581,7 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
             noise_floor: floor,
             unit: "rad",
             at_noise_floor: vafter <= AT_FLOOR * floor,
+            qdd_noise_sd: None,
         },
         regimes: regimes
             .defs
