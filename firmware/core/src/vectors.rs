@@ -104,6 +104,17 @@ pub const TABLE_GRID_Q: [f32; 5] = [-0.5, 0.0, 0.5, 1.0, 1.5];
 /// Axis 1: the first other joint's angle (slot 1).
 pub const TABLE_GRID_OTHER: [f32; 4] = [-1.0, 0.0, 1.0, 2.0];
 
+/// Calls `f(cell, q, other)` for every cell of the 5 × 4 test grid, row-major, last axis fastest.
+fn for_each_cell(mut f: impl FnMut(usize, f32, f32)) {
+    let mut cell = 0usize;
+    for &g0 in TABLE_GRID_Q.iter() {
+        for &g1 in TABLE_GRID_OTHER.iter() {
+            f(cell, g0, g1);
+            cell += 1;
+        }
+    }
+}
+
 /// A 5 × 4 gravity table over (own q, other joint) with per-cell σ, fused with the weight
 /// model (σ_m = 0.3 N·m, clamp k = 1), on top of [`trunk_spring`].
 pub fn trunk_table_fused() -> RawParams {
@@ -119,17 +130,13 @@ pub fn trunk_table_fused() -> RawParams {
         *dst = *src;
     }
     // A smooth two-joint gravity field near the weight model, with per-cell σ that varies
-    // so fusion weights differ from cell to cell. Row-major, last axis fastest.
-    let mut cell = 0usize;
-    for &g0 in TABLE_GRID_Q.iter() {
-        for &g1 in TABLE_GRID_OTHER.iter() {
-            if let (Some(tq), Some(sg)) = (t.torque.get_mut(cell), t.sigma.get_mut(cell)) {
-                *tq = 2.9 * math::sin(0.8 * g0 + 0.25 * g1 - 0.03) + 0.1 * g1;
-                *sg = 0.1 + 0.05 * (cell % 3) as f32;
-            }
-            cell += 1;
+    // so fusion weights differ from cell to cell.
+    for_each_cell(|cell, g0, g1| {
+        if let (Some(tq), Some(sg)) = (t.torque.get_mut(cell), t.sigma.get_mut(cell)) {
+            *tq = 2.9 * math::sin(0.8 * g0 + 0.25 * g1 - 0.03) + 0.1 * g1;
+            *sg = 0.1 + 0.05 * (cell % 3) as f32;
         }
-    }
+    });
     t.has_sigma = true;
     p.table = t;
     p.set(ParamId::TableSigmaModel, 0.3);
@@ -168,15 +175,11 @@ pub fn arm_series_residual() -> RawParams {
         }
     }
     p.series.n_terms = ARM_SERIES_TERMS.len() as u8;
-    let mut cell = 0usize;
-    for &g0 in TABLE_GRID_Q.iter() {
-        for &g1 in TABLE_GRID_OTHER.iter() {
-            if let Some(tq) = p.table.torque.get_mut(cell) {
-                *tq = 0.4 * math::sin(1.3 * g0 - 0.5 * g1) + 0.05 * g1 - 0.2;
-            }
-            cell += 1;
+    for_each_cell(|cell, g0, g1| {
+        if let Some(tq) = p.table.torque.get_mut(cell) {
+            *tq = 0.4 * math::sin(1.3 * g0 - 0.5 * g1) + 0.05 * g1 - 0.2;
         }
-    }
+    });
     p.table.residual = true;
     p.set(ParamId::TableSigmaModel, 0.6);
     p

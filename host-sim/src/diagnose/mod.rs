@@ -410,6 +410,8 @@ fn torque_mode(
     let qd = full.qd.take().unwrap_or_default();
     let qdd = full.qdd.take().unwrap_or_default();
     let sgn: Vec<f64> = qd.iter().map(|&v| sgn_band(v, band)).collect();
+    // only a logged q̈ is white-noise-like enough to estimate (a derived one is filtered)
+    let qdd_noise_var = if log.qdd.is_some() { candidates::white_noise_var(&qdd) } else { 0.0 };
     let mut data = Data {
         n,
         t: full.t,
@@ -426,11 +428,8 @@ fn torque_mode(
         ws: model.value(ParamId::WeightS),
         wsin: Vec::new(),
         wcos: Vec::new(),
-        qdd_noise_var: 0.0,
+        qdd_noise_var,
     };
-    if log.qdd.is_some() {
-        data.qdd_noise_var = candidates::white_noise_var(&data.qdd);
-    }
     if model.value(ParamId::WeightAmplitude) != 0.0 {
         let (ws, wc): (Vec<f64>, Vec<f64>) = data.q.iter().map(|&q| (data.ws * q).sin_cos()).unzip();
         data.wsin = ws;

@@ -200,9 +200,9 @@ fn score_traj(sim_q: &[f64], q: &[f64], hold_from: usize, units: usize, bits: &[
 }
 
 /// Index after which neither `a` nor `b` moves any more: both stay within 2 % of their own range
-/// of their final value (the median of the last 2 %). `None` when either never settles.
-fn settled_from(a: &[f64], b: &[f64]) -> Option<usize> {
-    let last_moving = |x: &[f64]| -> Option<usize> {
+/// of their final value (the median of the last 2 %); `len` when either moves to the end.
+fn settled_from(a: &[f64], b: &[f64]) -> usize {
+    let last_moving = |x: &[f64]| -> usize {
         let n = x.len();
         let k = (n / 50).max(10).min(n);
         let mut tail: Vec<f64> = x[n - k..].to_vec();
@@ -211,11 +211,11 @@ fn settled_from(a: &[f64], b: &[f64]) -> Option<usize> {
         let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
         let thr = 0.02 * (hi - lo);
         if !(thr > 0.0) {
-            return Some(0);
+            return 0;
         }
-        Some(x.iter().rposition(|&v| (v - end).abs() > thr).map_or(0, |i| i + 1))
+        x.iter().rposition(|&v| (v - end).abs() > thr).map_or(0, |i| i + 1)
     };
-    Some(last_moving(a)?.max(last_moving(b)?))
+    last_moving(a).max(last_moving(b))
 }
 
 /// Trajectory mode. A free response usually ends at rest; when the last stretch of the log is
@@ -225,21 +225,22 @@ fn settled_from(a: &[f64], b: &[f64]) -> Option<usize> {
 /// is longer, so where each comes to rest still counts) and says so in `split.rest_tail`.
 pub fn diagnose(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Options) -> Result<Diagnosis, DiagError> {
     let n = log.len();
-    if let Some(m0_sim) = model_free_response(log, model) {
-        if let Some(moving_until) = settled_from(&log.q, &m0_sim) {
-            let dt = super::median_dt(&log.t);
-            let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
-            let keep = moving_until.saturating_add(margin);
-            if moving_until >= 100 && keep < n && (n - keep) as f64 >= 0.3 * n as f64 {
-                let cut = truncated(log, keep);
-                let mut d = diagnose_window(&cut, model, params, opts)?;
-                d.report.samples = n;
-                d.report.split.rest_tail = Some(super::RestTail { from_t: log.t[keep], samples: n - keep });
-                return Ok(d);
-            }
+    let m0_sim = model_free_response(log, model);
+    if let Some(sim) = &m0_sim {
+        let moving_until = settled_from(&log.q, sim);
+        let dt = super::median_dt(&log.t);
+        let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
+        let keep = moving_until.saturating_add(margin);
+        if moving_until >= 100 && keep < n && (n - keep) as f64 >= 0.3 * n as f64 {
+            // The simulation is step by step from the first sample: its prefix is the cut log's.
+            let cut = truncated(log, keep);
+            let mut d = diagnose_window(&cut, model, params, opts, sim.get(..keep).map(<[f64]>::to_vec))?;
+            d.report.samples = n;
+            d.report.split.rest_tail = Some(super::RestTail { from_t: log.t[keep], samples: n - keep });
+            return Ok(d);
         }
     }
-    diagnose_window(log, model, params, opts)
+    diagnose_window(log, model, params, opts, m0_sim)
 }
 
 /// The first `keep` samples of a log.
@@ -288,7 +289,14 @@ fn model_sim<'a>(log: &'a JointLog, model: &ModelFile, j: f64, qd0: f64) -> (Sim
     (sim, beta0)
 }
 
-fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &Options) -> Result<Diagnosis, DiagError> {
+/// The analysis of `log`; `m0_sim`: the file's model already integrated over it, if it was.
+fn diagnose_window(
+    log: &JointLog,
+    model: &ModelFile,
+    params: &ParamSet,
+    opts: &Options,
+    m0_sim: Option<Vec<f64>>,
+) -> Result<Diagnosis, DiagError> {
     let _ = (params, opts);
     let n = log.len();
     let dt = super::median_dt(&log.t);
@@ -307,9 +315,12 @@ fn diagnose_window(log: &JointLog, model: &ModelFile, params: &ParamSet, opts: &
     let regimes = Regimes::build(&log.t, &log.q, &qd, &qdd, log.temp.as_deref(), dt);
     let nreg = regimes.defs.len();
     let train_idx: Vec<usize> = (0..hold_from).step_by(hold_from.div_ceil(2000).max(1)).collect();
-    let m0_sim = sim
-        .run(TKind::Parameters, &beta0, n)
-        .ok_or_else(|| DiagError::Input("the model diverges when integrated from the log's first sample".into()))?;
+    let m0_sim = match m0_sim {
+        Some(s) => s,
+        None => sim
+            .run(TKind::Parameters, &beta0, n)
+            .ok_or_else(|| DiagError::Input("the model diverges when integrated from the log's first sample".into()))?,
+    };
     let m0 = score_traj(&m0_sim, &log.q, hold_from, units, &regimes.bits, nreg, beta0.clone());
     let r0: Vec<f64> = log.q.iter().zip(&m0_sim).map(|(a, b)| a - b).collect();
     let floor = super::noise_floor(&r0);
