@@ -311,47 +311,105 @@ fn quantile(mut v: Vec<f64>, p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
-/// The current design evaluated once on the thinned training rows, so a grid point only costs
-/// the extra column(s): the Gram matrix is bordered instead of rebuilt (Frisch–Waugh in effect).
+/// The current design evaluated once on a set of rows (the thinned training rows of a grid
+/// search, or the fit rows of a round of candidates), so a candidate only costs its own
+/// column(s): the Gram matrix is bordered instead of rebuilt (Frisch–Waugh in effect). The
+/// bordered matrix adds the same products in the same order as [`Design::gram`] on the full
+/// design, so a fit through here gives the same numbers as one that rebuilds everything.
 pub struct GridCtx<'a> {
     d: &'a Data,
     idx: &'a [u32],
-    des: Design,
-    p: usize,
-    x: Vec<f64>,
-    g: Gram,
+    pub(crate) des: Design,
+    pub(crate) p: usize,
+    /// rows × p, the design's columns at `idx`
+    pub(crate) x: Vec<f64>,
+    /// the design's target at `idx`
+    pub(crate) y: Vec<f64>,
+    pub(crate) g: Gram,
+}
+
+/// How a candidate changes the current design (see [`GridCtx::delta`]).
+pub struct Delta {
+    /// the base column a backlash dead zone replaces in place, with its values on the rows
+    pub replace: Option<(usize, Vec<f64>)>,
+    /// the effect's own columns on the rows, appended
+    pub extra: Vec<Vec<f64>>,
+    /// another target (a delay shifts `u`)
+    pub y_alt: Option<Vec<f64>>,
 }
 
 impl<'a> GridCtx<'a> {
     pub fn new(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32]) -> GridCtx<'a> {
+        Self::build(d, base, chosen, idx, true)
+    }
+
+    /// The design's rows and targets only (no Gram): for rows that are scored, never fitted.
+    pub fn rows(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32]) -> GridCtx<'a> {
+        Self::build(d, base, chosen, idx, false)
+    }
+
+    fn build(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32], gram: bool) -> GridCtx<'a> {
         let des = Design::new(base, chosen);
         let p = des.cols.len();
         let mut x = vec![0.0; idx.len() * p];
+        let mut y = Vec::with_capacity(idx.len());
         let mut g = Gram::new(p);
         for (r, &i) in idx.iter().enumerate() {
             let row = &mut x[r * p..(r + 1) * p];
-            let y = des.row(d, i as usize, row);
-            g.add(row, y);
+            let yi = des.row(d, i as usize, row);
+            if gram {
+                g.add(row, yi);
+            }
+            y.push(yi);
         }
-        GridCtx { d, idx, des, p, x, g }
+        GridCtx { d, idx, des, p, x, y, g }
     }
 
-    /// RSS with column `drop` removed, `extra` columns added and, if given, another target.
-    pub fn rss(&self, drop: Option<usize>, extra: &[Vec<f64>], y_alt: Option<&[f64]>) -> f64 {
-        let p = self.p;
-        let keep: Vec<usize> = (0..p).filter(|&j| Some(j) != drop).collect();
-        let pk = keep.len();
-        let q = pk + extra.len();
-        let mut g = Gram::new(q);
-        for (a, &ja) in keep.iter().enumerate() {
-            for (b, &jb) in keep.iter().enumerate().skip(a) {
-                let (lo, hi) = if ja <= jb { (ja, jb) } else { (jb, ja) };
-                g.g[a * q + b] = self.g.g[lo * p + hi];
+    /// The rows this context was built on.
+    pub fn idx(&self) -> &[u32] {
+        self.idx
+    }
+
+    /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
+    pub fn delta(&self, e: &Effect) -> Delta {
+        let (d, idx) = (self.d, self.idx);
+        match *e {
+            Effect::Backlash { width } => {
+                let at = self.des.cols.iter().position(|c| matches!(c, Col::Q));
+                let z = || idx.iter().map(|&i| crate::effects::dead_zone(d.q[i as usize] - d.q0, width)).collect();
+                Delta { replace: at.map(|j| (j, z())), extra: Vec::new(), y_alt: None }
             }
+            Effect::Delay { lag } => {
+                let mut des = self.des.clone();
+                des.lag = lag;
+                let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
+                Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
+            }
+            _ => Delta { replace: None, extra: e.cols().into_iter().map(|c| self.column(c)).collect(), y_alt: None },
         }
+    }
+
+    /// Normal equations of the design with `delta` applied, bordered onto the stored Gram.
+    /// Column order is [`Design::new`]'s: a replaced column stays where it was, extras follow.
+    pub fn gram_with(&self, delta: &Delta) -> Gram {
+        let p = self.p;
+        let extra = &delta.extra;
+        let q = p + extra.len();
+        let rep = delta.replace.as_ref().map(|(j, z)| (*j, z.as_slice()));
+        let y_alt = delta.y_alt.as_deref();
+        let mut g = Gram::new(q);
+        for a in 0..p {
+            for b in a..p {
+                g.g[a * q + b] = self.g.g[a * p + b];
+            }
+            g.b[a] = self.g.b[a];
+        }
+        g.yy = self.g.yy;
         let n = self.idx.len();
-        // cross products with the extra columns and the (possibly other) target
+        // Cross products that change: with the extra columns, with a replaced column, and
+        // with another target. Each sum runs over the rows in order, as `Gram::add` does.
         let mut xz = vec![0.0; p * extra.len()];
+        let mut xr = vec![0.0; p];
         let mut xy_alt = vec![0.0; p];
         let mut yy_alt = 0.0;
         for r in 0..n {
@@ -364,6 +422,15 @@ impl<'a> GridCtx<'a> {
                     }
                 }
             }
+            if let Some((jr, z)) = rep {
+                let zr = z[r];
+                for (j, &xj) in row.iter().enumerate() {
+                    let xj = if j == jr { zr } else { xj };
+                    if xj != 0.0 {
+                        xr[j] += xj * zr;
+                    }
+                }
+            }
             if let Some(ya) = y_alt {
                 let yr = ya[r];
                 for j in 0..p {
@@ -372,25 +439,32 @@ impl<'a> GridCtx<'a> {
                 yy_alt += yr * yr;
             }
         }
-        let y_of = |r: usize| match y_alt {
-            Some(ya) => ya[r],
-            None => self.des.target(self.d, self.idx[r] as usize),
-        };
+        if y_alt.is_some() {
+            g.b[..p].copy_from_slice(&xy_alt);
+            g.yy = yy_alt;
+        }
+        let y_of = |r: usize| y_alt.map_or(self.y[r], |ya| ya[r]);
+        if let Some((jr, z)) = rep {
+            for (a, &v) in xr.iter().enumerate() {
+                let (lo, hi) = if a <= jr { (a, jr) } else { (jr, a) };
+                g.g[lo * q + hi] = v;
+            }
+            g.b[jr] = (0..n).map(|r| z[r] * y_of(r)).sum();
+        }
         for (e, z) in extra.iter().enumerate() {
-            for (a, &ja) in keep.iter().enumerate() {
-                g.g[a * q + pk + e] = xz[e * p + ja];
+            for a in 0..p {
+                g.g[a * q + p + e] = match rep {
+                    Some((jr, zrep)) if jr == a => zrep.iter().zip(z).map(|(a, b)| a * b).sum(),
+                    _ => xz[e * p + a],
+                };
             }
             for (f, z2) in extra.iter().enumerate().skip(e) {
-                g.g[(pk + e) * q + pk + f] = z.iter().zip(z2).map(|(a, b)| a * b).sum();
+                g.g[(p + e) * q + p + f] = z.iter().zip(z2).map(|(a, b)| a * b).sum();
             }
-            g.b[pk + e] = (0..n).map(|r| z[r] * y_of(r)).sum();
+            g.b[p + e] = (0..n).map(|r| z[r] * y_of(r)).sum();
         }
-        for (a, &ja) in keep.iter().enumerate() {
-            g.b[a] = if y_alt.is_some() { xy_alt[ja] } else { self.g.b[ja] };
-        }
-        g.yy = if y_alt.is_some() { yy_alt } else { self.g.yy };
         g.n = n;
-        g.solve().1
+        g
     }
 
     fn column(&self, c: Col) -> Vec<f64> {
@@ -399,23 +473,7 @@ impl<'a> GridCtx<'a> {
 
     /// RSS of the current design plus effect `e`.
     pub fn rss_effect(&self, e: &Effect) -> f64 {
-        match *e {
-            Effect::Backlash { width } => {
-                let drop = self.des.cols.iter().position(|c| matches!(c, Col::Q));
-                let z: Vec<f64> = self.idx.iter().map(|&i| crate::effects::dead_zone(self.d.q[i as usize] - self.d.q0, width)).collect();
-                self.rss(drop, &[z], None)
-            }
-            Effect::Delay { lag } => {
-                let mut des = self.des.clone();
-                des.lag = lag;
-                let y: Vec<f64> = self.idx.iter().map(|&i| des.target(self.d, i as usize)).collect();
-                self.rss(None, &[], Some(&y))
-            }
-            _ => {
-                let extra: Vec<Vec<f64>> = e.cols().into_iter().map(|c| self.column(c)).collect();
-                self.rss(None, &extra, None)
-            }
-        }
+        self.gram_with(&self.delta(e)).solve().1
     }
 }
 
@@ -423,6 +481,13 @@ impl<'a> GridCtx<'a> {
 /// already chosen; `None` when the effect cannot apply to this model/log (dry friction in a
 /// model that has a Coulomb term, backlash without a spring, thermal drift without friction).
 pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32]) -> Option<Effect> {
+    search_in(kind, &GridCtx::new(d, base, chosen, idx), base, chosen)
+}
+
+/// [`search`] on a grid context already built for `chosen` (one per round, shared by every
+/// kind).
+pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) -> Option<Effect> {
+    let (d, idx) = (ctx.d, ctx.idx);
     let has = |c: Col| base.cols.contains(&c);
     let applicable = match kind {
         Kind::Dry => !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)),
@@ -432,7 +497,6 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
     if !applicable || chosen.iter().any(|e| e.kind() == kind) {
         return None;
     }
-    let ctx = GridCtx::new(d, base, chosen, idx);
     let rss_of = |e: Effect| ctx.rss_effect(&e);
     // Search in log space over [lo, hi]: a grid, then golden section around the best point.
     let log_search = |lo: f64, hi: f64, k: usize, make: &dyn Fn(f64) -> Effect| -> Effect {
@@ -499,7 +563,7 @@ pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32])
             let mut cnt = vec![0.0; nb];
             for (r, &i) in idx.iter().enumerate() {
                 let row = &ctx.x[r * p..(r + 1) * p];
-                let y = ctx.des.target(d, i as usize);
+                let y = ctx.y[r];
                 let res = y - row.iter().zip(&beta).map(|(a, b)| a * b).sum::<f64>();
                 let b = (((d.q[i as usize] - qmin) / range * nb as f64) as usize).min(nb - 1);
                 sum[b] += res;

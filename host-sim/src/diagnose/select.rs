@@ -20,7 +20,7 @@
 //! estimated and removed from the final fits' normal equations (corrected least squares), so
 //! the inertia is not shrunk, and the margin is 1.02 × floor.
 
-use super::candidates::{search, Base, Data, Design, Effect, Kind, ThermSrc};
+use super::candidates::{search, search_in, Base, Data, Delta, Design, Effect, GridCtx, Kind, ThermSrc};
 
 /// How the samples were split.
 #[derive(Clone, Debug)]
@@ -122,29 +122,127 @@ pub fn residual_at(d: &Data, des: &Design, beta: &[f64], i: usize, x: &mut [f64]
 
 pub fn score(d: &Data, des: Design, beta: Vec<f64>, effects: Vec<Effect>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
     let mut x = vec![0.0; des.cols.len()];
-    let mut unit_sse = vec![0.0; split.n_units];
-    let mut unit_n = vec![0.0; split.n_units];
-    let mut regime_sse = vec![0.0; n_regimes];
-    let mut regime_n = vec![0.0; n_regimes];
-    let mut sse = 0.0;
+    let acc = accumulate(split, bits, n_regimes, |_, i| residual_at(d, &des, &beta, i, &mut x));
+    acc.into_scored(effects, des, beta, split.holdout.len())
+}
+
+/// Held-out squared residuals summed overall, per test unit and per regime.
+struct Sums {
+    sse: f64,
+    unit_sse: Vec<f64>,
+    unit_n: Vec<f64>,
+    regime_sse: Vec<f64>,
+    regime_n: Vec<f64>,
+}
+
+impl Sums {
+    fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>, n: usize) -> Scored {
+        let Sums { sse, unit_sse, unit_n, regime_sse, regime_n } = self;
+        Scored { effects, design, beta, sse, n, unit_sse, unit_n, regime_sse, regime_n }
+    }
+}
+
+/// Sums `resid(k, i)²` over the held-out samples (`k`-th held-out sample, log index `i`).
+fn accumulate(split: &Split, bits: &[u32], n_regimes: usize, mut resid: impl FnMut(usize, usize) -> f64) -> Sums {
+    let mut s = Sums {
+        sse: 0.0,
+        unit_sse: vec![0.0; split.n_units],
+        unit_n: vec![0.0; split.n_units],
+        regime_sse: vec![0.0; n_regimes],
+        regime_n: vec![0.0; n_regimes],
+    };
     for (k, &i) in split.holdout.iter().enumerate() {
-        let r = residual_at(d, &des, &beta, i as usize, &mut x);
+        let r = resid(k, i as usize);
         let r2 = r * r;
-        sse += r2;
+        s.sse += r2;
         let u = split.unit[k] as usize;
-        unit_sse[u] += r2;
-        unit_n[u] += 1.0;
+        s.unit_sse[u] += r2;
+        s.unit_n[u] += 1.0;
         let mut b = bits[i as usize];
         while b != 0 {
             let j = b.trailing_zeros() as usize;
             if j < n_regimes {
-                regime_sse[j] += r2;
-                regime_n[j] += 1.0;
+                s.regime_sse[j] += r2;
+                s.regime_n[j] += 1.0;
             }
             b &= b - 1;
         }
     }
-    Scored { effects, design: des, beta, sse, n: split.holdout.len(), unit_sse, unit_n, regime_sse, regime_n }
+    s
+}
+
+/// One round of candidates: the current design (the model's terms plus the effects chosen so
+/// far) evaluated once on the fit rows and on the held-out rows. Every candidate of the round is
+/// fitted by bordering the stored Gram with its own columns and scored from the stored rows, so
+/// a round costs one evaluation of the design instead of one per candidate; the numbers are
+/// those of [`fit_and_score`] (same products, same order).
+pub struct Round<'a> {
+    d: &'a Data,
+    base: &'a Base,
+    chosen: Vec<Effect>,
+    fit: GridCtx<'a>,
+    hold: GridCtx<'a>,
+}
+
+impl<'a> Round<'a> {
+    pub fn new(d: &'a Data, base: &'a Base, chosen: &[Effect], fit_idx: &'a [u32], split: &'a Split) -> Round<'a> {
+        let (fit, hold) = std::thread::scope(|s| {
+            let h = s.spawn(|| GridCtx::rows(d, base, chosen, &split.holdout));
+            let fit = GridCtx::new(d, base, chosen, fit_idx);
+            (fit, h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+        });
+        Round { d, base, chosen: chosen.to_vec(), fit, hold }
+    }
+
+    /// The current design with `beta` (its own columns only) scored on the held-out rows.
+    pub fn score_current(&self, beta: Vec<f64>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+        let none = Delta { replace: None, extra: Vec::new(), y_alt: None };
+        let acc = self.accumulate(&none, &beta, split, bits, n_regimes);
+        acc.into_scored(self.chosen.clone(), self.fit.des.clone(), beta, split.holdout.len())
+    }
+
+    /// The current design refitted (no new effect) and scored.
+    pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+        let mut g = self.fit.g.clone();
+        eiv_correct(&mut g, &self.fit.des, self.d);
+        let (beta, _) = g.solve();
+        self.score_current(beta, split, bits, n_regimes)
+    }
+
+    /// The current design plus effect `e`, fitted on the fit rows and scored.
+    pub fn fit_and_score(&self, e: Effect, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+        let mut effects = self.chosen.clone();
+        effects.push(e);
+        let des = Design::new(self.base, &effects);
+        let mut g = self.fit.gram_with(&self.fit.delta(&e));
+        eiv_correct(&mut g, &des, self.d);
+        let (beta, _) = g.solve();
+        let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
+        acc.into_scored(effects, des, beta, split.holdout.len())
+    }
+
+    /// Held-out sums of the current design changed by `delta`, with coefficients `beta` in
+    /// design order; the residual adds the columns in that order, as [`residual_at`] does.
+    fn accumulate(&self, delta: &Delta, beta: &[f64], split: &Split, bits: &[u32], n_regimes: usize) -> Sums {
+        let (h, p) = (&self.hold, self.hold.p);
+        let rep = delta.replace.as_ref().map(|(j, z)| (*j, z.as_slice()));
+        accumulate(split, bits, n_regimes, |k, _| {
+            let row = &h.x[k * p..(k + 1) * p];
+            let y = delta.y_alt.as_ref().map_or(h.y[k], |ya| ya[k]);
+            let mut fit = 0.0;
+            for (j, (&xj, &bj)) in row.iter().zip(beta).enumerate() {
+                let xj = match rep {
+                    Some((jr, z)) if jr == j => z[k],
+                    _ => xj,
+                };
+                fit += xj * bj;
+            }
+            for (z, &bz) in delta.extra.iter().zip(beta.get(p..).unwrap_or(&[])) {
+                fit += z[k] * bz;
+            }
+            y - fit
+        })
+    }
 }
 
 /// Fits `effects` on the training indices `fit_idx` and scores it.
@@ -279,32 +377,21 @@ pub struct Selection {
     pub alpha_each: f64,
 }
 
-/// Searches and scores every applicable kind on top of `chosen`, in parallel.
-fn try_kinds(
-    kinds: &[Kind],
-    d: &Data,
-    base: &Base,
-    chosen: &[Effect],
-    grid_idx: &[u32],
-    fit_idx: &[u32],
-    split: &Split,
-    bits: &[u32],
-    n_regimes: usize,
-) -> Vec<Scored> {
+/// Searches and scores every applicable kind on top of the round's chosen effects, in parallel.
+fn try_kinds(kinds: &[Kind], round: &Round<'_>, grid_idx: &[u32], split: &Split, bits: &[u32], n_regimes: usize) -> Vec<Scored> {
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8);
+    let (d, base, chosen) = (round.d, round.base, round.chosen.as_slice());
+    // One grid context for the round, shared by every kind's search.
+    let grid = GridCtx::new(d, base, chosen, grid_idx);
     // The held-out gain of a term can hardly exceed its training gain, so a candidate that does
     // not lower the thinned training RSS by half the minimum gain is not fitted in full.
-    let cur_rss = Design::new(base, chosen).rss(d, grid_idx);
+    let cur_rss = grid.g.solve().1;
     let work = |k: Kind| -> Option<Scored> {
-        let e = search(k, d, base, chosen, grid_idx)?;
-        let mut trial = chosen.to_vec();
-        trial.push(e);
-        if !chosen.is_empty() && Design::new(base, &trial).rss(d, grid_idx) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
+        let e = search_in(k, &grid, base, chosen)?;
+        if !chosen.is_empty() && grid.rss_effect(&e) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
             return None;
         }
-        let mut eff = chosen.to_vec();
-        eff.push(e);
-        Some(fit_and_score(d, base, &eff, fit_idx, split, bits, n_regimes))
+        Some(round.fit_and_score(e, split, bits, n_regimes))
     };
     if threads == 1 || kinds.len() < 2 {
         return kinds.iter().filter_map(|&k| work(k)).collect();
@@ -354,10 +441,11 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     // Fits read at most 150 000 training rows, grids 20 000 (every k-th sample).
     let fit_idx = super::candidates::thin_idx(&split.train, 150_000);
     let grid_idx = super::candidates::thin_idx(&split.train, 20_000);
-    let m0 = score(d, Design::new(base, &[]), base.beta0.clone(), vec![], split, bits, n_regimes);
+    let round0 = Round::new(d, base, &[], &fit_idx, split);
+    let m0 = round0.score_current(base.beta0.clone(), split, bits, n_regimes);
     let m_tests = (Kind::ALL.len() + 1) as f64;
     let alpha_each = ALPHA / m_tests;
-    let refit_s = fit_and_score(d, base, &[], &fit_idx, split, bits, n_regimes);
+    let refit_s = round0.refit(split, bits, n_regimes);
     let (t, p, gain) = compare(&m0, &refit_s);
     let open = |r: &Scored| r.rmse() > at_floor_factor(d) * floor;
     let at_floor = !open(&m0);
@@ -372,7 +460,8 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
         Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
     let t0 = std::time::Instant::now();
-    let first = try_kinds(&Kind::ALL, d, base, &[], &grid_idx, &fit_idx, split, bits, n_regimes);
+    let first = try_kinds(&Kind::ALL, &round0, &grid_idx, split, bits, n_regimes);
+    drop(round0);
     if std::env::var_os("DIAG_TIMING").is_some() {
         eprintln!("[diagnose] first round of candidates: {:.3} s", t0.elapsed().as_secs_f64());
     }
@@ -444,7 +533,8 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
             }
             let effects = cur.scored.effects.clone();
             let kinds: Vec<Kind> = Kind::ALL.iter().copied().filter(|k| !effects.iter().any(|e| e.kind() == *k)).collect();
-            let next = try_kinds(&kinds, d, base, &effects, &grid_idx, &fit_idx, split, bits, n_regimes);
+            let round = Round::new(d, base, &effects, &fit_idx, split);
+            let next = try_kinds(&kinds, &round, &grid_idx, split, bits, n_regimes);
             let cur_s = cur.scored.clone();
             let best = next
                 .into_iter()
