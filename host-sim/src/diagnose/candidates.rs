@@ -385,6 +385,11 @@ impl<'a> GridCtx<'a> {
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
+            Effect::Ripple { period } => {
+                // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
+                let (zs, zc) = idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
+                Delta { replace: None, extra: vec![zs, zc], y_alt: None }
+            }
             _ => Delta { replace: None, extra: e.cols().into_iter().map(|c| self.column(c)).collect(), y_alt: None },
         }
     }
@@ -569,11 +574,13 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                 sum[b] += res;
                 cnt[b] += 1.0;
             }
-            let centres: Vec<(f64, f64, f64)> = (0..nb)
-                .filter(|&b| cnt[b] > 0.0)
-                .map(|b| (qmin + (b as f64 + 0.5) * range / nb as f64, sum[b] / cnt[b], cnt[b]))
-                .collect();
-            let p_min = (8.0 * range / nb as f64).max(2e-3);
+            // Bin b's centre is q_b = qmin + (b + ½)·h, so at frequency w its phase advances by
+            // w·h per bin: e^{i·w·q_b} comes from a complex rotation, re-anchored on an exact
+            // sin_cos every 64 bins so rounding cannot build up (relative error ~1e-14, far
+            // below any difference between neighbouring powers that picks a peak).
+            let h = range / nb as f64;
+            let weight: Vec<f64> = sum.iter().zip(&cnt).map(|(&s, &c)| if c > 0.0 { s } else { 0.0 }).collect();
+            let p_min = (8.0 * h).max(2e-3);
             let p_max = range / 3.0;
             if p_max <= p_min {
                 return None;
@@ -582,16 +589,21 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             let (f_lo, f_hi) = (1.0 / p_max, 1.0 / p_min);
             let df = 0.25 / range;
             let nf = ((f_hi - f_lo) / df).ceil() as usize + 1;
-            let wsum: f64 = centres.iter().map(|c| c.2).sum();
+            let wsum: f64 = cnt.iter().sum();
+            const ANCHOR: usize = 64;
             let mut power: Vec<(f64, f64)> = Vec::with_capacity(nf);
             for k in 0..nf {
                 let f = f_lo + k as f64 * df;
                 let w = std::f64::consts::TAU * f;
+                let (step_s, step_c) = (w * h).sin_cos();
                 let (mut s, mut c) = (0.0, 0.0);
-                for &(qc, m, n) in &centres {
-                    let (sn, cs) = (w * qc).sin_cos();
-                    s += n * m * sn;
-                    c += n * m * cs;
+                for (chunk, ws) in weight.chunks(ANCHOR).enumerate() {
+                    let (mut zs, mut zc) = (w * (qmin + ((chunk * ANCHOR) as f64 + 0.5) * h)).sin_cos();
+                    for &m in ws {
+                        s += m * zs;
+                        c += m * zc;
+                        (zs, zc) = (zs * step_c + zc * step_s, zc * step_c - zs * step_s);
+                    }
                 }
                 power.push((f, (s * s + c * c) / wsum.max(1.0)));
             }
