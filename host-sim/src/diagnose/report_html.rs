@@ -113,9 +113,9 @@ pub fn render(d: &Diagnosis) -> String {
     let p = &d.plots;
     let mut o = String::with_capacity(1 << 20);
     o.push_str("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>jointctl diagnose</title><style>body{font-family:sans-serif;max-width:1200px;margin:1em auto;color:#222}figure{display:inline-block;margin:6px}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}td:first-child{text-align:left}.sig{font-weight:bold;color:#0a0}</style></head><body>\n");
-    let _ = write!(
+    let _ = writeln!(
         o,
-        "<h1>Sim-to-real gap: {} mode</h1><p id=\"verdict\">Verdict: <b>{}</b> — held-out RMSE {} → {} {} (shrink {:.1} %). Noise floor ≈ {} {}. {} samples: {} training, {} held out ({}).</p>\n",
+        "<h1>Sim-to-real gap: {} mode</h1><p id=\"verdict\">Verdict: <b>{}</b> — held-out RMSE {} → {} {} (shrink {:.1} %). Noise floor ≈ {} {}. {} samples: {} training, {} held out ({}).</p>",
         r.mode,
         esc(&r.verdict.effects.join(" → ")),
         fmt(r.verdict.holdout_rmse_before),

@@ -333,6 +333,7 @@ pub struct Outcome {
 /// - `thermal_drift`: either sign (lubricant thins or a seal swells), but the friction it
 ///   scales, `1 + coefficient·(T − T_ref)` times the refitted shape, must stay positive over
 ///   the log: a drift that reverses the friction is a trend in something else.
+///
 /// Asymmetry, ripple, backlash and delay (shapes searched over positive values only) have no
 /// sign rule.
 pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
