@@ -598,4 +598,48 @@ mod tests {
             other => panic!("{other:?}"),
         }
     }
+
+    /// The two halves read from the file give exactly what the in-memory parse gives, BOM and
+    /// CRLF included, and the file path really is taken (not the fallback).
+    #[test]
+    fn reading_a_large_file_in_halves_equals_parsing_it() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in [("lf.csv", text(&big(60_000))), ("crlf-bom.csv", format!("\u{feff}{}", text(&big(60_000)).replace('\n', "\r\n")))] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, &text).unwrap();
+            let want = JointLog::parse(text.as_bytes(), "x").unwrap();
+            let halves = read_halves(&path, "x").expect("a clean 2 MB file is read in halves");
+            assert_eq!(halves, want, "{name}");
+            assert_eq!(JointLog::read_file(&path).unwrap(), want, "{name}");
+        }
+    }
+
+    /// Errors in either half or at the seam of a file read in halves are reported by the
+    /// one-thread parse, with the file's own line.
+    #[test]
+    fn errors_in_a_large_file_name_the_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows = big(60_000);
+        let path = dir.path().join("bad.csv");
+        let line_of = |r: &[String]| {
+            std::fs::write(&path, text(r)).unwrap();
+            assert!(read_halves(&path, "f").is_none());
+            JointLog::read_file(&path).unwrap_err()
+        };
+        for at in [100usize, 30_000, 59_990] {
+            let mut r = rows.clone();
+            r[at] = format!("{},x,1", at as f64 / 1000.0);
+            match line_of(&r) {
+                LogError::NotNumeric { line, column, .. } => assert_eq!((line, column.as_str()), (at + 2, "q")),
+                other => panic!("{other:?}"),
+            }
+        }
+        // time going back somewhere in the second half
+        let mut r = rows;
+        r[45_000] = format!("0.0005,{},1", 0.5);
+        match line_of(&r) {
+            LogError::TimeNotIncreasing { line, .. } => assert_eq!(line, 45_002),
+            other => panic!("{other:?}"),
+        }
+    }
 }

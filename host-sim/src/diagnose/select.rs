@@ -550,3 +550,90 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     }
     Selection { m0, refit, candidates, chosen, alpha_each }
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidates::{Col, ThermSrc};
+    use rand::{Rng, SeedableRng};
+
+    /// A synthetic torque-mode data set with every column a candidate can read.
+    fn data(n: usize) -> (Data, Base) {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let q: Vec<f64> = t.iter().map(|&t| 1.0 + 0.8 * (0.9 * t).sin() + 0.05 * (7.0 * t).sin()).collect();
+        let qd: Vec<f64> = t.iter().map(|&t| 0.72 * (0.9 * t).cos() + 0.35 * (7.0 * t).cos() + rng.random_range(-0.01..0.01)).collect();
+        let qdd: Vec<f64> = t.iter().map(|&t| -0.648 * (0.9 * t).sin() - 2.45 * (7.0 * t).sin()).collect();
+        let u: Vec<f64> = (0..n).map(|i| 2.0 * qd[i] + 0.3 * (3.0 * t[i]).sin()).collect();
+        let band = 0.01;
+        let sgn: Vec<f64> = qd.iter().map(|&v| super::super::sgn_band(v, band)).collect();
+        let ws = 0.8;
+        let y: Vec<f64> = (0..n)
+            .map(|i| 0.4 * qdd[i] + 2.0 * qd[i] + sgn[i] + 2.5 * (ws * q[i]).sin() + 0.3 * (q[i] * 60.0).sin() + rng.random_range(-0.1..0.1))
+            .collect();
+        let d = Data {
+            n,
+            wsin: q.iter().map(|&q| (ws * q).sin()).collect(),
+            wcos: q.iter().map(|&q| (ws * q).cos()).collect(),
+            temp: Some((0..n).map(|i| 25.0 + 10.0 * i as f64 / n as f64).collect()),
+            t,
+            q,
+            qd,
+            qdd,
+            u,
+            y,
+            dt: 1e-3,
+            band,
+            sgn,
+            q0: 0.9,
+            ws,
+            qdd_noise_var: 0.01,
+        };
+        let cols = vec![Col::Qdd, Col::QdAbsQd, Col::Qd, Col::Sgn, Col::SinSq(ws), Col::CosSq(ws), Col::Q, Col::Const];
+        let beta0 = vec![0.4, 0.1, 2.0, 1.0, 2.5, 0.0, 0.5, -0.45];
+        (d, Base { cols, beta0 })
+    }
+
+    /// A round's bordered fits and cached scoring give the numbers of a full rebuild, to the
+    /// bit, for every kind of candidate (extra columns, a replaced column, a shifted target),
+    /// on top of nothing and on top of a chosen effect.
+    #[test]
+    fn round_equals_rebuilding_the_design() {
+        let (d, base) = data(20_000);
+        let split = make_split(d.n);
+        let bits = vec![0b101u32; d.n];
+        let fit_idx = crate::diagnose::candidates::thin_idx(&split.train, 8000);
+        let candidates = [
+            Effect::Stribeck { speed: 0.05 },
+            Effect::Asymmetric,
+            Effect::Load,
+            Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Temp { mean: 30.0 } },
+            Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Time { tau: 3.0, t0: 0.0, mean: 0.5 } },
+            Effect::Ripple { period: 0.105 },
+            Effect::Cable { engage: 1.3, width: 0.01 },
+            Effect::Backlash { width: 0.02 },
+            Effect::Delay { lag: 3.4 },
+            Effect::Dry,
+        ];
+        for chosen in [vec![], vec![Effect::Ripple { period: 0.105 }], vec![Effect::Backlash { width: 0.02 }]] {
+            let round = Round::new(&d, &base, &chosen, &fit_idx, &split);
+            let refit = round.refit(&split, &bits, 3);
+            let full = fit_and_score(&d, &base, &chosen, &fit_idx, &split, &bits, 3);
+            assert_eq!(refit.beta, full.beta, "refit on {chosen:?}");
+            assert_eq!(refit.sse, full.sse);
+            for e in candidates {
+                if chosen.iter().any(|c| c.kind() == e.kind()) {
+                    continue;
+                }
+                let mut all = chosen.clone();
+                all.push(e);
+                let r = round.fit_and_score(e, &split, &bits, 3);
+                let f = fit_and_score(&d, &base, &all, &fit_idx, &split, &bits, 3);
+                assert_eq!(r.design.cols, f.design.cols, "{e:?} on {chosen:?}");
+                assert_eq!(r.beta, f.beta, "{e:?} on {chosen:?}");
+                assert_eq!((r.sse, &r.unit_sse, &r.regime_sse), (f.sse, &f.unit_sse, &f.regime_sse), "{e:?} on {chosen:?}");
+            }
+        }
+    }
+}
