@@ -365,11 +365,6 @@ impl<'a> GridCtx<'a> {
         GridCtx { d, idx, des, p, x, y, g }
     }
 
-    /// The rows this context was built on.
-    pub fn idx(&self) -> &[u32] {
-        self.idx
-    }
-
     /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
     pub fn delta(&self, e: &Effect) -> Delta {
         let (d, idx) = (self.d, self.idx);
@@ -578,8 +573,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // w·h per bin: e^{i·w·q_b} comes from a complex rotation, re-anchored on an exact
             // sin_cos every 64 bins so rounding cannot build up (relative error ~1e-14, far
             // below any difference between neighbouring powers that picks a peak).
+            // An empty bin's sum is 0 and adds nothing.
             let h = range / nb as f64;
-            let weight: Vec<f64> = sum.iter().zip(&cnt).map(|(&s, &c)| if c > 0.0 { s } else { 0.0 }).collect();
             let p_min = (8.0 * h).max(2e-3);
             let p_max = range / 3.0;
             if p_max <= p_min {
@@ -597,7 +592,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                 let w = std::f64::consts::TAU * f;
                 let (step_s, step_c) = (w * h).sin_cos();
                 let (mut s, mut c) = (0.0, 0.0);
-                for (chunk, ws) in weight.chunks(ANCHOR).enumerate() {
+                for (chunk, ws) in sum.chunks(ANCHOR).enumerate() {
                     let (mut zs, mut zc) = (w * (qmin + ((chunk * ANCHOR) as f64 + 0.5) * h)).sin_cos();
                     for &m in ws {
                         s += m * zs;

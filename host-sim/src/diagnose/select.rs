@@ -123,12 +123,13 @@ pub fn residual_at(d: &Data, des: &Design, beta: &[f64], i: usize, x: &mut [f64]
 pub fn score(d: &Data, des: Design, beta: Vec<f64>, effects: Vec<Effect>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
     let mut x = vec![0.0; des.cols.len()];
     let acc = accumulate(split, bits, n_regimes, |_, i| residual_at(d, &des, &beta, i, &mut x));
-    acc.into_scored(effects, des, beta, split.holdout.len())
+    acc.into_scored(effects, des, beta)
 }
 
 /// Held-out squared residuals summed overall, per test unit and per regime.
 struct Sums {
     sse: f64,
+    n: usize,
     unit_sse: Vec<f64>,
     unit_n: Vec<f64>,
     regime_sse: Vec<f64>,
@@ -136,8 +137,8 @@ struct Sums {
 }
 
 impl Sums {
-    fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>, n: usize) -> Scored {
-        let Sums { sse, unit_sse, unit_n, regime_sse, regime_n } = self;
+    fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>) -> Scored {
+        let Sums { sse, n, unit_sse, unit_n, regime_sse, regime_n } = self;
         Scored { effects, design, beta, sse, n, unit_sse, unit_n, regime_sse, regime_n }
     }
 }
@@ -146,6 +147,7 @@ impl Sums {
 fn accumulate(split: &Split, bits: &[u32], n_regimes: usize, mut resid: impl FnMut(usize, usize) -> f64) -> Sums {
     let mut s = Sums {
         sse: 0.0,
+        n: split.holdout.len(),
         unit_sse: vec![0.0; split.n_units],
         unit_n: vec![0.0; split.n_units],
         regime_sse: vec![0.0; n_regimes],
@@ -198,7 +200,7 @@ impl<'a> Round<'a> {
     pub fn score_current(&self, beta: Vec<f64>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let none = Delta { replace: None, extra: Vec::new(), y_alt: None };
         let acc = self.accumulate(&none, &beta, split, bits, n_regimes);
-        acc.into_scored(self.chosen.clone(), self.fit.des.clone(), beta, split.holdout.len())
+        acc.into_scored(self.chosen.clone(), self.fit.des.clone(), beta)
     }
 
     /// The current design refitted (no new effect) and scored.
@@ -218,7 +220,7 @@ impl<'a> Round<'a> {
         eiv_correct(&mut g, &des, self.d);
         let (beta, _) = g.solve();
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
-        acc.into_scored(effects, des, beta, split.holdout.len())
+        acc.into_scored(effects, des, beta)
     }
 
     /// Held-out sums of the current design changed by `delta`, with coefficients `beta` in
