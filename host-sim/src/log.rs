@@ -208,7 +208,13 @@ impl Header {
                 c.strip_prefix('"').and_then(|c| c.strip_suffix('"')).unwrap_or(c).trim().to_string()
             })
             .collect();
-        let mut h = Header { slots: Vec::with_capacity(names.len()), known_present: [false; KNOWN.len()], others: Vec::new(), unknown: Vec::new(), names: Vec::new() };
+        let mut h = Header {
+            names: Vec::new(),
+            slots: Vec::with_capacity(names.len()),
+            known_present: [false; KNOWN.len()],
+            others: Vec::new(),
+            unknown: Vec::new(),
+        };
         for (i, name) in names.iter().enumerate() {
             if name.is_empty() {
                 return Err(LogError::EmptyHeader { file: file.to_string(), index: i + 1 });
