@@ -76,13 +76,24 @@ impl Sim<'_> {
         let s = sgn(qd, self.band);
         let mut fr = 0.0;
         let mut rest = 0.0;
+        // The weight's sin and cos share one argument: one sin_cos serves both columns (the
+        // same values; the sin and cos calls were most of a simulation's time).
+        let mut weight: Option<(f64, (f64, f64))> = None;
+        let mut sc = |w: f64| match weight {
+            Some((wa, v)) if wa == w => v,
+            _ => {
+                let v = (w * q).sin_cos();
+                weight = Some((w, v));
+                v
+            }
+        };
         for (c, b) in self.cols.iter().zip(th) {
             let v = match c {
                 Col::QdAbsQd => qd * qd.abs(),
                 Col::Qd => qd,
                 Col::Sgn => s,
-                Col::SinSq(w) => (w * q).sin(),
-                Col::CosSq(w) => (w * q).cos(),
+                Col::SinSq(w) => sc(*w).0,
+                Col::CosSq(w) => sc(*w).1,
                 Col::Q => match kind {
                     TKind::Backlash => crate::effects::dead_zone(q - self.q0, e[0].exp()) + self.q0,
                     _ => q,
