@@ -166,6 +166,15 @@ impl Sim<'_> {
             || self.cols.iter().any(|c| matches!(c, Col::Sgn | Col::AbsSgn | Col::Stribeck(_)));
         let stribeck = if kind == TKind::Stribeck { th.get(nb + 1).map_or(0.0, |lv| lv.exp()) } else { 0.0 };
         let band = if signed { 2.0 * self.band } else { 0.0 };
+        // A candidate's own stiffness (its fitted cable k, or a ripple's A·2π/P) adds to the
+        // model's when the fastest mode is judged.
+        let e = th.get(nb..).unwrap_or(&[]);
+        let extra_k = match (kind, e) {
+            (TKind::Cable, [k, ..]) => k.abs(),
+            (TKind::Ripple, [a, b, lp, ..]) => a.hypot(*b) * std::f64::consts::TAU / lp.exp(),
+            _ => 0.0,
+        };
+        let rate = self.rate.max(3.0 * (extra_k / self.j).sqrt());
         let near_rest = self
             .cols
             .iter()
@@ -186,7 +195,7 @@ impl Sim<'_> {
             let sub = if qd.abs() - 1.5 * first.1.abs() * dt < near_rest {
                 4
             } else {
-                (dt * self.rate.max(kappa * qd.abs()) / 0.1).ceil().clamp(1.0, 4.0) as usize
+                (dt * rate.max(kappa * qd.abs()) / 0.1).ceil().clamp(1.0, 4.0) as usize
             };
             let h = dt / sub as f64;
             for k in 0..sub {
