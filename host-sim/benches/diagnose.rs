@@ -84,11 +84,7 @@ fn main() {
     }
     let _ = args;
     let exe = std::env::current_exe().unwrap();
-    let out = Command::new(exe)
-        .env("DIAG_BENCH_LOG", &log_path)
-        .env("DIAG_BENCH_MODEL", &model_path)
-        .output()
-        .unwrap();
+    let out = Command::new(exe).env("DIAG_BENCH_LOG", &log_path).env("DIAG_BENCH_MODEL", &model_path).output().unwrap();
     print!("{}", String::from_utf8_lossy(&out.stdout));
     eprint!("{}", String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success());

@@ -22,7 +22,8 @@ fn stats(name: &str, mut v: Vec<f64>) {
 }
 
 fn main() {
-    let plant = PlantFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/plants/trunk-right.toml"))).unwrap();
+    let plant =
+        PlantFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/plants/trunk-right.toml"))).unwrap();
     let ctrl = ModelFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/models/trunk-right.toml"))).unwrap();
     let cfg = SimConfig {
         scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Poses, ScenarioKind::Hand],

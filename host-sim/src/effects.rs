@@ -181,9 +181,7 @@ impl Effects {
 
     /// Temperature at plant time `t` (°C), if the plant has thermal drift.
     pub fn temperature(&self, t: f64) -> Option<f64> {
-        self.thermal_drift
-            .as_ref()
-            .map(|e| e.t_ambient + e.rise * (1.0 - (-t / e.time_constant).exp()))
+        self.thermal_drift.as_ref().map(|e| e.t_ambient + e.rise * (1.0 - (-t / e.time_constant).exp()))
     }
 
     /// Factor on the plant's own friction at time `t` (1 without thermal drift).

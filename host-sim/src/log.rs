@@ -138,7 +138,9 @@ impl JointLog {
     /// Column names in the order [`write_csv`](Self::write_csv) writes them.
     pub fn column_names(&self) -> Vec<&str> {
         let mut v = vec!["t", "q"];
-        for (name, col) in [("qd", &self.qd), ("qdd", &self.qdd), ("u", &self.u), ("tau", &self.tau), ("temp", &self.temp)] {
+        for (name, col) in
+            [("qd", &self.qd), ("qdd", &self.qdd), ("u", &self.u), ("tau", &self.tau), ("temp", &self.temp)]
+        {
             if col.is_some() {
                 v.push(name);
             }
@@ -405,7 +407,12 @@ impl Layout<'_> {
                 }
             }
             if n_cells != names.len() {
-                return Err(LogError::Ragged { file: file.to_string(), line: line_no, found: n_cells, expected: names.len() });
+                return Err(LogError::Ragged {
+                    file: file.to_string(),
+                    line: line_no,
+                    found: n_cells,
+                    expected: names.len(),
+                });
             }
             // Time check right away so the error names this line.
             if let Some(tcol) = known.first() {
@@ -610,7 +617,10 @@ mod tests {
     #[test]
     fn reading_a_large_file_in_halves_equals_parsing_it() {
         let dir = tempfile::tempdir().unwrap();
-        for (name, text) in [("lf.csv", text(&big(60_000))), ("crlf-bom.csv", format!("\u{feff}{}", text(&big(60_000)).replace('\n', "\r\n")))] {
+        for (name, text) in [
+            ("lf.csv", text(&big(60_000))),
+            ("crlf-bom.csv", format!("\u{feff}{}", text(&big(60_000)).replace('\n', "\r\n"))),
+        ] {
             let path = dir.path().join(name);
             std::fs::write(&path, &text).unwrap();
             let want = JointLog::parse(text.as_bytes(), "x").unwrap();

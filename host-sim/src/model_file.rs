@@ -30,7 +30,9 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use joint_core::params::{self, ParamDesc, ParamError, ParamId, ParamSet, RawParams, RawSeries, RawTable, PARAMS, PARAM_COUNT};
+use joint_core::params::{
+    self, ParamDesc, ParamError, ParamId, ParamSet, RawParams, RawSeries, RawTable, PARAMS, PARAM_COUNT,
+};
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 use serde::Deserialize;
 use toml::Spanned;
@@ -209,21 +211,19 @@ impl ModelFile {
 
     pub fn read_file(path: &Path) -> Result<ModelFile, ModelError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ModelError::Io { file: file.clone(), msg: e.to_string() })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|e| ModelError::Io { file: file.clone(), msg: e.to_string() })?;
         Self::parse(&text, &file)
     }
 
     /// Parses model TOML text; `file` is only used in messages.
     pub fn parse(text: &str, file: &str) -> Result<ModelFile, ModelError> {
-        let toml: ModelToml = toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
+        let toml: ModelToml =
+            toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
         Self::from_toml(&toml, text, file)
     }
 
-    pub(crate) fn from_toml(
-        toml: &ModelToml,
-        text: &str,
-        file: &str,
-    ) -> Result<ModelFile, ModelError> {
+    pub(crate) fn from_toml(toml: &ModelToml, text: &str, file: &str) -> Result<ModelFile, ModelError> {
         let mut sections = toml.scalar_sections().to_vec();
         sections.extend([
             ("stribeck", toml.stribeck.as_ref()),
@@ -385,7 +385,10 @@ impl ModelFile {
         }
         let others = self.other_columns();
         if others.len() > 3 {
-            return Err(self.series_error(format!("{} other joints named by the table and the series, at most 3 fit", others.len())));
+            return Err(self.series_error(format!(
+                "{} other joints named by the table and the series, at most 3 fit",
+                others.len()
+            )));
         }
         let mut slot_of = Vec::new();
         for (i, a) in s.angles.iter().enumerate() {
@@ -403,13 +406,19 @@ impl ModelFile {
             let p = s.phase.get(k).copied().unwrap_or(f64::NAN);
             let m = s.mult.get(k).cloned().unwrap_or_default();
             if !(a.is_finite() && a.abs() <= f64::from(AMPLITUDE_MAX)) {
-                return Err(self.series_error(format!("term {k}: amplitude = {a}: must be finite, |a| ≤ {AMPLITUDE_MAX} N·m")));
+                return Err(
+                    self.series_error(format!("term {k}: amplitude = {a}: must be finite, |a| ≤ {AMPLITUDE_MAX} N·m"))
+                );
             }
             if !(p.is_finite() && p.abs() <= f64::from(PHASE_MAX)) {
                 return Err(self.series_error(format!("term {k}: phase = {p}: must be finite, |φ| ≤ {PHASE_MAX} rad")));
             }
             if m.len() != s.angles.len() {
-                return Err(self.series_error(format!("term {k}: mult has {} entries, one per angle ({}) needed", m.len(), s.angles.len())));
+                return Err(self.series_error(format!(
+                    "term {k}: mult has {} entries, one per angle ({}) needed",
+                    m.len(),
+                    s.angles.len()
+                )));
             }
             let mut v = [0i8; 4];
             for (i, &x) in m.iter().enumerate() {
@@ -473,7 +482,9 @@ impl ModelFile {
                 return Err(self.table_error("axes", format!("axis `{a}` appears twice")));
             }
             if a != "q" && !(a.len() > 2 && a.starts_with("q_")) {
-                return Err(self.table_error("axes", format!("axis `{a}` is not a log angle column (`q` or `q_<name>`)")));
+                return Err(
+                    self.table_error("axes", format!("axis `{a}` is not a log angle column (`q` or `q_<name>`)"))
+                );
             }
             let src = if a == "q" { 0 } else { 1 + others.iter().position(|o| o == a).unwrap_or(0) };
             if let Some(s) = rt.axis_source.get_mut(i) {
@@ -486,7 +497,10 @@ impl ModelFile {
         let mut cells = 1usize;
         for (i, g) in t.grid.iter().enumerate() {
             if g.len() < 2 || g.len() > AXIS_POINTS_MAX {
-                return Err(self.table_error("grid", format!("grid[{i}] has {} points, 2..={AXIS_POINTS_MAX} supported", g.len())));
+                return Err(self.table_error(
+                    "grid",
+                    format!("grid[{i}] has {} points, 2..={AXIS_POINTS_MAX} supported", g.len()),
+                ));
             }
             cells *= g.len();
             if let (Some(p), Some(row)) = (rt.points.get_mut(i), rt.grid.get_mut(i)) {
@@ -500,7 +514,9 @@ impl ModelFile {
             return Err(self.table_error("grid", format!("{cells} cells, at most {CELLS_MAX} fit")));
         }
         if t.torque.len() != cells {
-            return Err(self.table_error("torque", format!("{} values, the grid needs {cells} (row-major)", t.torque.len())));
+            return Err(
+                self.table_error("torque", format!("{} values, the grid needs {cells} (row-major)", t.torque.len()))
+            );
         }
         for (dst, src) in rt.torque.iter_mut().zip(&t.torque) {
             *dst = *src as f32;
@@ -557,7 +573,10 @@ impl ModelFile {
             let grid = (0..n)
                 .map(|a| {
                     let p = t.points.get(a).copied().unwrap_or(0) as usize;
-                    t.grid.get(a).map(|g| g.iter().take(p).map(|&x| f32_to_f64_shortest(x)).collect()).unwrap_or_default()
+                    t.grid
+                        .get(a)
+                        .map(|g| g.iter().take(p).map(|&x| f32_to_f64_shortest(x)).collect())
+                        .unwrap_or_default()
                 })
                 .collect();
             let torque = t.torque.iter().take(cells).map(|&x| f32_to_f64_shortest(x)).collect();

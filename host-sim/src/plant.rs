@@ -117,12 +117,14 @@ pub struct PlantFile {
 impl PlantFile {
     pub fn read_file(path: &Path) -> Result<PlantFile, ModelError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ModelError::Io { file: file.clone(), msg: e.to_string() })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|e| ModelError::Io { file: file.clone(), msg: e.to_string() })?;
         Self::parse(&text, &file)
     }
 
     pub fn parse(text: &str, file: &str) -> Result<PlantFile, ModelError> {
-        let t: PlantToml = toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
+        let t: PlantToml =
+            toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
         let model = ModelFile::from_parts(t.name.clone(), &t.scalar_sections(), t.gravity_table.as_ref(), text, file)?;
         // The model part must be a valid parameter set too (ranges, table shape).
         model.param_set()?;
@@ -155,7 +157,10 @@ impl PlantFile {
         }
         if let Some(r) = &t.joint_range {
             if !(r.min.is_finite() && r.max.is_finite() && r.max > r.min) {
-                return Err(err(format!("[joint_range] min = {}, max = {}: need finite min < max (rad)", r.min, r.max)));
+                return Err(err(format!(
+                    "[joint_range] min = {}, max = {}: need finite min < max (rad)",
+                    r.min, r.max
+                )));
             }
         }
         if let Some(o) = &t.operator {

@@ -198,12 +198,20 @@ pub struct Poses {
 
 impl Scenario {
     /// Starts a scenario of `duration` s at the measured angle `q`; `first` = nothing ran before.
-    pub fn start(kind: ScenarioKind, duration: f64, cfg: &ScenarioCfg, q: f64, first: bool, rng: &mut ChaCha8Rng) -> Scenario {
+    pub fn start(
+        kind: ScenarioKind,
+        duration: f64,
+        cfg: &ScenarioCfg,
+        q: f64,
+        first: bool,
+        rng: &mut ChaCha8Rng,
+    ) -> Scenario {
         let margin = (2.0 * DEG).min((cfg.hi - cfg.lo) / 10.0);
         let (lo, hi) = (cfg.lo + margin, cfg.hi - margin);
         match kind {
             ScenarioKind::Sweep => {
-                let speeds: Vec<f64> = [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0].iter().map(|v| v * DEG).collect();
+                let speeds: Vec<f64> =
+                    [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0].iter().map(|v| v * DEG).collect();
                 let stroke_time = duration / (2.0 * speeds.len() as f64);
                 Scenario::Sweep(Sweep {
                     speeds,
@@ -229,12 +237,23 @@ impl Scenario {
                     x += 10.0 * DEG;
                 }
                 let pose_time = duration / targets.len().max(1) as f64;
-                Scenario::Poses(Poses { targets, pose_time, move_time: (0.4 * pose_time).min(1.0), from: q, current: 0 })
+                Scenario::Poses(Poses {
+                    targets,
+                    pose_time,
+                    move_time: (0.4 * pose_time).min(1.0),
+                    from: q,
+                    current: 0,
+                })
             }
-            ScenarioKind::Free => {
-                Scenario::Free { hold: if first { 0.0 } else { 1.0f64.min(0.3 * duration) }, start: cfg.free_start, k: cfg.k_h, b: cfg.b_h }
+            ScenarioKind::Free => Scenario::Free {
+                hold: if first { 0.0 } else { 1.0f64.min(0.3 * duration) },
+                start: cfg.free_start,
+                k: cfg.k_h,
+                b: cfg.b_h,
+            },
+            ScenarioKind::Hand => {
+                Scenario::Hand { path: RandomPath::new(q, lo, hi, 0.8, 2.5, rng), k: cfg.k_h, b: cfg.b_h }
             }
-            ScenarioKind::Hand => Scenario::Hand { path: RandomPath::new(q, lo, hi, 0.8, 2.5, rng), k: cfg.k_h, b: cfg.b_h },
         }
     }
 

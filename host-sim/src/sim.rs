@@ -123,7 +123,10 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
     }
     let sub = (cfg.plant_rate / rate).round() as usize;
     if ((sub as f64) * rate - cfg.plant_rate).abs() > 1e-6 * cfg.plant_rate {
-        return bad(format!("plant rate {} Hz must be an integer multiple of the control rate {rate} Hz", cfg.plant_rate));
+        return bad(format!(
+            "plant rate {} Hz must be an integer multiple of the control rate {rate} Hz",
+            cfg.plant_rate
+        ));
     }
     if !(cfg.seconds.is_finite() && cfg.seconds > 0.0 && cfg.seconds * rate <= 5.0e7) {
         return bad(format!("--seconds {} must be > 0 (and at most 5e7 samples)", cfg.seconds));
@@ -131,10 +134,7 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
     if cfg.scenarios.is_empty() {
         return bad("no scenario given".into());
     }
-    let (lo, hi) = cfg
-        .range
-        .or(plant_file.range.as_ref().map(|r| (r.min, r.max)))
-        .unwrap_or((0.0, 116.5 * DEG));
+    let (lo, hi) = cfg.range.or(plant_file.range.as_ref().map(|r| (r.min, r.max))).unwrap_or((0.0, 116.5 * DEG));
     if !(lo.is_finite() && hi.is_finite() && hi > lo) {
         return bad(format!("joint range {lo}..{hi} rad must have min < max"));
     }
@@ -153,20 +153,20 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
             (k, 2.0 * 0.7 * (k * plant.j).sqrt())
         }
     };
-    let scfg = ScenarioCfg {
-        lo,
-        hi,
-        k_h,
-        b_h,
-        free_start: cfg.free_start.unwrap_or(lo + 0.75 * (hi - lo)),
-        sweep_accel: 3.0,
-    };
+    let scfg =
+        ScenarioCfg { lo, hi, k_h, b_h, free_start: cfg.free_start.unwrap_or(lo + 0.75 * (hi - lo)), sweep_accel: 3.0 };
 
     let mut rng_scn = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut rng_noise = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x9E37_79B9_7F4A_7C15);
     let s = &plant_file.sensors;
-    let (n_q, n_qd, n_qdd, n_tau, n_u, n_temp) =
-        (normal(s.q_noise), normal(s.qd_noise), normal(s.qdd_noise), normal(s.tau_noise), normal(s.u_noise), normal(s.temp_noise));
+    let (n_q, n_qd, n_qdd, n_tau, n_u, n_temp) = (
+        normal(s.q_noise),
+        normal(s.qd_noise),
+        normal(s.qdd_noise),
+        normal(s.tau_noise),
+        normal(s.u_noise),
+        normal(s.temp_noise),
+    );
 
     // Other joints of the gravity table: random smooth paths inside their grid.
     let other_names = plant_file.model.other_columns();
@@ -242,7 +242,8 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
                 others_seen.iter().map(|o| quantise(o + n_q.sample(&mut rng_noise), s.q_resolution)).collect();
 
             // 2. controller
-            let sc = scenario.get_or_insert_with(|| Scenario::start(*kind, cfg.seconds, &scfg, q_s, si == 0, &mut rng_scn));
+            let sc =
+                scenario.get_or_insert_with(|| Scenario::start(*kind, cfg.seconds, &scfg, q_s, si == 0, &mut rng_scn));
             let cmd = sc.command(t_local, q_s, &mut rng_scn);
             let qdd_est = diff.update(qd_s as f32, dt_ctrl as f32, cutoff);
             let mut inp = Input { q: q_s as f32, qd: qd_s as f32, qdd: qdd_est, others: [0.0; 3], assist_cmd: 0.0 };
@@ -352,7 +353,13 @@ pub fn rms(v: &[f64]) -> f64 {
 /// and a uniform quantisation error; qd; qdd), estimated by redrawing that noise once per
 /// sample on the logged samples (seeded, so deterministic). Nonlinear terms (the friction sign
 /// near zero velocity) are covered because the model is evaluated, not linearised.
-pub fn noise_floor(log: &JointLog, p: &ParamSet, other_columns: &[String], s: &crate::plant::Sensors, seed: u64) -> Option<f64> {
+pub fn noise_floor(
+    log: &JointLog,
+    p: &ParamSet,
+    other_columns: &[String],
+    s: &crate::plant::Sensors,
+    seed: u64,
+) -> Option<f64> {
     let base = predicted(log, p, other_columns)?;
     let mut noisy = log.clone();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5DEE_CE66_D1CE_4E5B);
@@ -397,7 +404,12 @@ pub struct Summary {
     pub columns: Vec<String>,
 }
 
-pub fn summarize(log: &JointLog, p: &ParamSet, other_columns: &[String], sensors: Option<(&crate::plant::Sensors, u64)>) -> Summary {
+pub fn summarize(
+    log: &JointLog,
+    p: &ParamSet,
+    other_columns: &[String],
+    sensors: Option<(&crate::plant::Sensors, u64)>,
+) -> Summary {
     let q_min = log.q.iter().copied().fold(f64::INFINITY, f64::min);
     let q_max = log.q.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let duration_s = match (log.t.first(), log.t.last()) {

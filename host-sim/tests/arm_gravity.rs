@@ -81,8 +81,14 @@ fn a_bad_series_is_refused_over_can_and_the_old_set_stays() {
     assert_eq!(ModelFile::parse(&text, "j1.toml").unwrap().raw_params().unwrap(), good);
 
     let refuse = |b: &mut arm::bus::ArmBus, raw: &joint_core::params::RawParams, want: &str| {
-        let e = transfer::push(&mut b.master, node_id(0), raw, PushOptions { pre_operational: true, save: false }, &mut |_| {})
-            .expect_err("a bad series must be refused");
+        let e = transfer::push(
+            &mut b.master,
+            node_id(0),
+            raw,
+            PushOptions { pre_operational: true, save: false },
+            &mut |_| {},
+        )
+        .expect_err("a bad series must be refused");
         let msg = e.to_string();
         assert!(msg.contains(want), "{msg}");
         assert_eq!(*b.joints[0].lock().unwrap().node.params().raw(), good, "old set in force after: {msg}");
@@ -116,7 +122,8 @@ mult = [[1, 0, 0, 0], [1, -1, 1, 1]]
     let raw = mf.raw_params().unwrap();
     assert_eq!(raw.series.n_terms, 2);
     assert_eq!(raw.series.mult[1], [1, -1, 1, 1]);
-    let back = ModelFile::parse(&ModelFile::from_raw(&raw, None, &mf.other_columns()).to_toml_string(), "b.toml").unwrap();
+    let back =
+        ModelFile::parse(&ModelFile::from_raw(&raw, None, &mf.other_columns()).to_toml_string(), "b.toml").unwrap();
     assert_eq!(back.raw_params().unwrap(), raw);
 
     let unknown = text.replace("mult =", "bogus = 1\nmult =");

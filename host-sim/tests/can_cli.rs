@@ -40,7 +40,17 @@ fn push_of_an_invalid_model_names_the_key_and_sends_nothing() {
 fn log_writes_a_joint_log_the_spec_reader_accepts() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("can.csv");
-    let v = json(&jointctl(&["log", "--node", "5", "--seconds", "0.5", "--start", "--out", out.to_str().unwrap(), "--json"]));
+    let v = json(&jointctl(&[
+        "log",
+        "--node",
+        "5",
+        "--seconds",
+        "0.5",
+        "--start",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
     // TPDOs every 10 ms
     let rows = v["rows"].as_u64().unwrap();
     assert!((48..=52).contains(&rows), "{v}");

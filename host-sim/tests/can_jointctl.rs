@@ -53,7 +53,8 @@ fn running(j: &Arc<Mutex<JointSim>>) -> RawParams {
 fn push_then_pull_round_trips_the_trunk_model() {
     let mut r = rig(1_000_000, &[5]);
     let want = model("trunk-right.toml");
-    let rep = transfer::push(&mut r.m, 5, &want, PushOptions { save: true, ..Default::default() }, &mut |_| {}).unwrap();
+    let rep =
+        transfer::push(&mut r.m, 5, &want, PushOptions { save: true, ..Default::default() }, &mut |_| {}).unwrap();
     assert!(rep.saved);
     // running on the joint, bit for bit, and stored
     assert_eq!(running(&r.joints[0]), want);
@@ -139,14 +140,18 @@ fn heartbeat_loss_trips_the_watchdog_and_is_reported() {
     r.m.heartbeat_us = 0;
     r.m.other.clear();
     r.m.listen(Duration::from_secs(1)).unwrap();
-    let emcy: Vec<_> = r.m.emcy.iter().filter(|(n, _, d)| *n == 5 && u16::from_le_bytes([d[0], d[1]]) == EMCY_HEARTBEAT).collect();
+    let emcy: Vec<_> =
+        r.m.emcy.iter().filter(|(n, _, d)| *n == 5 && u16::from_le_bytes([d[0], d[1]]) == EMCY_HEARTBEAT).collect();
     assert_eq!(emcy.len(), 1, "{:?}", r.m.emcy);
     let j = r.joints[0].lock().unwrap();
     assert!(j.node.safety().faults().contains(Faults::HEARTBEAT_LOST));
     assert_eq!(j.node.safety().gain(), 0.0, "faded out within fault_ramp_time (0.2 s)");
     // and the TPDOs say so
     let last = r.m.other.iter().rev().find(|(_, f)| f.id() == 0x185).unwrap();
-    assert_eq!(Tpdo1::decode(last.1.data()).unwrap().faults & Faults::HEARTBEAT_LOST.bits(), Faults::HEARTBEAT_LOST.bits());
+    assert_eq!(
+        Tpdo1::decode(last.1.data()).unwrap().faults & Faults::HEARTBEAT_LOST.bits(),
+        Faults::HEARTBEAT_LOST.bits()
+    );
 }
 
 #[test]
@@ -197,7 +202,10 @@ fn push_to_an_operational_joint_needs_pre_operational_only_for_changed_safety_va
     let mut unsafe_set = set.clone();
     unsafe_set.set(ParamId::Fraction, 0.5);
     let err = transfer::push(&mut r.m, 5, &unsafe_set, PushOptions::default(), &mut |_| {}).unwrap_err();
-    assert!(err.to_string().contains("compensation_fraction") && err.to_string().contains("--pre-operational"), "{err}");
+    assert!(
+        err.to_string().contains("compensation_fraction") && err.to_string().contains("--pre-operational"),
+        "{err}"
+    );
     assert_eq!(running(&r.joints[0]), set);
     let opts = PushOptions { pre_operational: true, ..Default::default() };
     transfer::push(&mut r.m, 5, &unsafe_set, opts, &mut |_| {}).unwrap();

@@ -38,7 +38,12 @@ fn scan_push_pull_over_a_socat_pty_pair() {
     let (a, b) = (dir.path().join("A"), dir.path().join("B"));
     let _socat = Kill(
         Command::new("socat")
-            .args(["-d", "-d", &format!("pty,raw,echo=0,link={}", a.display()), &format!("pty,raw,echo=0,link={}", b.display())])
+            .args([
+                "-d",
+                "-d",
+                &format!("pty,raw,echo=0,link={}", a.display()),
+                &format!("pty,raw,echo=0,link={}", b.display()),
+            ])
             .stderr(Stdio::null())
             .spawn()
             .unwrap(),

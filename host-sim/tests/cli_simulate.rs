@@ -15,8 +15,18 @@ fn simulate_writes_a_log_and_a_json_summary() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("log.csv");
     let o = jointctl(&[
-        "simulate", "--plant", "examples/plants/trunk-right.toml", "--controller", "examples/models/trunk-right.toml",
-        "--scenario", "sweep,hand", "--seconds", "2", "--out", out.to_str().unwrap(), "--json",
+        "simulate",
+        "--plant",
+        "examples/plants/trunk-right.toml",
+        "--controller",
+        "examples/models/trunk-right.toml",
+        "--scenario",
+        "sweep,hand",
+        "--seconds",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -36,16 +46,34 @@ fn bad_input_names_the_problem_and_writes_nothing() {
     std::fs::write(&bad, "[inertia]\nj = 1.0\n[friction]\nc = 1.0\nwobble = 2.0\n").unwrap();
     let out = dir.path().join("log.csv");
     let o = jointctl(&[
-        "simulate", "--plant", bad.to_str().unwrap(), "--controller", "examples/models/trunk-right.toml",
-        "--scenario", "sweep", "--seconds", "1", "--out", out.to_str().unwrap(),
+        "simulate",
+        "--plant",
+        bad.to_str().unwrap(),
+        "--controller",
+        "examples/models/trunk-right.toml",
+        "--scenario",
+        "sweep",
+        "--seconds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.toml") && err.contains("wobble") && err.contains("line 5"), "{err}");
     assert!(!out.exists());
     let o = jointctl(&[
-        "simulate", "--plant", "examples/plants/trunk-right.toml", "--controller", "examples/models/trunk-right.toml",
-        "--scenario", "sweep,dance", "--seconds", "1", "--out", out.to_str().unwrap(),
+        "simulate",
+        "--plant",
+        "examples/plants/trunk-right.toml",
+        "--controller",
+        "examples/models/trunk-right.toml",
+        "--scenario",
+        "sweep,dance",
+        "--seconds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("dance"));

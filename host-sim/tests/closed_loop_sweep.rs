@@ -11,7 +11,13 @@ fn sweep_finds_instability_at_high_fraction_with_delay() {
     let (json, svg) = (dir.path().join("sweep.json"), dir.path().join("sweep.svg"));
     let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .args(["closed-loop", "--plant", "examples/plants/trunk-right-delay.toml", "--model", "examples/models/trunk-right.toml"])
+        .args([
+            "closed-loop",
+            "--plant",
+            "examples/plants/trunk-right-delay.toml",
+            "--model",
+            "examples/models/trunk-right.toml",
+        ])
         .args(["--sweep-fraction", "--trials", "2", "--seconds", "8", "--json"])
         .arg(&json)
         .arg("--svg")

@@ -38,7 +38,11 @@ fn stribeck_and_cable_spring_fixed_to_60_percent() {
         assert!(o.model_error_ratio <= 0.6, "{file}: model error {:?} → {:?}", o.before, o.after);
         assert!(o.after.tracking_rmse_mean < o.before.tracking_rmse_mean, "{file}: {:?} → {:?}", o.before, o.after);
         // the diagnosis reached the true-parameter ceiling within 5 %
-        assert!(o.after.model_error_rmse_mean <= 1.05 * c.model_error_rmse_mean, "{file}: {:?} vs ceiling {c:?}", o.after);
+        assert!(
+            o.after.model_error_rmse_mean <= 1.05 * c.model_error_rmse_mean,
+            "{file}: {:?} vs ceiling {c:?}",
+            o.after
+        );
     }
 }
 

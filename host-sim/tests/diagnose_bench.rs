@@ -9,7 +9,13 @@ use host_sim::diagnose::bench;
 #[test]
 fn withheld_effects_are_named_and_none_is_not_overclaimed() {
     let rep = bench::run(52, 1, 20.0, None, |r| {
-        eprintln!("case {:>2}: {:<40} → {:<40} {}", r.case, r.truth, r.predicted, if r.correct { "ok" } else { "WRONG" })
+        eprintln!(
+            "case {:>2}: {:<40} → {:<40} {}",
+            r.case,
+            r.truth,
+            r.predicted,
+            if r.correct { "ok" } else { "WRONG" }
+        )
     })
     .unwrap();
     assert_eq!(rep.overclaims, 0, "a none case was diagnosed as an effect: {:?}", rep.confusion.get("none"));

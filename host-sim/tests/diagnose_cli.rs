@@ -41,7 +41,15 @@ fn torque_case(dir: &Path, effect: &str, seconds: f64) -> (PathBuf, PathBuf) {
 fn run_json(log: &Path, model: &Path, extra: &[&str]) -> serde_json::Value {
     let dir = log.parent().unwrap();
     let json = dir.join("out.json");
-    let mut args = vec!["diagnose", "--log", log.to_str().unwrap(), "--model", model.to_str().unwrap(), "--json", json.to_str().unwrap()];
+    let mut args = vec![
+        "diagnose",
+        "--log",
+        log.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ];
     args.extend_from_slice(extra);
     let o = jointctl(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -63,7 +71,8 @@ fn torque_mode_json_names_stribeck_and_the_emitted_model_runs() {
         assert!(v["gap"][k].as_f64().unwrap() > 0.0, "{k}");
     }
     let regimes = v["regimes"].as_array().unwrap();
-    let speed_share: f64 = regimes.iter().filter(|r| r["family"] == "speed").map(|r| r["share"].as_f64().unwrap()).sum();
+    let speed_share: f64 =
+        regimes.iter().filter(|r| r["family"] == "speed").map(|r| r["share"].as_f64().unwrap()).sum();
     assert!((speed_share - 1.0).abs() < 1e-9);
     assert!(regimes.iter().any(|r| r["name"] == "reversal") && regimes.iter().all(|r| r["where"].is_string()));
     let effects = v["effects"].as_array().unwrap();
@@ -73,7 +82,11 @@ fn torque_mode_json_names_stribeck_and_the_emitted_model_runs() {
     let na: Vec<&str> = v["not_applicable"].as_array().unwrap().iter().map(|e| e["effect"].as_str().unwrap()).collect();
     assert!(na.contains(&"dry_friction") && na.contains(&"backlash") && na.contains(&"initial_state"), "{na:?}");
     for e in effects {
-        let (b, a, s) = (e["holdout_rmse_before"].as_f64().unwrap(), e["holdout_rmse_after"].as_f64().unwrap(), e["shrink"].as_f64().unwrap());
+        let (b, a, s) = (
+            e["holdout_rmse_before"].as_f64().unwrap(),
+            e["holdout_rmse_after"].as_f64().unwrap(),
+            e["shrink"].as_f64().unwrap(),
+        );
         assert!((s - (1.0 - a / b)).abs() < 1e-12);
         assert!(e["significant"].is_boolean() && e["params"].is_object());
     }
@@ -186,7 +199,10 @@ fn trajectory_mode_leaves_out_a_trailing_rest_and_finds_backlash() {
         let tail = &v["split"]["rest_tail"];
         let left_out = tail["samples"].as_u64().unwrap();
         assert!(left_out > 2000 && tail["from_t"].as_f64().unwrap() < 2.0, "{tail}");
-        assert_eq!(v["samples"].as_u64().unwrap(), v["split"]["train"].as_u64().unwrap() + v["split"]["holdout"].as_u64().unwrap() + left_out);
+        assert_eq!(
+            v["samples"].as_u64().unwrap(),
+            v["split"]["train"].as_u64().unwrap() + v["split"]["holdout"].as_u64().unwrap() + left_out
+        );
         assert_eq!(v["verdict"]["effect"], expect, "{}", v["effects"]);
     }
 }
@@ -197,8 +213,17 @@ fn refused(log: &Path, model: &Path, needles: &[&str]) {
     let dir = log.parent().unwrap();
     let outs = [dir.join("r.json"), dir.join("r.html"), dir.join("r.toml")];
     let o = jointctl(&[
-        "diagnose", "--log", log.to_str().unwrap(), "--model", model.to_str().unwrap(),
-        "--json", outs[0].to_str().unwrap(), "--report", outs[1].to_str().unwrap(), "--emit-model", outs[2].to_str().unwrap(),
+        "diagnose",
+        "--log",
+        log.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--json",
+        outs[0].to_str().unwrap(),
+        "--report",
+        outs[1].to_str().unwrap(),
+        "--emit-model",
+        outs[2].to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{} with {} accepted: {err}", log.display(), model.display());
@@ -222,26 +247,36 @@ fn bad_logs_and_models_are_refused_with_the_place_named() {
         p
     };
     let with_line = |k: usize, f: &dyn Fn(&str) -> String| {
-        lines.iter().enumerate().map(|(i, l)| if i == k { f(l) } else { l.to_string() }).collect::<Vec<_>>().join("\n") + "\n"
+        lines.iter().enumerate().map(|(i, l)| if i == k { f(l) } else { l.to_string() }).collect::<Vec<_>>().join("\n")
+            + "\n"
     };
     // non-numeric cell at file line 6 (index 5), column q
-    let bad = write("nonnum.csv", with_line(5, &|l| {
-        let mut c: Vec<String> = l.split(',').map(String::from).collect();
-        c[1] = "abc".into();
-        c.join(",")
-    }));
+    let bad = write(
+        "nonnum.csv",
+        with_line(5, &|l| {
+            let mut c: Vec<String> = l.split(',').map(String::from).collect();
+            c[1] = "abc".into();
+            c.join(",")
+        }),
+    );
     refused(&bad, &model, &["line 6", "`q`", "abc"]);
-    let bad = write("nan.csv", with_line(9, &|l| {
-        let mut c: Vec<String> = l.split(',').map(String::from).collect();
-        c[4] = "NaN".into();
-        c.join(",")
-    }));
+    let bad = write(
+        "nan.csv",
+        with_line(9, &|l| {
+            let mut c: Vec<String> = l.split(',').map(String::from).collect();
+            c[4] = "NaN".into();
+            c.join(",")
+        }),
+    );
     refused(&bad, &model, &["line 10", "`u`"]);
-    let bad = write("back.csv", with_line(20, &|l| {
-        let mut c: Vec<String> = l.split(',').map(String::from).collect();
-        c[0] = "0.0001".into();
-        c.join(",")
-    }));
+    let bad = write(
+        "back.csv",
+        with_line(20, &|l| {
+            let mut c: Vec<String> = l.split(',').map(String::from).collect();
+            c[0] = "0.0001".into();
+            c.join(",")
+        }),
+    );
     refused(&bad, &model, &["line 21", "`t`"]);
     let bad = write("noq.csv", good.replacen("t,q,", "t,angle,", 1));
     refused(&bad, &model, &["`q`", "missing"]);

@@ -46,7 +46,13 @@ fn an_exact_model_on_a_long_noisy_log_is_not_a_parameter_change() {
     let d = diagnose(&l, &m, &Options::default()).unwrap();
     let r = &d.report;
     let refit = r.effects.iter().find(|e| e.effect == "parameters").unwrap();
-    println!("verdict {} ; refit {:?} (shrink {:.2} %, p {:.2e})", r.verdict.effect, refit.params, 100.0 * refit.shrink, refit.p_value);
+    println!(
+        "verdict {} ; refit {:?} (shrink {:.2} %, p {:.2e})",
+        r.verdict.effect,
+        refit.params,
+        100.0 * refit.shrink,
+        refit.p_value
+    );
     assert_eq!(r.verdict.effect, "none", "{:?}", r.verdict);
     // the report says what it corrected for (optional gap.qdd_noise_sd)
     let sd = r.gap.qdd_noise_sd.unwrap();

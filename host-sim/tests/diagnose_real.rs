@@ -67,7 +67,11 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
     let d = diagnose(&log, &model, &Options::default()).unwrap();
     let r = &d.report;
     assert!(r.verdict.shrink > 0.95, "{:?}", r.verdict);
-    assert!(r.verdict.effects.first().is_some_and(|e| e != "stribeck" && e != "cable_spring" && e != "load_dependent_friction"));
+    assert!(r
+        .verdict
+        .effects
+        .first()
+        .is_some_and(|e| e != "stribeck" && e != "cable_spring" && e != "load_dependent_friction"));
     let amp = r.refit["weight"]["amplitude"];
     assert!((3.0..3.6).contains(&amp), "refit weight amplitude {amp} N·m (README: the commanded m·g·l·sin q)");
 }
@@ -79,7 +83,10 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
 /// structure that is left (autocorrelation far outside the band after the fix too).
 #[test]
 fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/real/panda_gaz2019/panda_exciting_traj1_measured.csv"));
+    let p = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/real/panda_gaz2019/panda_exciting_traj1_measured.csv"
+    ));
     let Ok(text) = std::fs::read_to_string(&p) else {
         eprintln!("skipped: {} not found", p.display());
         return;
@@ -89,7 +96,12 @@ fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let model = ModelFile::parse("[inertia]\nj = 1.16\n[friction]\nc = 0.273\nv_band = 0.2\n", "panda1.toml").unwrap();
     let r = diagnose(&log, &model, &Options::default()).unwrap().report;
     assert!(r.gap.holdout_rmse > 10.0 * r.gap.noise_floor, "{:?}", r.gap);
-    assert!(r.verdict.shrink < 0.1, "a single-joint effect took {:.1} % of a coupling gap: {:?}", 100.0 * r.verdict.shrink, r.verdict);
+    assert!(
+        r.verdict.shrink < 0.1,
+        "a single-joint effect took {:.1} % of a coupling gap: {:?}",
+        100.0 * r.verdict.shrink,
+        r.verdict
+    );
     for e in r.effects.iter().filter(|e| e.significant) {
         assert!(e.implausible.is_none(), "{} significant though implausible", e.effect);
     }

@@ -31,30 +31,59 @@ fn report_renders_in_headless_chromium_with_all_plots() {
     )
     .unwrap();
     let model = ModelFile::parse(MODEL, "m").unwrap();
-    let cfg = SimConfig { scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand], seconds: 6.0, rate: Some(1000.0), ..SimConfig::default() };
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand],
+        seconds: 6.0,
+        rate: Some(1000.0),
+        ..SimConfig::default()
+    };
     let (log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
     let (l, m, html) = (dir.path().join("l.csv"), dir.path().join("m.toml"), dir.path().join("report.html"));
     log.write_file(&l).unwrap();
     std::fs::write(&m, MODEL).unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
-        .args(["diagnose", "--log", l.to_str().unwrap(), "--model", m.to_str().unwrap(), "--report", html.to_str().unwrap()])
+        .args([
+            "diagnose",
+            "--log",
+            l.to_str().unwrap(),
+            "--model",
+            m.to_str().unwrap(),
+            "--report",
+            html.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&html).unwrap();
     // Self-contained: nothing is fetched.
-    assert_eq!(text.matches("http://").count(), text.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(), "only SVG namespaces may name a URL");
+    assert_eq!(
+        text.matches("http://").count(),
+        text.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(),
+        "only SVG namespaces may name a URL"
+    );
     assert!(!text.contains("https://") && !text.contains("<script") && !text.contains("src="));
     let Some(browser) = chromium() else {
-        eprintln!("SKIPPED: no `chromium` on this machine (run scripts/chromium.sh); the HTML was checked as text only");
+        eprintln!(
+            "SKIPPED: no `chromium` on this machine (run scripts/chromium.sh); the HTML was checked as text only"
+        );
         return;
     };
     let url = format!("file://{}", html.display());
-    let common = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--hide-scrollbars"];
+    let common =
+        ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--hide-scrollbars"];
     let dom = Command::new(&browser).args(common).args(["--dump-dom", &url]).output().unwrap();
     assert!(dom.status.success(), "{}", String::from_utf8_lossy(&dom.stderr));
     let dom = String::from_utf8_lossy(&dom.stdout);
-    for id in ["resid-vs-velocity", "resid-vs-position", "resid-vs-time", "overlay", "residual-before-after", "autocorrelation", "crosscorrelation", "ranking"] {
+    for id in [
+        "resid-vs-velocity",
+        "resid-vs-position",
+        "resid-vs-time",
+        "overlay",
+        "residual-before-after",
+        "autocorrelation",
+        "crosscorrelation",
+        "ranking",
+    ] {
         assert!(dom.contains(&format!("<svg class=\"plot\" id=\"{id}\"")), "plot {id} missing from the rendered DOM");
     }
     assert!(dom.matches("<circle").count() > 3 * 2000, "scatter points missing");

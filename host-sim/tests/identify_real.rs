@@ -63,7 +63,10 @@ fn dfki_sysid_run_joint_least_squares() {
     let opts12 = Options { accel_cutoff: 12.0, ..opts };
     let (_, id12) = identify::identify(std::slice::from_ref(&log), &opts12, &Quiet).unwrap();
     let (j12, amp12) = (id12.inertia.as_ref().unwrap().j, id12.weight.as_ref().unwrap().amplitude);
-    eprintln!("DFKI sys-id at 12 Hz: J = {j12:.4} (published 0.0626), m·c·g = {amp12:.4} (published {:.4})", 0.1022 * 9.81);
+    eprintln!(
+        "DFKI sys-id at 12 Hz: J = {j12:.4} (published 0.0626), m·c·g = {amp12:.4} (published {:.4})",
+        0.1022 * 9.81
+    );
     assert!((j12 / 0.0626 - 1.0).abs() < 0.1 && (amp12 / (0.1022 * 9.81) - 1.0).abs() < 0.1);
     assert!(j > 2.0 * j12, "the 5 Hz J {j} is not far above the 12 Hz one {j12}");
 }
@@ -93,7 +96,9 @@ fn ur5e_friction_table_polynomial_error() {
     let rel = "ur5e_friction_calibration_aurt/ur5e_joint_friction_table.csv";
     let Some(text) = data(rel) else { return };
     for j in 0..6 {
-        let log = convert(Format::Ur5eFriction, &text, rel, &ImportOpts { joint: Some(j), ..ImportOpts::default() }).unwrap().log;
+        let log = convert(Format::Ur5eFriction, &text, rel, &ImportOpts { joint: Some(j), ..ImportOpts::default() })
+            .unwrap()
+            .log;
         let opts = Options { terms: vec![Term::Friction], ..Options::default() };
         let (_, id) = identify::identify(&[log], &opts, &Quiet).unwrap();
         let f = id.friction.as_ref().unwrap();
@@ -109,7 +114,13 @@ fn ur5e_friction_table_polynomial_error() {
             n += 1;
         }
         let rms = (sq / n as f64).sqrt();
-        eprintln!("UR5e joint {j}: a {:.3} b {:.3} c {:.3} (joint side); table RMS error {:.1} mN·m motor side", f.a, f.b, f.c, rms * 1e3);
+        eprintln!(
+            "UR5e joint {j}: a {:.3} b {:.3} c {:.3} (joint side); table RMS error {:.1} mN·m motor side",
+            f.a,
+            f.b,
+            f.c,
+            rms * 1e3
+        );
         assert!(n == 6 && rms < 0.008, "joint {j}: {rms}");
     }
 }
@@ -121,7 +132,8 @@ fn panda_rest_torque_per_joint() {
     let rel = "panda_gaz2019/panda_exciting_traj1_measured.csv";
     let Some(text) = data(rel) else { return };
     for j in 1..=7 {
-        let log = convert(Format::PandaGaz, &text, rel, &ImportOpts { joint: Some(j), ..ImportOpts::default() }).unwrap().log;
+        let log =
+            convert(Format::PandaGaz, &text, rel, &ImportOpts { joint: Some(j), ..ImportOpts::default() }).unwrap().log;
         let n = log.t.partition_point(|&t| t < 0.03);
         let mean = log.u.as_ref().unwrap()[..n].iter().sum::<f64>() / n as f64;
         let opts = Options {

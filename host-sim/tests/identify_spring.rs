@@ -15,8 +15,10 @@ const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 
 fn sim(plant: &str, scn: ScenarioKind, secs: f64, torque: bool) -> (JointLog, ModelFile) {
     let plant = PlantFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/plants/{plant}"))).unwrap();
-    let ctrl = ModelFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/models/elastic-joint.toml"))).unwrap();
-    let cfg = SimConfig { scenarios: vec![scn], seconds: secs, seed: 4, torque_columns: torque, ..SimConfig::default() };
+    let ctrl =
+        ModelFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/models/elastic-joint.toml"))).unwrap();
+    let cfg =
+        SimConfig { scenarios: vec![scn], seconds: secs, seed: 4, torque_columns: torque, ..SimConfig::default() };
     let (log, _) = sim::simulate(&plant, &ctrl.param_set().unwrap(), &cfg).unwrap();
     (log, plant.model)
 }

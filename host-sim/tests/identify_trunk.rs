@@ -149,7 +149,13 @@ fn cli_identify_one_log_must_show() {
         .output()
         .unwrap();
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-    let out = std::process::Command::new(bin).args(["identify", "--log"]).arg(&log).arg("--out").arg(&model).output().unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["identify", "--log"])
+        .arg(&log)
+        .arg("--out")
+        .arg(&model)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let found = ModelFile::read_file(&model).unwrap();
     found.param_set().unwrap();
@@ -157,7 +163,12 @@ fn cli_identify_one_log_must_show() {
     // The poses cover the scenario's range: 0…116.5° less a 2° margin.
     let e = errors(&found, &truth, 2.0 * DEG, 114.5 * DEG);
     let worst = e.friction_rel.iter().fold(0.0f64, |m, (_, r)| m.max(*r));
-    eprintln!("cli: friction worst {:.2} %, static RMS {:.4} N·m, J {:.2} %", worst * 100.0, e.static_rms, e.j_rel * 100.0);
+    eprintln!(
+        "cli: friction worst {:.2} %, static RMS {:.4} N·m, J {:.2} %",
+        worst * 100.0,
+        e.static_rms,
+        e.j_rel * 100.0
+    );
     for (d, rel) in &e.friction_rel {
         assert!(*rel < 0.05, "friction at {d} deg/s off by {:.2} %", rel * 100.0);
     }
@@ -210,7 +221,8 @@ fn a_log_without_plateaus_is_refused_with_the_reason() {
 fn motion_window_uses_only_the_hand_motion() {
     use host_sim::identify::segments::{SegKind, Window};
     let (log, truth) = simulate("right", 11);
-    let opts = Options { windows: vec![Window { start: 80.0, end: 120.0, kind: SegKind::Motion }], ..Options::default() };
+    let opts =
+        Options { windows: vec![Window { start: 80.0, end: 120.0, kind: SegKind::Motion }], ..Options::default() };
     let (_, id) = identify::identify(std::slice::from_ref(&log), &opts, &Quiet).unwrap();
     let inr = id.inertia.as_ref().unwrap();
     let rel = inr.j / truth.value(ParamId::InertiaJ) - 1.0;
@@ -230,10 +242,17 @@ fn derived_velocity_and_acceleration_suffice() {
         }
         let (_, id) = identify::identify(std::slice::from_ref(&log), &Options::default(), &Quiet).unwrap();
         let found = identify::model_file(&id, Some("found")).unwrap();
-        let (q_lo, q_hi) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+        let (q_lo, q_hi) =
+            id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
         let e = errors(&found, &truth, q_lo, q_hi);
         let worst = e.friction_rel.iter().fold(0.0f64, |m, (_, r)| m.max(*r));
-        eprintln!("no qdd{}: friction worst {:.2} %, static RMS {:.4} N·m, J {:.2} %", if drop_qd { ", no qd" } else { "" }, worst * 100.0, e.static_rms, e.j_rel * 100.0);
+        eprintln!(
+            "no qdd{}: friction worst {:.2} %, static RMS {:.4} N·m, J {:.2} %",
+            if drop_qd { ", no qd" } else { "" },
+            worst * 100.0,
+            e.static_rms,
+            e.j_rel * 100.0
+        );
         assert!(worst < 0.03 && e.static_rms < 0.1 && e.j_rel < 0.03);
     }
 }

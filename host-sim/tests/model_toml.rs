@@ -62,7 +62,9 @@ fn errors_name_the_key() {
     assert!(m.contains("[gravity_table] torque") && m.contains("line 2"), "{m}");
     let m = err("[gravity_table]\naxes = [\"q\"]\ngrid = [[1.0, 0.0]]\ntorque = [1.0, 2.0]\n");
     assert!(m.contains("gravity_table") && m.contains("increasing"), "{m}");
-    let m = err("[gravity_table]\naxes = [\"q\", \"hip\"]\ngrid = [[0.0, 1.0], [0.0, 1.0]]\ntorque = [1.0, 2.0, 3.0, 4.0]\n");
+    let m = err(
+        "[gravity_table]\naxes = [\"q\", \"hip\"]\ngrid = [[0.0, 1.0], [0.0, 1.0]]\ntorque = [1.0, 2.0, 3.0, 4.0]\n",
+    );
     assert!(m.contains("`hip`"), "{m}");
     let m = err("[gravity_table]\naxes = [\"q\"]\ngrid = [[0.0, 1.0]]\ntorque = [1.0, 2.0]\nextra = 1\n");
     assert!(m.contains("extra"), "{m}");

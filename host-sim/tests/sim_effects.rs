@@ -43,7 +43,8 @@ fn same_seed_same_bytes() {
 fn stribeck_raises_friction_at_low_speed_only() {
     let r = trunk("[stribeck]\nlevel = 1.5\nspeed = 0.05\n", &[Sweep], 20.0);
     let qd = r.log.qd.as_ref().unwrap();
-    let low = mean(qd.iter().zip(&r.resid).filter(|(v, _)| v.abs() > 0.012 && v.abs() < 0.03).map(|(v, e)| e * sign(*v)));
+    let low =
+        mean(qd.iter().zip(&r.resid).filter(|(v, _)| v.abs() > 0.012 && v.abs() < 0.03).map(|(v, e)| e * sign(*v)));
     let high = mean(qd.iter().zip(&r.resid).filter(|(v, _)| v.abs() > 0.3).map(|(v, e)| e * sign(*v)));
     assert!(low > 0.6 * 1.5 * (-0.36f64).exp(), "low-speed excess {low}");
     assert!(high.abs() < 0.02, "high-speed excess {high}");
@@ -77,7 +78,8 @@ fn load_dependent_friction_grows_with_u() {
 
 #[test]
 fn thermal_drift_scales_friction_with_temperature() {
-    let text = "[thermal_drift]\ncoefficient = -0.01\nt_ambient = 25.0\nrise = 30.0\ntime_constant = 5.0\nt_ref = 25.0\n";
+    let text =
+        "[thermal_drift]\ncoefficient = -0.01\nt_ambient = 25.0\nrise = 30.0\ntime_constant = 5.0\nt_ref = 25.0\n";
     let r = trunk(text, &[Sweep], 20.0);
     let temp = r.log.temp.as_ref().expect("temp column");
     assert!(temp[0] < 25.1 && *temp.last().unwrap() > 54.0, "temperature rises");
@@ -134,7 +136,8 @@ fn cable_spring_is_zero_below_engage_and_has_slope_k_above() {
     let pts: Vec<(f64, f64)> = q.iter().zip(&r.resid).filter(|(q, _)| **q > 1.22).map(|(q, e)| (*q, *e)).collect();
     let n = pts.len() as f64;
     let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
-    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
+    let slope =
+        pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
     assert!((slope - 6.0).abs() < 0.3, "slope above engage {slope}");
     let offset = my - slope * (mx - 1.2);
     assert!((offset + 6.0 * 0.005).abs() < 0.01, "k·(q − engage − width/2): {offset}");
@@ -195,12 +198,16 @@ fn backlash_in_the_transmission_shows_at_reversals() {
                 }
             }
         }
-        let pick = |want: bool| r.resid.iter().zip(&near).filter(|(_, n)| **n == want).map(|(e, _)| *e).collect::<Vec<_>>();
+        let pick =
+            |want: bool| r.resid.iter().zip(&near).filter(|(_, n)| **n == want).map(|(e, _)| *e).collect::<Vec<_>>();
         (rms(&pick(true)), rms(&pick(false)))
     };
     let (rev, steady) = zone("[backlash]\nwidth = 0.02\n");
     let (rev0, _) = zone("");
-    assert!(rev > 0.2 && rev > 5.0 * steady && rev > 5.0 * rev0, "reversal {rev}, steady {steady}, without backlash {rev0}");
+    assert!(
+        rev > 0.2 && rev > 5.0 * steady && rev > 5.0 * rev0,
+        "reversal {rev}, steady {steady}, without backlash {rev0}"
+    );
 }
 
 #[test]

@@ -5,10 +5,47 @@ use std::fs;
 use std::path::Path;
 
 const BANNED: &[&str] = &[
-    "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh",
-    "sin_cos", "sqrt", "cbrt", "exp", "exp2", "exp_m1", "ln", "log", "log2", "log10", "ln_1p", "powi", "powf",
-    "hypot", "mul_add", "floor", "ceil", "round", "trunc", "fract", "abs", "signum", "copysign", "rem_euclid",
-    "div_euclid", "recip", "to_degrees", "to_radians",
+    "sin",
+    "cos",
+    "tan",
+    "asin",
+    "acos",
+    "atan",
+    "atan2",
+    "sinh",
+    "cosh",
+    "tanh",
+    "asinh",
+    "acosh",
+    "atanh",
+    "sin_cos",
+    "sqrt",
+    "cbrt",
+    "exp",
+    "exp2",
+    "exp_m1",
+    "ln",
+    "log",
+    "log2",
+    "log10",
+    "ln_1p",
+    "powi",
+    "powf",
+    "hypot",
+    "mul_add",
+    "floor",
+    "ceil",
+    "round",
+    "trunc",
+    "fract",
+    "abs",
+    "signum",
+    "copysign",
+    "rem_euclid",
+    "div_euclid",
+    "recip",
+    "to_degrees",
+    "to_radians",
 ];
 
 /// `.name(` occurrences of banned methods in code (comments stripped), as (line, method).
@@ -25,7 +62,8 @@ fn offences(src: &str) -> Vec<(usize, String)> {
             let name: String = rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
             let after = rest[name.len()..].trim_start();
             // A method call: `.name(`; skip numeric literals like `1.5` (digit before the dot).
-            let prev_is_digit = i > 0 && bytes[i - 1].is_ascii_digit() && name.chars().next().is_some_and(|c| c.is_ascii_digit());
+            let prev_is_digit =
+                i > 0 && bytes[i - 1].is_ascii_digit() && name.chars().next().is_some_and(|c| c.is_ascii_digit());
             if !prev_is_digit && after.starts_with('(') && BANNED.contains(&name.as_str()) {
                 found.push((n + 1, name));
             }
@@ -54,7 +92,8 @@ fn scan(dir: &Path, out: &mut Vec<String>) {
 
 #[test]
 fn scanner_finds_float_methods() {
-    let sample = "let a = x.sin();\nlet b = libm::sinf(x); // x.sqrt() in a comment\nlet c = 1.5f32;\nlet d = v.abs ();";
+    let sample =
+        "let a = x.sin();\nlet b = libm::sinf(x); // x.sqrt() in a comment\nlet c = 1.5f32;\nlet d = v.abs ();";
     assert_eq!(offences(sample), vec![(1, "sin".to_string()), (4, "abs".to_string())]);
 }
 

@@ -207,7 +207,10 @@ fn canopen_mismatch(host: &[String], qemu: &[&str]) -> Option<String> {
                     k => format!("data byte {}", k - 5),
                 }
             } else {
-                ["kind", "step", "tau_out", "u_motor", "c_c", "assist", "limited"].get(field).unwrap_or(&"field").to_string()
+                ["kind", "step", "tau_out", "u_motor", "c_c", "assist", "limited"]
+                    .get(field)
+                    .unwrap_or(&"field")
+                    .to_string()
             };
             let step = hw.get(1).copied().unwrap_or("?");
             let what = if h.starts_with("T ") { hw.get(2).copied().unwrap_or("?") } else { "control" };
@@ -225,7 +228,8 @@ fn canopen_session_on_qemu_matches_host_byte_for_byte() {
     let (host, summary) = host_canopen();
     let text = qemu_output("QEMU_CANOPEN_LOG", "qemu-canopen");
     let qemu: Vec<&str> = text.lines().filter(|l| !l.starts_with("# ")).collect();
-    let qemu_summary = text.lines().find_map(|l| l.strip_prefix("# canopen ")).expect("the image printed no summary line");
+    let qemu_summary =
+        text.lines().find_map(|l| l.strip_prefix("# canopen ")).expect("the image printed no summary line");
     if let Some(m) = canopen_mismatch(&host, &qemu) {
         panic!("CANopen session: QEMU and host differ at {m}");
     }
@@ -234,7 +238,11 @@ fn canopen_session_on_qemu_matches_host_byte_for_byte() {
     assert_eq!(format!("# canopen {qemu_summary}"), expected_summary.trim_end(), "summary line");
 
     // The session exercised what its script claims.
-    assert_eq!((summary.aborts, summary.expected_aborts_seen), (3, 3), "out-of-range, short SDO, safety write while operational");
+    assert_eq!(
+        (summary.aborts, summary.expected_aborts_seen),
+        (3, 3),
+        "out-of-range, short SDO, safety write while operational"
+    );
     assert!(summary.committed_trunk_set, "the pushed trunk-joint set is committed whole");
     assert!(summary.refused_writes_changed_nothing);
     assert_eq!(summary.saves, 1);

@@ -93,7 +93,12 @@ impl ControlLoop {
     /// One tick at `now_us` with the encoder's reading. Returns the node's output; the
     /// caller restarts its ticker when [`ControlLoop::nominal_period_us`] changed (a commit
     /// of a new `controller_rate_hz`).
-    pub fn tick<S: ParamStorage>(&mut self, node: &mut Node<S>, now_us: u64, position: Result<f32, EncoderError>) -> TickOutput {
+    pub fn tick<S: ParamStorage>(
+        &mut self,
+        node: &mut Node<S>,
+        now_us: u64,
+        position: Result<f32, EncoderError>,
+    ) -> TickOutput {
         if node.params().get(ParamId::ControlRateHz).to_bits() != self.rate_bits {
             self.apply_params(node.params());
         }

@@ -63,7 +63,6 @@ mod fw {
     use embassy_sync::blocking_mutex::Mutex;
     use embassy_sync::signal::Signal;
     use embassy_time::{Duration, Instant, Ticker, Timer};
-    use static_cell::StaticCell;
     use firmware::can_link::{self, BusMode, BusStats, Outbox};
     use firmware::control_loop::ControlLoop;
     use firmware::io::{Encoder, TorqueOutput};
@@ -72,6 +71,7 @@ mod fw {
     use joint_core::params::{check, ParamId, ParamSet, RawParams};
     use joint_core::safety::Faults;
     use joint_core::store::{Flash as _, SaveProgress, Store};
+    use static_cell::StaticCell;
     use {defmt_rtt as _, panic_probe as _};
 
     use crate::board::{HBridgeTorque, ParamFlash, QeiEncoder};
@@ -171,7 +171,8 @@ mod fw {
     /// `Node::new` holds several parameter sets on the stack) are not part of `main`'s frame.
     #[inline(never)]
     fn create_node(boot: Option<RawParams>, fault: Faults) -> &'static mut JointNode {
-        NODE_CELL.init_with(|| Node::new(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()))
+        NODE_CELL
+            .init_with(|| Node::new(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()))
     }
 
     #[embassy_executor::main]
@@ -207,7 +208,12 @@ mod fw {
         let ratio = node.params().get(ParamId::Ratio);
         NODE.lock(|n| *n.borrow_mut() = Some(node));
 
-        let qei = Qei::new(p.TIM4, p.PB6, p.PB7, qei::Config { ch1_pull: Pull::Up, ch2_pull: Pull::Up, ..Default::default() });
+        let qei = Qei::new(
+            p.TIM4,
+            p.PB6,
+            p.PB7,
+            qei::Config { ch1_pull: Pull::Up, ch2_pull: Pull::Up, ..Default::default() },
+        );
         let encoder = QeiEncoder::new(qei, ENCODER_COUNTS_PER_REV, ratio);
         let pwm = ComplementaryPwm::new(
             p.TIM1,
@@ -247,8 +253,14 @@ mod fw {
     }
 
     #[embassy_executor::task]
-    async fn control(mut enc: QeiEncoder, mut out: HBridgeTorque, mut wdg: IndependentWatchdog<'static, peripherals::IWDG>) {
-        let Some((mut lp, mut ratio_bits)) = with_node(|n| (ControlLoop::new(n.params()), n.params().get(ParamId::Ratio).to_bits())) else {
+    async fn control(
+        mut enc: QeiEncoder,
+        mut out: HBridgeTorque,
+        mut wdg: IndependentWatchdog<'static, peripherals::IWDG>,
+    ) {
+        let Some((mut lp, mut ratio_bits)) =
+            with_node(|n| (ControlLoop::new(n.params()), n.params().get(ParamId::Ratio).to_bits()))
+        else {
             error!("control: no node");
             return;
         };
@@ -365,7 +377,9 @@ mod fw {
                     with_node(|n| n.safety_mut().raise(Faults::CAN_BUS_OFF));
                 }
                 Some(can_link::BusEvent::Recovered) => info!("CAN recovered from bus-off"),
-                Some(can_link::BusEvent::EnteredErrorPassive) => warn!("CAN error-passive (rec {=u8}, tec {=u8})", stats.rec, stats.tec),
+                Some(can_link::BusEvent::EnteredErrorPassive) => {
+                    warn!("CAN error-passive (rec {=u8}, tec {=u8})", stats.rec, stats.tec)
+                }
                 None => {}
             }
             BUS_STATS.lock(|s| s.set(stats));

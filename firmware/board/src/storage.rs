@@ -342,7 +342,11 @@ mod tests {
                 let mut st = Store::new(RamFlash(mem)).unwrap();
                 match st.load() {
                     Ok(l) => {
-                        assert_eq!(l.params.raw(), new.raw(), "cut before page {cut} (+{partial} B) booted an older set");
+                        assert_eq!(
+                            l.params.raw(),
+                            new.raw(),
+                            "cut before page {cut} (+{partial} B) booted an older set"
+                        );
                         outcomes.insert("newest");
                     }
                     Err(_) => {

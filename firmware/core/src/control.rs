@@ -203,12 +203,17 @@ impl Controller {
                         assist + p.get(ParamId::Fraction) * c_c
                     }
                     Mode::Velocity(v) => {
-                        let v = if math::is_finite(v) { math::clamp(v, -INPUT_LIMITS.qd, INPUT_LIMITS.qd) } else { 0.0 };
+                        let v =
+                            if math::is_finite(v) { math::clamp(v, -INPUT_LIMITS.qd, INPUT_LIMITS.qd) } else { 0.0 };
                         let t = p.terms();
                         let err = v - qd;
                         // Anti-windup: the integrator alone can never ask for more than the limit.
                         self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
-                        let ff = t.friction.torque(v) + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v) + t.extra_torque(q, v);
+                        let ff = t.friction.torque(v)
+                            + gravity(p, q, &others)
+                            + t.c0
+                            + t.spring.torque(q, v)
+                            + t.extra_torque(q, v);
                         p.get(ParamId::VelKp) * err + self.integ + ff
                     }
                     Mode::Position(x) => {

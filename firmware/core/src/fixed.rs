@@ -69,7 +69,7 @@ const fn build_sin_table() -> [i32; QUARTER_POINTS + 1] {
             n += 1;
         }
         let scaled = sum * 1073741824.0; // 2^30
-        // const fn: no iterators; i ≤ QUARTER_POINTS by the loop condition.
+                                         // const fn: no iterators; i ≤ QUARTER_POINTS by the loop condition.
         #[allow(clippy::indexing_slicing)]
         {
             t[i] = (scaled + 0.5) as i32;

@@ -339,11 +339,7 @@ impl core::fmt::Display for ParamError {
             }
             ParamError::OutOfRange { param, value, min, max } => {
                 let d = param.desc();
-                write!(
-                    f,
-                    "{} ({}.{}) = {} is outside {}..={} {}",
-                    d.name, d.section, d.key, value, min, max, d.unit
-                )
+                write!(f, "{} ({}.{}) = {} is outside {}..={} {}", d.name, d.section, d.key, value, min, max, d.unit)
             }
             ParamError::Inconsistent { param, what } => {
                 let d = param.desc();
@@ -448,11 +444,7 @@ fn terms_of(raw: &RawParams) -> Terms {
             c: g(ParamId::FrictionC),
             v_band: g(ParamId::FrictionVBand),
         },
-        weight: Weight {
-            amplitude: g(ParamId::WeightAmplitude),
-            s: g(ParamId::WeightS),
-            phi: g(ParamId::WeightPhi),
-        },
+        weight: Weight { amplitude: g(ParamId::WeightAmplitude), s: g(ParamId::WeightS), phi: g(ParamId::WeightPhi) },
         spring: Spring { k: g(ParamId::SpringK), b: g(ParamId::SpringB), q0: g(ParamId::SpringQ0) },
         j: g(ParamId::InertiaJ),
         c0: g(ParamId::OffsetC0),

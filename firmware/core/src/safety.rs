@@ -136,10 +136,7 @@ impl Faults {
     }
     /// The snake_case names of the set bits (for logs and the host tool), in bit order.
     pub fn names(self) -> impl Iterator<Item = &'static str> {
-        Self::NAMES
-            .into_iter()
-            .filter(move |(_, f)| self.contains(*f))
-            .map(|(n, _)| n)
+        Self::NAMES.into_iter().filter(move |(_, f)| self.contains(*f)).map(|(n, _)| n)
     }
 }
 
@@ -177,11 +174,7 @@ impl SafetyConfig {
     /// `HeartbeatTimeout`, `FaultRampTime` and `TorqueLimit` of a validated set.
     pub fn from_params(p: &crate::params::ParamSet) -> Self {
         use crate::params::ParamId;
-        Self::from_seconds(
-            p.get(ParamId::HeartbeatTimeout),
-            p.get(ParamId::FaultRampTime),
-            p.get(ParamId::TorqueLimit),
-        )
+        Self::from_seconds(p.get(ParamId::HeartbeatTimeout), p.get(ParamId::FaultRampTime), p.get(ParamId::TorqueLimit))
     }
 }
 
@@ -314,8 +307,7 @@ impl Safety {
     }
 
     fn heartbeat_missing(&self) -> bool {
-        self.cfg.heartbeat_timeout_us != 0
-            && self.since_heartbeat_us > self.cfg.heartbeat_timeout_us
+        self.cfg.heartbeat_timeout_us != 0 && self.since_heartbeat_us > self.cfg.heartbeat_timeout_us
     }
 
     fn latch(&mut self, f: Faults) {
@@ -354,9 +346,7 @@ impl Safety {
         // dt < ramp and rem < ramp, so the quotient is at most GAIN_ONE. The product
         // overflows only for ramps beyond ~12 days; saturating then gives a slower fade,
         // never a panic.
-        let num = dt
-            .saturating_mul(u64::from(GAIN_ONE))
-            .saturating_add(self.ramp_rem);
+        let num = dt.saturating_mul(u64::from(GAIN_ONE)).saturating_add(self.ramp_rem);
         self.ramp_rem = num % ramp;
         u32::try_from(num / ramp).unwrap_or(GAIN_ONE)
     }
@@ -433,10 +423,6 @@ impl Safety {
 
     /// Everything a status report needs.
     pub fn status(&self) -> SafetyStatus {
-        SafetyStatus {
-            faults: self.faults,
-            gain: self.gain(),
-            heartbeat_ok: self.heartbeat_ok(),
-        }
+        SafetyStatus { faults: self.faults, gain: self.gain(), heartbeat_ok: self.heartbeat_ok() }
     }
 }

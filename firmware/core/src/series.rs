@@ -39,12 +39,8 @@ pub struct RawSeries {
 }
 
 impl RawSeries {
-    pub const EMPTY: RawSeries = RawSeries {
-        n_terms: 0,
-        amplitude: [0.0; TERMS_MAX],
-        phase: [0.0; TERMS_MAX],
-        mult: [[0; 4]; TERMS_MAX],
-    };
+    pub const EMPTY: RawSeries =
+        RawSeries { n_terms: 0, amplitude: [0.0; TERMS_MAX], phase: [0.0; TERMS_MAX], mult: [[0; 4]; TERMS_MAX] };
 
     /// Term `k` in its wire layout (little-endian amplitude, phase, then the 4 multipliers).
     pub fn term_bytes(&self, k: usize) -> [u8; TERM_BYTES] {
@@ -74,8 +70,7 @@ impl RawSeries {
             }
             f32::from_le_bytes(w)
         };
-        if let (Some(da), Some(dp), Some(dm)) =
-            (self.amplitude.get_mut(k), self.phase.get_mut(k), self.mult.get_mut(k))
+        if let (Some(da), Some(dp), Some(dm)) = (self.amplitude.get_mut(k), self.phase.get_mut(k), self.mult.get_mut(k))
         {
             *da = f(a);
             *dp = f(p);

@@ -78,8 +78,8 @@
 //! the record is never committed ([`SaveError::SourceChanged`]) and the old set stays.
 
 use crate::params::{self, ParamError, ParamSet, RawParams, PARAMS, PARAM_COUNT};
-use crate::series::{TERMS_MAX, TERM_BYTES};
 use crate::safety::Faults;
+use crate::series::{TERMS_MAX, TERM_BYTES};
 use crate::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 
 // ---------------------------------------------------------------------------------------
@@ -98,11 +98,7 @@ const fn crc_nibble_table() -> [u32; 16] {
         let mut c = i as u32;
         let mut k = 0;
         while k < 4 {
-            c = if c & 1 != 0 {
-                (c >> 1) ^ CRC_POLY
-            } else {
-                c >> 1
-            };
+            c = if c & 1 != 0 { (c >> 1) ^ CRC_POLY } else { c >> 1 };
             k += 1;
         }
         t[i] = c;
@@ -275,12 +271,7 @@ fn payload_byte(raw: &RawParams, i: usize) -> u8 {
         t.points.get(i - POINTS_OFF).copied().unwrap_or(0)
     } else if i < TORQUE_OFF {
         let k = (i - GRID_OFF) / 4;
-        let v = t
-            .grid
-            .get(k / AXIS_POINTS_MAX)
-            .and_then(|row| row.get(k % AXIS_POINTS_MAX))
-            .copied()
-            .unwrap_or(0.0);
+        let v = t.grid.get(k / AXIS_POINTS_MAX).and_then(|row| row.get(k % AXIS_POINTS_MAX)).copied().unwrap_or(0.0);
         le_byte(v.to_bits(), (i - GRID_OFF) % 4)
     } else if i < SIGMA_OFF {
         let v = t.torque.get((i - TORQUE_OFF) / 4).copied().unwrap_or(0.0);
@@ -385,11 +376,7 @@ pub enum LoadError<E> {
     Corrupt { a: SlotState, b: SlotState },
     /// An intact record of a format version this firmware cannot read (written by a newer
     /// firmware). It is left in place, so going back to that firmware finds it again.
-    UnsupportedVersion {
-        found: u16,
-        supported: u16,
-        seq: u32,
-    },
+    UnsupportedVersion { found: u16, supported: u16, seq: u32 },
     /// An intact record whose payload structure cannot be read into this firmware's types.
     Layout { error: LayoutError, seq: u32 },
     /// The stored set was read but fails `params::check()`.
@@ -402,9 +389,7 @@ impl<E> LoadError<E> {
         match self {
             LoadError::Blank => Faults::NONE,
             LoadError::Flash(_) | LoadError::Corrupt { .. } => Faults::PARAMS_CORRUPT,
-            LoadError::UnsupportedVersion { .. } | LoadError::Layout { .. } => {
-                Faults::PARAMS_VERSION
-            }
+            LoadError::UnsupportedVersion { .. } | LoadError::Layout { .. } => Faults::PARAMS_VERSION,
             LoadError::Rejected { .. } => Faults::PARAMS_REJECTED,
         }
     }
@@ -547,10 +532,7 @@ impl<F: Flash> Store<F> {
         #[allow(clippy::manual_is_multiple_of)]
         let bad = ws == 0 || UNIT % ws != 0 || es == 0 || es % UNIT != 0;
         if bad {
-            return Err(GeometryError::Granularity {
-                write_size: ws as u32,
-                erase_size: es as u32,
-            });
+            return Err(GeometryError::Granularity { write_size: ws as u32, erase_size: es as u32 });
         }
         let pages = RECORD_MAX_LEN.div_ceil(es);
         let have = flash.capacity();
@@ -567,14 +549,7 @@ impl<F: Flash> Store<F> {
             pages_per_slot: pages as u32,
             newest: Newest::Unknown,
             phase: Phase::Idle,
-            job: Job {
-                slot: 0,
-                seq: 0,
-                crc: 0,
-                running: Crc32::new(),
-                done: 0,
-                payload: PAYLOAD_LEN as u32,
-            },
+            job: Job { slot: 0, seq: 0, crc: 0, running: Crc32::new(), done: 0, payload: PAYLOAD_LEN as u32 },
         })
     }
 
@@ -599,31 +574,17 @@ impl<F: Flash> Store<F> {
         self.flash.read(base, &mut h)?;
         let magic_ok = h.get(0..4) == Some(&MAGIC[..]);
         if !magic_ok {
-            return Ok(if self.slot_blank(base)? {
-                SlotState::Blank
-            } else {
-                SlotState::Uncommitted
-            });
+            return Ok(if self.slot_blank(base)? { SlotState::Blank } else { SlotState::Uncommitted });
         }
         let u16_at = |o: usize| u16::from_le_bytes([byte(&h, o), byte(&h, o + 1)]);
-        let u32_at = |o: usize| {
-            u32::from_le_bytes([
-                byte(&h, o),
-                byte(&h, o + 1),
-                byte(&h, o + 2),
-                byte(&h, o + 3),
-            ])
-        };
+        let u32_at = |o: usize| u32::from_le_bytes([byte(&h, o), byte(&h, o + 1), byte(&h, o + 2), byte(&h, o + 3)]);
         let version = u16_at(4);
         let header_len = u16_at(6);
         let seq = u32_at(8);
         let len = u32_at(12);
         let crc = u32_at(16);
         let reserved = u32_at(20);
-        if usize::from(header_len) != HEADER_LEN
-            || reserved != 0
-            || len > self.slot_len - HEADER_LEN as u32
-        {
+        if usize::from(header_len) != HEADER_LEN || reserved != 0 || len > self.slot_len - HEADER_LEN as u32 {
             return Ok(SlotState::Damaged);
         }
         let mut c = Crc32::new();
@@ -637,11 +598,7 @@ impl<F: Flash> Store<F> {
             off += n as u32;
         }
         c.update(h.get(..16).unwrap_or(&[]));
-        Ok(if c.finish() == crc {
-            SlotState::Valid { seq, version }
-        } else {
-            SlotState::Damaged
-        })
+        Ok(if c.finish() == crc { SlotState::Valid { seq, version } } else { SlotState::Damaged })
     }
 
     fn slot_blank(&mut self, base: u32) -> Result<bool, F::Error> {
@@ -698,37 +655,17 @@ impl<F: Flash> Store<F> {
             Some(SlotState::Valid { version, .. }) => *version,
             _ => 0,
         };
-        let other = states
-            .get(usize::from(1 - slot))
-            .copied()
-            .unwrap_or(SlotState::Blank);
+        let other = states.get(usize::from(1 - slot)).copied().unwrap_or(SlotState::Blank);
         let decoded = match version {
             1 => self.decode_v1(self.base(slot) + HEADER_LEN as u32)?,
-            found => {
-                return Err(LoadError::UnsupportedVersion {
-                    found,
-                    supported: FORMAT_VERSION,
-                    seq,
-                })
-            }
+            found => return Err(LoadError::UnsupportedVersion { found, supported: FORMAT_VERSION, seq }),
         };
         let (raw, defaulted, unknown, table_migrated) = match decoded {
             Ok(d) => d,
             Err(error) => return Err(LoadError::Layout { error, seq }),
         };
         let params = params::check(&raw).map_err(|error| LoadError::Rejected { error, seq })?;
-        Ok(Loaded {
-            params,
-            info: LoadInfo {
-                slot,
-                seq,
-                version,
-                defaulted,
-                unknown,
-                table_migrated,
-                other,
-            },
-        })
+        Ok(Loaded { params, info: LoadInfo { slot, seq, version, defaulted, unknown, table_migrated, other } })
     }
 
     /// [`Store::load`] for the common boot path: the set to run and the faults to latch.
@@ -755,10 +692,7 @@ impl<F: Flash> Store<F> {
     /// Decode a version-1 payload starting at `p` (its CRC already matched). Outer `Err`:
     /// flash failure; inner `Err`: structure that cannot be read into this firmware's types.
     #[allow(clippy::type_complexity)]
-    fn decode_v1(
-        &mut self,
-        p: u32,
-    ) -> Result<Result<(RawParams, u8, u8, bool), LayoutError>, LoadError<F::Error>> {
+    fn decode_v1(&mut self, p: u32) -> Result<Result<(RawParams, u8, u8, bool), LayoutError>, LoadError<F::Error>> {
         let len = u32::from_le_bytes(self.read_bytes::<4>(p - HEADER_LEN as u32 + 12)?);
         let head = self.read_bytes::<8>(p)?;
         let n = usize::from(u16::from_le_bytes([byte(&head, 0), byte(&head, 1)]));
@@ -781,10 +715,8 @@ impl<F: Flash> Store<F> {
         let mut unknown: u8 = 0;
         for e in 0..n {
             let ent = self.read_bytes::<8>(p + (PARAMS_OFF + e * ENTRY_LEN) as u32)?;
-            let id =
-                u32::from_le_bytes([byte(&ent, 0), byte(&ent, 1), byte(&ent, 2), byte(&ent, 3)]);
-            let v =
-                f32::from_le_bytes([byte(&ent, 4), byte(&ent, 5), byte(&ent, 6), byte(&ent, 7)]);
+            let id = u32::from_le_bytes([byte(&ent, 0), byte(&ent, 1), byte(&ent, 2), byte(&ent, 3)]);
+            let v = f32::from_le_bytes([byte(&ent, 4), byte(&ent, 5), byte(&ent, 6), byte(&ent, 7)]);
             match ids.iter().position(|&x| x == id) {
                 Some(j) => {
                     if seen.get(j).copied().unwrap_or(true) {
@@ -819,10 +751,7 @@ impl<F: Flash> Store<F> {
         let block_off = sigma_off + 4 * c_max;
         let expected = block_off.saturating_add(block);
         if expected as u32 != len {
-            return Ok(Err(LayoutError::Length {
-                expected: expected as u32,
-                found: len,
-            }));
+            return Ok(Err(LayoutError::Length { expected: expected as u32, found: len }));
         }
         let mut stored_points = [0u8; 256];
         let mut src = [0u8; 256];
@@ -853,15 +782,8 @@ impl<F: Flash> Store<F> {
         if cells as usize > c_max {
             return Ok(Err(LayoutError::TableInconsistent));
         }
-        if used_axes > AXES_MAX
-            || usize::from(max_points) > AXIS_POINTS_MAX
-            || cells as usize > CELLS_MAX
-        {
-            return Ok(Err(LayoutError::TableTooLarge {
-                n_axes,
-                points: max_points,
-                cells,
-            }));
+        if used_axes > AXES_MAX || usize::from(max_points) > AXIS_POINTS_MAX || cells as usize > CELLS_MAX {
+            return Ok(Err(LayoutError::TableTooLarge { n_axes, points: max_points, cells }));
         }
         // Copy the overlap of the writer's and this firmware's dimensions: all of it when they
         // agree (exact round trip), at least the used part otherwise (checked just above).
@@ -895,7 +817,11 @@ impl<F: Flash> Store<F> {
         if block > 0 {
             let h = self.read_bytes::<4>(p + block_off as u32)?;
             let (n_terms, t_max, size, flags) = (byte(&h, 0), usize::from(byte(&h, 1)), byte(&h, 2), byte(&h, 3));
-            if usize::from(size) != TERM_BYTES || block != 4 + TERM_BYTES * t_max || usize::from(n_terms) > t_max || flags > 1 {
+            if usize::from(size) != TERM_BYTES
+                || block != 4 + TERM_BYTES * t_max
+                || usize::from(n_terms) > t_max
+                || flags > 1
+            {
                 return Ok(Err(LayoutError::ModelBlock));
             }
             if usize::from(n_terms) > TERMS_MAX {
@@ -932,14 +858,7 @@ impl<F: Flash> Store<F> {
             c.update_byte(payload_byte(raw, i));
         }
         c.update(&header16(seq, len));
-        self.job = Job {
-            slot,
-            seq,
-            crc: c.finish(),
-            running: Crc32::new(),
-            done: 0,
-            payload: len as u32,
-        };
+        self.job = Job { slot, seq, crc: c.finish(), running: Crc32::new(), done: 0, payload: len as u32 };
         self.phase = Phase::Erase { page: 0 };
         Ok(())
     }
@@ -973,10 +892,7 @@ impl<F: Flash> Store<F> {
             Ok(Some(done)) => Ok(done),
             Ok(None) => {
                 self.job.done = self.job.done.saturating_add(1);
-                Ok(SaveProgress::Working {
-                    done: self.job.done,
-                    total,
-                })
+                Ok(SaveProgress::Working { done: self.job.done, total })
             }
             Err(e) => {
                 // The target slot is not the newest intact one, so abandoning is always safe.
@@ -986,19 +902,13 @@ impl<F: Flash> Store<F> {
         }
     }
 
-    fn step(
-        &mut self,
-        raw: &RawParams,
-        base: u32,
-    ) -> Result<Option<SaveProgress>, SaveError<F::Error>> {
+    fn step(&mut self, raw: &RawParams, base: u32) -> Result<Option<SaveProgress>, SaveError<F::Error>> {
         match self.phase {
             Phase::Idle => Ok(Some(SaveProgress::Idle)),
             Phase::Erase { page } => {
                 let es = F::ERASE_SIZE as u32;
                 let from = base + page * es;
-                self.flash
-                    .erase(from, from + es)
-                    .map_err(SaveError::Flash)?;
+                self.flash.erase(from, from + es).map_err(SaveError::Flash)?;
                 self.phase = if page + 1 < self.pages_per_slot {
                     Phase::Erase { page: page + 1 }
                 } else {
@@ -1058,14 +968,8 @@ impl<F: Flash> Store<F> {
                         w.copy_from_slice(h.get(0..8).unwrap_or(&[0; 8]));
                         self.program(base, &w)?;
                         self.phase = Phase::Idle;
-                        self.newest = Newest::Some {
-                            slot: self.job.slot,
-                            seq: self.job.seq,
-                        };
-                        Ok(Some(SaveProgress::Done {
-                            slot: self.job.slot,
-                            seq: self.job.seq,
-                        }))
+                        self.newest = Newest::Some { slot: self.job.slot, seq: self.job.seq };
+                        Ok(Some(SaveProgress::Done { slot: self.job.slot, seq: self.job.seq }))
                     }
                 }
             }
@@ -1075,9 +979,7 @@ impl<F: Flash> Store<F> {
     /// Program one 8-byte unit in `WRITE_SIZE` pieces.
     fn program(&mut self, at: u32, unit: &[u8; UNIT]) -> Result<(), SaveError<F::Error>> {
         for (k, piece) in unit.chunks(F::WRITE_SIZE).enumerate() {
-            self.flash
-                .write(at + (k * F::WRITE_SIZE) as u32, piece)
-                .map_err(SaveError::Flash)?;
+            self.flash.write(at + (k * F::WRITE_SIZE) as u32, piece).map_err(SaveError::Flash)?;
         }
         Ok(())
     }

@@ -80,19 +80,39 @@ impl Default for RawTable {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TableError {
     /// more than [`AXES_MAX`] axes
-    AxisCount { n_axes: u8 },
+    AxisCount {
+        n_axes: u8,
+    },
     /// axis reads from a slot that does not exist
-    AxisSource { axis: u8, source: u8 },
+    AxisSource {
+        axis: u8,
+        source: u8,
+    },
     /// fewer than 2 or more than [`AXIS_POINTS_MAX`] points
-    Points { axis: u8, points: u8 },
+    Points {
+        axis: u8,
+        points: u8,
+    },
     /// product of the points exceeds [`CELLS_MAX`]
-    TooManyCells { cells: u32 },
-    GridNotFinite { axis: u8, index: u8 },
+    TooManyCells {
+        cells: u32,
+    },
+    GridNotFinite {
+        axis: u8,
+        index: u8,
+    },
     /// `grid[axis][index] <= grid[axis][index − 1]`
-    GridNotIncreasing { axis: u8, index: u8 },
-    TorqueNotFinite { index: u16 },
+    GridNotIncreasing {
+        axis: u8,
+        index: u8,
+    },
+    TorqueNotFinite {
+        index: u16,
+    },
     /// σ must be finite and > 0 where fusion uses it
-    SigmaNotPositive { index: u16 },
+    SigmaNotPositive {
+        index: u16,
+    },
 }
 
 impl core::fmt::Display for TableError {
@@ -104,20 +124,18 @@ impl core::fmt::Display for TableError {
             TableError::AxisSource { axis, source } => {
                 write!(f, "gravity_table axis {axis} reads angle slot {source}, slots are 0..={AXIS_SOURCE_MAX}")
             }
-            TableError::Points { axis, points } => write!(
-                f,
-                "gravity_table axis {axis} has {points} grid points, needs 2..={AXIS_POINTS_MAX}"
-            ),
+            TableError::Points { axis, points } => {
+                write!(f, "gravity_table axis {axis} has {points} grid points, needs 2..={AXIS_POINTS_MAX}")
+            }
             TableError::TooManyCells { cells } => {
                 write!(f, "gravity_table has {cells} values, at most {CELLS_MAX} fit")
             }
             TableError::GridNotFinite { axis, index } => {
                 write!(f, "gravity_table grid[{axis}][{index}] is not a finite number")
             }
-            TableError::GridNotIncreasing { axis, index } => write!(
-                f,
-                "gravity_table grid[{axis}] is not strictly increasing at index {index}"
-            ),
+            TableError::GridNotIncreasing { axis, index } => {
+                write!(f, "gravity_table grid[{axis}] is not strictly increasing at index {index}")
+            }
             TableError::TorqueNotFinite { index } => {
                 write!(f, "gravity_table torque[{index}] is not a finite number")
             }

@@ -20,8 +20,8 @@ use crate::control::{Controller, Differentiator, Input, Mode, Output};
 use crate::fixed::{self, FixedParams, Fx};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, RawParams};
-use crate::table::{RawTable, TableError};
 use crate::series::SeriesError;
+use crate::table::{RawTable, TableError};
 
 /// Seed of the session's generator (any non-zero value works; this one is the contract
 /// between the QEMU image and the host, both read it from here).

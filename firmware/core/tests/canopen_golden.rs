@@ -1,12 +1,7 @@
 //! Golden frames of the CANopen node: exact COB-IDs and bytes for every service, as a CANopen
 //! master would see them on the bus. A change here is a protocol change.
 
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::panic,
-    clippy::indexing_slicing
-)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, NMT_PRE_OPERATIONAL, NMT_START};
 use joint_core::canopen::CanFrame;
@@ -21,10 +16,7 @@ struct Bench {
 
 impl Bench {
     fn new() -> Bench {
-        let mut b = Bench {
-            node: Node::new(NodeConfig::new(ID), MemoryStorage::default(), 0),
-            now: 0,
-        };
+        let mut b = Bench { node: Node::new(NodeConfig::new(ID), MemoryStorage::default(), 0), now: 0 };
         let boot = b.run(None);
         assert_eq!(boot, vec![(0x705, vec![0x00])], "boot-up message");
         b
@@ -33,19 +25,13 @@ impl Bench {
     fn run(&mut self, rx: Option<(u16, &[u8])>) -> Vec<(u16, Vec<u8>)> {
         let mut out = Vec::new();
         let f = rx.map(|(id, d)| CanFrame::new(id, d).unwrap());
-        self.node.process(self.now, f.as_ref(), &mut |f: CanFrame| {
-            out.push((f.id(), f.data().to_vec()))
-        });
+        self.node.process(self.now, f.as_ref(), &mut |f: CanFrame| out.push((f.id(), f.data().to_vec())));
         out
     }
 
     /// Send and return only the frames on `id`.
     fn ask(&mut self, id: u16, d: &[u8], want: u16) -> Vec<Vec<u8>> {
-        self.run(Some((id, d)))
-            .into_iter()
-            .filter(|(i, _)| *i == want)
-            .map(|(_, d)| d)
-            .collect()
+        self.run(Some((id, d))).into_iter().filter(|(i, _)| *i == want).map(|(_, d)| d).collect()
     }
 
     fn sdo(&mut self, d: [u8; 8]) -> Vec<u8> {
@@ -103,88 +89,46 @@ fn tpdo1_scaling() {
 #[test]
 fn sdo_expedited_upload_device_type_and_identity() {
     let mut b = Bench::new();
-    assert_eq!(
-        b.sdo([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
-        vec![0x43, 0x00, 0x10, 0x00, 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]), vec![0x43, 0x00, 0x10, 0x00, 0, 0, 0, 0]);
     // product code 0x4A4E0001
-    assert_eq!(
-        b.sdo([0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0]),
-        vec![0x43, 0x18, 0x10, 0x02, 0x01, 0x00, 0x4E, 0x4A]
-    );
+    assert_eq!(b.sdo([0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0]), vec![0x43, 0x18, 0x10, 0x02, 0x01, 0x00, 0x4E, 0x4A]);
     // sub 0 of identity: 4, one byte (n = 3 → 0x4F)
-    assert_eq!(
-        b.sdo([0x40, 0x18, 0x10, 0x00, 0, 0, 0, 0]),
-        vec![0x4F, 0x18, 0x10, 0x00, 4, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x18, 0x10, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x18, 0x10, 0x00, 4, 0, 0, 0]);
     // producer heartbeat 100 ms, two bytes (0x4B)
-    assert_eq!(
-        b.sdo([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]),
-        vec![0x4B, 0x17, 0x10, 0x00, 100, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]), vec![0x4B, 0x17, 0x10, 0x00, 100, 0, 0, 0]);
 }
 
 #[test]
 fn sdo_segmented_upload_device_name() {
     let mut b = Bench::new();
     // "joint-node": 10 bytes, segmented.
-    assert_eq!(
-        b.sdo([0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0]),
-        vec![0x41, 0x08, 0x10, 0x00, 10, 0, 0, 0]
-    );
-    assert_eq!(
-        b.sdo([0x60, 0, 0, 0, 0, 0, 0, 0]),
-        [&[0x00][..], b"joint-n"].concat()
-    );
+    assert_eq!(b.sdo([0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0]), vec![0x41, 0x08, 0x10, 0x00, 10, 0, 0, 0]);
+    assert_eq!(b.sdo([0x60, 0, 0, 0, 0, 0, 0, 0]), [&[0x00][..], b"joint-n"].concat());
     // toggle 1, 4 bytes unused (n = 4 → 0x08), last (c = 1)
-    assert_eq!(
-        b.sdo([0x70, 0, 0, 0, 0, 0, 0, 0]),
-        vec![0x19, b'o', b'd', b'e', 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x70, 0, 0, 0, 0, 0, 0, 0]), vec![0x19, b'o', b'd', b'e', 0, 0, 0, 0]);
 }
 
 #[test]
 fn sdo_expedited_download_parameter_and_read_back() {
     let mut b = Bench::new();
     // friction_a = 1.5 (0x3FC00000) at 0x2000
-    assert_eq!(
-        b.sdo([0x23, 0x00, 0x20, 0x00, 0x00, 0x00, 0xC0, 0x3F]),
-        vec![0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0]
-    );
-    assert_eq!(
-        b.sdo([0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0]),
-        vec![0x43, 0x00, 0x20, 0x00, 0x00, 0x00, 0xC0, 0x3F]
-    );
+    assert_eq!(b.sdo([0x23, 0x00, 0x20, 0x00, 0x00, 0x00, 0xC0, 0x3F]), vec![0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0]);
+    assert_eq!(b.sdo([0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0]), vec![0x43, 0x00, 0x20, 0x00, 0x00, 0x00, 0xC0, 0x3F]);
     // staged, not yet running
     assert_eq!(b.node.params().get(ParamId::FrictionA), 0.0);
-    assert_eq!(
-        b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]),
-        vec![0x4F, 0x03, 0x22, 0x00, 1, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x03, 0x22, 0x00, 1, 0, 0, 0]);
     // commit
-    assert_eq!(
-        b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]),
-        vec![0x60, 0x00, 0x22, 0x00, 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]), vec![0x60, 0x00, 0x22, 0x00, 0, 0, 0, 0]);
     assert_eq!(b.node.params().get(ParamId::FrictionA), 1.5);
-    assert_eq!(
-        b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]),
-        vec![0x4F, 0x03, 0x22, 0x00, 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x03, 0x22, 0x00, 0, 0, 0, 0]);
 }
 
 #[test]
 fn sdo_segmented_download_table_torque() {
     let mut b = Bench::new();
     // 3 f32 = 12 bytes: 1.0, 2.0, -1.0
-    let bytes: Vec<u8> = [1.0f32, 2.0, -1.0]
-        .iter()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
-    assert_eq!(
-        b.sdo([0x21, 0x02, 0x21, 0x00, 12, 0, 0, 0]),
-        vec![0x60, 0x02, 0x21, 0x00, 0, 0, 0, 0]
-    );
+    let bytes: Vec<u8> = [1.0f32, 2.0, -1.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    assert_eq!(b.sdo([0x21, 0x02, 0x21, 0x00, 12, 0, 0, 0]), vec![0x60, 0x02, 0x21, 0x00, 0, 0, 0, 0]);
     let mut s1 = [0u8; 8];
     s1[1..8].copy_from_slice(&bytes[..7]);
     assert_eq!(b.sdo(s1), vec![0x20, 0, 0, 0, 0, 0, 0, 0]);
@@ -199,70 +143,34 @@ fn sdo_segmented_download_table_torque() {
 fn sdo_aborts() {
     let mut b = Bench::new();
     // read-only object written: 0x06010002
-    assert_eq!(
-        b.sdo([0x23, 0x00, 0x10, 0x00, 1, 0, 0, 0]),
-        vec![0x80, 0x00, 0x10, 0x00, 0x02, 0x00, 0x01, 0x06]
-    );
+    assert_eq!(b.sdo([0x23, 0x00, 0x10, 0x00, 1, 0, 0, 0]), vec![0x80, 0x00, 0x10, 0x00, 0x02, 0x00, 0x01, 0x06]);
     // write-only object read: 0x06010001
-    assert_eq!(
-        b.sdo([0x40, 0x00, 0x22, 0x00, 0, 0, 0, 0]),
-        vec![0x80, 0x00, 0x22, 0x00, 0x01, 0x00, 0x01, 0x06]
-    );
+    assert_eq!(b.sdo([0x40, 0x00, 0x22, 0x00, 0, 0, 0, 0]), vec![0x80, 0x00, 0x22, 0x00, 0x01, 0x00, 0x01, 0x06]);
     // object missing: 0x06020000
-    assert_eq!(
-        b.sdo([0x40, 0x00, 0x30, 0x00, 0, 0, 0, 0]),
-        vec![0x80, 0x00, 0x30, 0x00, 0x00, 0x00, 0x02, 0x06]
-    );
+    assert_eq!(b.sdo([0x40, 0x00, 0x30, 0x00, 0, 0, 0, 0]), vec![0x80, 0x00, 0x30, 0x00, 0x00, 0x00, 0x02, 0x06]);
     // sub-index missing: 0x06090011
-    assert_eq!(
-        b.sdo([0x40, 0x18, 0x10, 0x09, 0, 0, 0, 0]),
-        vec![0x80, 0x18, 0x10, 0x09, 0x11, 0x00, 0x09, 0x06]
-    );
+    assert_eq!(b.sdo([0x40, 0x18, 0x10, 0x09, 0, 0, 0, 0]), vec![0x80, 0x18, 0x10, 0x09, 0x11, 0x00, 0x09, 0x06]);
     // friction_v_band (0x2003, max 1.0) = 2.0: too high 0x06090031
-    assert_eq!(
-        b.sdo([0x23, 0x03, 0x20, 0x00, 0, 0, 0, 0x40]),
-        vec![0x80, 0x03, 0x20, 0x00, 0x31, 0x00, 0x09, 0x06]
-    );
+    assert_eq!(b.sdo([0x23, 0x03, 0x20, 0x00, 0, 0, 0, 0x40]), vec![0x80, 0x03, 0x20, 0x00, 0x31, 0x00, 0x09, 0x06]);
     // friction_a = -1.0: too low 0x06090032
-    assert_eq!(
-        b.sdo([0x23, 0x00, 0x20, 0x00, 0, 0, 0x80, 0xBF]),
-        vec![0x80, 0x00, 0x20, 0x00, 0x32, 0x00, 0x09, 0x06]
-    );
+    assert_eq!(b.sdo([0x23, 0x00, 0x20, 0x00, 0, 0, 0x80, 0xBF]), vec![0x80, 0x00, 0x20, 0x00, 0x32, 0x00, 0x09, 0x06]);
     // NaN: invalid value 0x06090030
-    assert_eq!(
-        b.sdo([0x23, 0x00, 0x20, 0x00, 0, 0, 0xC0, 0x7F]),
-        vec![0x80, 0x00, 0x20, 0x00, 0x30, 0x00, 0x09, 0x06]
-    );
+    assert_eq!(b.sdo([0x23, 0x00, 0x20, 0x00, 0, 0, 0xC0, 0x7F]), vec![0x80, 0x00, 0x20, 0x00, 0x30, 0x00, 0x09, 0x06]);
     // 2 bytes to a REAL32: length too low 0x06070013; 1 byte to U16 heartbeat ok? no: too low
-    assert_eq!(
-        b.sdo([0x2B, 0x00, 0x20, 0x00, 0, 0, 0, 0]),
-        vec![0x80, 0x00, 0x20, 0x00, 0x13, 0x00, 0x07, 0x06]
-    );
+    assert_eq!(b.sdo([0x2B, 0x00, 0x20, 0x00, 0, 0, 0, 0]), vec![0x80, 0x00, 0x20, 0x00, 0x13, 0x00, 0x07, 0x06]);
     // segmented download announcing 8 bytes for a REAL32: too high 0x06070012
-    assert_eq!(
-        b.sdo([0x21, 0x00, 0x20, 0x00, 8, 0, 0, 0]),
-        vec![0x80, 0x00, 0x20, 0x00, 0x12, 0x00, 0x07, 0x06]
-    );
+    assert_eq!(b.sdo([0x21, 0x00, 0x20, 0x00, 8, 0, 0, 0]), vec![0x80, 0x00, 0x20, 0x00, 0x12, 0x00, 0x07, 0x06]);
     // block download: command not valid 0x05040001
-    assert_eq!(
-        b.sdo([0xC0, 0x00, 0x20, 0x00, 0, 0, 0, 0]),
-        vec![0x80, 0x00, 0x20, 0x00, 0x01, 0x00, 0x04, 0x05]
-    );
+    assert_eq!(b.sdo([0xC0, 0x00, 0x20, 0x00, 0, 0, 0, 0]), vec![0x80, 0x00, 0x20, 0x00, 0x01, 0x00, 0x04, 0x05]);
     // nothing of the above changed the staged set
     assert_eq!(b.node.staged(), b.node.params().raw());
 
     // compensation_fraction (0x200F) is safety-relevant: refused in operational, 0x08000022
     b.run(Some((0x000, &[NMT_START, ID])));
-    assert_eq!(
-        b.sdo([0x23, 0x0F, 0x20, 0x00, 0, 0, 0, 0x3F]),
-        vec![0x80, 0x0F, 0x20, 0x00, 0x22, 0x00, 0x00, 0x08]
-    );
+    assert_eq!(b.sdo([0x23, 0x0F, 0x20, 0x00, 0, 0, 0, 0x3F]), vec![0x80, 0x0F, 0x20, 0x00, 0x22, 0x00, 0x00, 0x08]);
     // ... and accepted in pre-operational
     b.run(Some((0x000, &[NMT_PRE_OPERATIONAL, ID])));
-    assert_eq!(
-        b.sdo([0x23, 0x0F, 0x20, 0x00, 0, 0, 0, 0x3F]),
-        vec![0x60, 0x0F, 0x20, 0x00, 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x23, 0x0F, 0x20, 0x00, 0, 0, 0, 0x3F]), vec![0x60, 0x0F, 0x20, 0x00, 0, 0, 0, 0]);
 }
 
 #[test]
@@ -272,31 +180,16 @@ fn refused_commit_keeps_the_old_set_and_reports_the_parameter() {
     // controller_accel_cutoff (0x2016) = 600 Hz with the 1000 Hz control rate: in range but
     // inconsistent (must be below half the rate).
     let v = 600.0f32.to_le_bytes();
-    assert_eq!(
-        b.sdo([0x23, 0x16, 0x20, 0x00, v[0], v[1], v[2], v[3]])[0],
-        0x60
-    );
+    assert_eq!(b.sdo([0x23, 0x16, 0x20, 0x00, v[0], v[1], v[2], v[3]])[0], 0x60);
     let out = b.run(Some((0x605, &[0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])));
     // abort 0x06090030 on the commit object
-    assert_eq!(
-        out[0],
-        (0x585, vec![0x80, 0x00, 0x22, 0x00, 0x30, 0x00, 0x09, 0x06])
-    );
+    assert_eq!(out[0], (0x585, vec![0x80, 0x00, 0x22, 0x00, 0x30, 0x00, 0x09, 0x06]));
     // EMCY 0x6320, error register 0 (no fault latched), code 3 (inconsistent), param 22 (0x16)
-    assert_eq!(
-        out[1],
-        (0x085, vec![0x20, 0x63, 0x00, 0x03, 0x16, 0x00, 0x00, 0x00])
-    );
+    assert_eq!(out[1], (0x085, vec![0x20, 0x63, 0x00, 0x03, 0x16, 0x00, 0x00, 0x00]));
     assert_eq!(b.node.params().raw(), &before);
     // error record 0x2201: code 3, param 0x0016, message names the parameter
-    assert_eq!(
-        b.sdo([0x40, 0x01, 0x22, 0x01, 0, 0, 0, 0]),
-        vec![0x4F, 0x01, 0x22, 0x01, 3, 0, 0, 0]
-    );
-    assert_eq!(
-        b.sdo([0x40, 0x01, 0x22, 0x02, 0, 0, 0, 0]),
-        vec![0x4B, 0x01, 0x22, 0x02, 0x16, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x40, 0x01, 0x22, 0x01, 0, 0, 0, 0]), vec![0x4F, 0x01, 0x22, 0x01, 3, 0, 0, 0]);
+    assert_eq!(b.sdo([0x40, 0x01, 0x22, 0x02, 0, 0, 0, 0]), vec![0x4B, 0x01, 0x22, 0x02, 0x16, 0, 0, 0]);
     let msg = b.node.commit_error().unwrap().message.clone();
     assert!(msg.starts_with("controller_accel_cutoff"), "{msg}");
 }
@@ -320,25 +213,13 @@ fn heartbeat_loss_sends_emcy_and_fades_torque() {
         emcy.extend(b.run(None).into_iter().filter(|(id, _)| *id == 0x085));
     }
     // one EMCY 0x8130, error register generic + communication (0x11), faults = 0x0001
-    assert_eq!(
-        emcy,
-        vec![(0x085, vec![0x30, 0x81, 0x11, 0x01, 0x00, 0x00, 0x00, 0x00])]
-    );
+    assert_eq!(emcy, vec![(0x085, vec![0x30, 0x81, 0x11, 0x01, 0x00, 0x00, 0x00, 0x00])]);
     assert_eq!(b.node.safety().gain(), 0.0);
     // clear faults (0x2202) is refused without the host, accepted with it, then EMCY reset.
-    assert_eq!(
-        b.sdo([0x2F, 0x02, 0x22, 0x00, 1, 0, 0, 0]),
-        vec![0x80, 0x02, 0x22, 0x00, 0x22, 0x00, 0x00, 0x08]
-    );
+    assert_eq!(b.sdo([0x2F, 0x02, 0x22, 0x00, 1, 0, 0, 0]), vec![0x80, 0x02, 0x22, 0x00, 0x22, 0x00, 0x00, 0x08]);
     b.run(Some((0x77F, &[0x05])));
     let out = b.run(Some((0x605, &[0x2F, 0x02, 0x22, 0x00, 1, 0, 0, 0])));
-    assert_eq!(
-        out,
-        vec![
-            (0x585, vec![0x60, 0x02, 0x22, 0x00, 0, 0, 0, 0]),
-            (0x085, vec![0, 0, 0, 0, 0, 0, 0, 0])
-        ]
-    );
+    assert_eq!(out, vec![(0x585, vec![0x60, 0x02, 0x22, 0x00, 0, 0, 0, 0]), (0x085, vec![0, 0, 0, 0, 0, 0, 0, 0])]);
 }
 
 #[test]
@@ -354,10 +235,7 @@ fn rpdos_set_assist_command_and_other_angles() {
     assert_eq!(b.node.others()[0], 5000.0 * 1e-4);
     // too short for its mapping: EMCY 0x8210, value unchanged
     let out = b.run(Some((0x205, &[0x01])));
-    assert_eq!(
-        out,
-        vec![(0x085, vec![0x10, 0x82, 0x00, 0x00, 0x01, 0, 0, 0])]
-    );
+    assert_eq!(out, vec![(0x085, vec![0x10, 0x82, 0x00, 0x00, 0x01, 0, 0, 0])]);
     assert_eq!(b.node.assist_cmd(), 100.0);
 }
 
@@ -368,34 +246,17 @@ fn store_and_restore_signatures() {
     b.sdo([0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]); // friction_c
     b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]); // commit
                                                  // wrong signature: 0x08000020
-    assert_eq!(
-        b.sdo([0x23, 0x10, 0x10, 0x01, 1, 2, 3, 4]),
-        vec![0x80, 0x10, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08]
-    );
+    assert_eq!(b.sdo([0x23, 0x10, 0x10, 0x01, 1, 2, 3, 4]), vec![0x80, 0x10, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08]);
     assert_eq!(b.node.storage().saves, 0);
     // "save"
-    assert_eq!(
-        b.sdo([0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']),
-        vec![0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0]
-    );
-    assert_eq!(
-        b.node
-            .storage()
-            .stored
-            .as_ref()
-            .unwrap()
-            .get(ParamId::FrictionC),
-        2.5
-    );
+    assert_eq!(b.sdo([0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']), vec![0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0]);
+    assert_eq!(b.node.storage().stored.as_ref().unwrap().get(ParamId::FrictionC), 2.5);
     // reset node: the stored set comes back, with a boot-up
     let out = b.run(Some((0x000, &[0x81, ID])));
     assert_eq!(out[0], (0x705, vec![0x00]));
     assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
     // "load": stored set forgotten, defaults staged
-    assert_eq!(
-        b.sdo([0x23, 0x11, 0x10, 0x01, b'l', b'o', b'a', b'd']),
-        vec![0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0]
-    );
+    assert_eq!(b.sdo([0x23, 0x11, 0x10, 0x01, b'l', b'o', b'a', b'd']), vec![0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0]);
     assert!(b.node.storage().stored.is_none());
     assert_eq!(b.node.staged().get(ParamId::FrictionC), 0.0);
     b.run(Some((0x000, &[0x81, ID])));
@@ -407,8 +268,5 @@ fn sdo_timeout_aborts_a_stalled_transfer() {
     let mut b = Bench::new();
     b.sdo([0x21, 0x02, 0x21, 0x00, 12, 0, 0, 0]);
     let out = b.advance_ms(1001);
-    assert!(
-        out.contains(&(0x585, vec![0x80, 0x02, 0x21, 0x00, 0x00, 0x00, 0x04, 0x05])),
-        "{out:02X?}"
-    );
+    assert!(out.contains(&(0x585, vec![0x80, 0x02, 0x21, 0x00, 0x00, 0x00, 0x04, 0x05])), "{out:02X?}");
 }

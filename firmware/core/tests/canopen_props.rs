@@ -4,12 +4,7 @@
 //! ever changes to a set that passed `params::check` (and its safety-relevant values only in
 //! pre-operational). The cargo-fuzz target in `fuzz/` runs the same harness unbounded.
 
-#![allow(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::panic,
-    clippy::indexing_slicing
-)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 use joint_core::canopen::node::{MemoryStorage, NmtState, Node, NodeConfig};
 use joint_core::canopen::od::{self, PARAM_BASE};
@@ -106,9 +101,7 @@ fn every_object_in_the_dictionary_answers_as_described() {
             let info = od::sub_info(index, sub).unwrap();
             let r = upload(&mut n, index, sub);
             if info.access.readable() {
-                let v = r.unwrap_or_else(|a| {
-                    panic!("{index:04X}:{sub} ({}) read abort {a:08X}", info.name)
-                });
+                let v = r.unwrap_or_else(|a| panic!("{index:04X}:{sub} ({}) read abort {a:08X}", info.name));
                 if let Some(s) = info.dtype.size() {
                     assert_eq!(v.len(), s, "{}", info.name);
                 }
@@ -119,11 +112,7 @@ fn every_object_in_the_dictionary_answers_as_described() {
         // one past the last sub-index does not exist
         let last = *obj.subs.last().unwrap();
         if last < 0xFF {
-            assert_eq!(
-                upload(&mut n, index, last + 1),
-                Err(Abort::NoSubIndex.code()),
-                "{index:04X}"
-            );
+            assert_eq!(upload(&mut n, index, last + 1), Err(Abort::NoSubIndex.code()), "{index:04X}");
         }
     }
     // the parameter objects are exactly the table, in order
@@ -211,19 +200,11 @@ fn arb_frame() -> impl Strategy<Value = CanFrame> {
             vec![c, i[0], i[1], s, v[0], v[1], v[2], v[3]]
         });
     let nmt = (
-        prop_oneof![
-            Just(1u8),
-            Just(2),
-            Just(0x80),
-            Just(0x81),
-            Just(0x82),
-            any::<u8>()
-        ],
+        prop_oneof![Just(1u8), Just(2), Just(0x80), Just(0x81), Just(0x82), any::<u8>()],
         prop_oneof![Just(ID), Just(0), any::<u8>()],
     )
         .prop_map(|(a, b)| vec![a, b]);
-    let data =
-        prop_oneof![3 => sdo_like, 1 => nmt, 2 => proptest::collection::vec(any::<u8>(), 0..=8)];
+    let data = prop_oneof![3 => sdo_like, 1 => nmt, 2 => proptest::collection::vec(any::<u8>(), 0..=8)];
     (id, data).prop_map(|(id, d)| CanFrame::new(id, &d).unwrap())
 }
 

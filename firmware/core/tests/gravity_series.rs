@@ -184,7 +184,8 @@ fn store_round_trips_the_series_and_the_residual_flag() {
     assert_eq!(l.params, set, "bit for bit, series and residual flag included");
 
     // Through the node: save, power cycle, the series is back.
-    let mut n = Node::new(NodeConfig::new(3), FlashStorage::new(Store::new(RamFlash(vec![0xFF; 4 * PAGE])).unwrap()), 0);
+    let mut n =
+        Node::new(NodeConfig::new(3), FlashStorage::new(Store::new(RamFlash(vec![0xFF; 4 * PAGE])).unwrap()), 0);
     n.process(0, None, &mut |_| {});
     let good = series_2dof();
     n.write(od::SERIES_COUNT, 0, &[good.n_terms]).unwrap();

@@ -20,9 +20,7 @@ fn core_sin_cos_error() {
     // A few f32 ulps of 1.0 (ulp = 1.19e-7).
     assert!(worst_sin < 6e-7, "{worst_sin}");
     assert!(worst_cos < 6e-7, "{worst_cos}");
-    let libm_worst = sweep(-200.0, 200.0, 200_000)
-        .map(|x| (math::sin(x) - libm::sinf(x)).abs())
-        .fold(0.0f32, f32::max);
+    let libm_worst = sweep(-200.0, 200.0, 200_000).map(|x| (math::sin(x) - libm::sinf(x)).abs()).fold(0.0f32, f32::max);
     println!("core sin vs libm::sinf: worst {libm_worst:.3e}");
     assert!(libm_worst < 6e-7);
 }
@@ -42,7 +40,9 @@ fn micromath_error_against_libm() {
     for x in sweep(-10.0, 10.0, 200_000) {
         exp_rel = exp_rel.max(((F32Ext::exp(x) - libm::expf(x)) / libm::expf(x)).abs());
     }
-    println!("micromath vs libm: sin worst abs {sin_err:.3e}, sqrt worst rel {sqrt_rel:.3e}, exp worst rel {exp_rel:.3e}");
+    println!(
+        "micromath vs libm: sin worst abs {sin_err:.3e}, sqrt worst rel {sqrt_rel:.3e}, exp worst rel {exp_rel:.3e}"
+    );
     // These are why the core does not use micromath: each is far above a few ulps.
     assert!(sin_err > 1e-5 && sqrt_rel > 1e-4, "micromath got more accurate; revisit the choice");
 }

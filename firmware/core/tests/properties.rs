@@ -236,36 +236,37 @@ fn table_declares_every_id_in_order_and_defaults_pass() {
 
 /// An n-axis table (1..=4) with random grids, uniform or not.
 fn random_nd_table() -> impl Strategy<Value = RawTable> {
-    (1usize..=4, any::<bool>()).prop_flat_map(|(n, uniform)| {
-        let pts = proptest::collection::vec(2usize..4, n);
-        (Just(n), Just(uniform), pts).prop_flat_map(|(n, uniform, pts)| {
-            let cells: usize = pts.iter().product();
-            let grids: Vec<_> = pts.iter().map(|&p| grid(p)).collect();
-            (
-                Just(n),
-                Just(uniform),
-                Just(pts),
-                grids,
-                proptest::collection::vec(-50.0f32..50.0, cells),
-                proptest::collection::vec(0.01f32..5.0, cells),
-            )
+    (1usize..=4, any::<bool>())
+        .prop_flat_map(|(n, uniform)| {
+            let pts = proptest::collection::vec(2usize..4, n);
+            (Just(n), Just(uniform), pts).prop_flat_map(|(n, uniform, pts)| {
+                let cells: usize = pts.iter().product();
+                let grids: Vec<_> = pts.iter().map(|&p| grid(p)).collect();
+                (
+                    Just(n),
+                    Just(uniform),
+                    Just(pts),
+                    grids,
+                    proptest::collection::vec(-50.0f32..50.0, cells),
+                    proptest::collection::vec(0.01f32..5.0, cells),
+                )
+            })
         })
-    })
-    .prop_map(|(n, uniform, pts, grids, vals, sig)| {
-        let mut t = RawTable::EMPTY;
-        t.n_axes = n as u8;
-        for (a, (p, g)) in pts.iter().zip(grids.iter()).enumerate() {
-            t.points[a] = *p as u8;
-            t.axis_source[a] = a.min(3) as u8;
-            for (i, v) in g.iter().enumerate() {
-                t.grid[a][i] = if uniform { g[0] + 0.25 * i as f32 } else { *v };
+        .prop_map(|(n, uniform, pts, grids, vals, sig)| {
+            let mut t = RawTable::EMPTY;
+            t.n_axes = n as u8;
+            for (a, (p, g)) in pts.iter().zip(grids.iter()).enumerate() {
+                t.points[a] = *p as u8;
+                t.axis_source[a] = a.min(3) as u8;
+                for (i, v) in g.iter().enumerate() {
+                    t.grid[a][i] = if uniform { g[0] + 0.25 * i as f32 } else { *v };
+                }
             }
-        }
-        t.torque[..vals.len()].copy_from_slice(&vals);
-        t.sigma[..sig.len()].copy_from_slice(&sig);
-        t.has_sigma = true;
-        t
-    })
+            t.torque[..vals.len()].copy_from_slice(&vals);
+            t.sigma[..sig.len()].copy_from_slice(&sig);
+            t.has_sigma = true;
+            t
+        })
 }
 
 proptest! {

@@ -25,11 +25,7 @@ fn running(t0: u64) -> Safety {
         s.update(t, 10.0);
         t += MS;
     }
-    assert_eq!(
-        s.update(t0 + S, 10.0),
-        10.0,
-        "full output after the soft start"
-    );
+    assert_eq!(s.update(t0 + S, 10.0), 10.0, "full output after the soft start");
     assert!(s.faults().is_empty());
     s
 }
@@ -49,10 +45,7 @@ fn config_from_params_and_seconds() {
     // NaN and negative times mean "off"/"immediate", never a panic.
     let c = SafetyConfig::from_seconds(f32::NAN, -1.0, 1.0);
     assert_eq!((c.heartbeat_timeout_us, c.ramp_us), (0, 0));
-    assert_eq!(
-        SafetyConfig::from_seconds(f32::INFINITY, 0.0, 1.0).heartbeat_timeout_us,
-        u64::MAX
-    );
+    assert_eq!(SafetyConfig::from_seconds(f32::INFINITY, 0.0, 1.0).heartbeat_timeout_us, u64::MAX);
 }
 
 #[test]
@@ -126,10 +119,7 @@ fn ramp_ends_on_time_with_an_irregular_loop_period() {
         t += 3_700;
     }
     assert!(last_nonzero < end, "{last_nonzero} ≥ {end}");
-    assert!(
-        last_nonzero + 3_700 >= end - 10,
-        "ramp ended early at {last_nonzero}"
-    );
+    assert!(last_nonzero + 3_700 >= end - 10, "ramp ended early at {last_nonzero}");
 }
 
 #[test]
@@ -178,13 +168,7 @@ fn clear_is_refused_while_the_heartbeat_is_missing() {
     let mut s = running(0);
     let t = S + 300 * MS;
     s.update(t, 1.0);
-    assert_eq!(
-        s.clear_faults(t),
-        Err(ClearError::HeartbeatMissing {
-            since_us: 300 * MS,
-            timeout_us: 100 * MS
-        })
-    );
+    assert_eq!(s.clear_faults(t), Err(ClearError::HeartbeatMissing { since_us: 300 * MS, timeout_us: 100 * MS }));
     assert!(s.faults().contains(Faults::HEARTBEAT_LOST));
     s.on_heartbeat(t + MS);
     assert_eq!(s.clear_faults(t + MS), Ok(Faults::HEARTBEAT_LOST));
@@ -208,10 +192,7 @@ fn clearing_mid_fade_resumes_from_the_current_gain_without_a_step() {
             s.on_heartbeat(t);
         }
         let out = s.update(t, 10.0);
-        assert!(
-            out >= prev && out - prev <= 10.0 * 0.002 + 1e-4,
-            "step {prev} → {out}"
-        );
+        assert!(out >= prev && out - prev <= 10.0 * 0.002 + 1e-4, "step {prev} → {out}");
         prev = out;
     }
     assert_eq!(prev, 10.0);
@@ -335,11 +316,7 @@ fn a_boot_fault_never_lets_torque_out() {
 #[test]
 fn report_only_faults_do_not_fade() {
     let mut s = running(0);
-    s.raise(
-        Faults::CAN_BUS_OFF
-            .union(Faults::LOOP_OVERRUN)
-            .union(Faults::STORE_WRITE),
-    );
+    s.raise(Faults::CAN_BUS_OFF.union(Faults::LOOP_OVERRUN).union(Faults::STORE_WRITE));
     s.on_heartbeat(S + MS);
     assert_eq!(s.update(S + MS, 10.0), 10.0);
     assert_eq!(s.faults().bits(), (1 << 4) | (1 << 8) | (1 << 7));

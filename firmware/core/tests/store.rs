@@ -5,8 +5,8 @@
 use joint_core::params::{check, ParamId, ParamSet, RawParams, PARAMS, PARAM_COUNT};
 use joint_core::safety::Faults;
 use joint_core::store::{
-    crc32, name_id, Flash, GeometryError, LayoutError, LoadError, SaveError, SaveProgress,
-    SlotState, Store, FORMAT_VERSION, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN,
+    crc32, name_id, Flash, GeometryError, LayoutError, LoadError, SaveError, SaveProgress, SlotState, Store,
+    FORMAT_VERSION, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN,
 };
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 use proptest::prelude::*;
@@ -43,13 +43,7 @@ impl MockFlash {
         Self::from_mem(vec![0xFF; REGION])
     }
     fn from_mem(mem: Vec<u8>) -> Self {
-        MockFlash {
-            mem,
-            budget: None,
-            dead: false,
-            scramble: false,
-            used: 0,
-        }
+        MockFlash { mem, budget: None, dead: false, scramble: false, used: 0 }
     }
     fn with_cut(mut self, budget: u64, scramble: bool) -> Self {
         self.budget = Some(budget);
@@ -82,10 +76,7 @@ impl Flash for MockFlash {
             return Err(MockError::PowerCut);
         }
         let o = offset as usize;
-        let src = self
-            .mem
-            .get(o..o + bytes.len())
-            .ok_or(MockError::OutOfBounds)?;
+        let src = self.mem.get(o..o + bytes.len()).ok_or(MockError::OutOfBounds)?;
         bytes.copy_from_slice(src);
         Ok(())
     }
@@ -126,10 +117,7 @@ impl Flash for MockFlash {
         if o % 8 != 0 || bytes.len() % 8 != 0 {
             return Err(MockError::Misaligned);
         }
-        let dst = self
-            .mem
-            .get(o..o + bytes.len())
-            .ok_or(MockError::OutOfBounds)?;
+        let dst = self.mem.get(o..o + bytes.len()).ok_or(MockError::OutOfBounds)?;
         // STM32G4: programming a double-word that is not erased is an error (PROGERR).
         if dst.iter().any(|&b| b != 0xFF) {
             return Err(MockError::NotErased);
@@ -243,10 +231,7 @@ fn payload_v1(entries: &[(u32, f32)], raw: &RawParams, dims: (usize, usize, usiz
     }
     for a in 0..a_max {
         for i in 0..m_max {
-            push_f32(
-                &mut p,
-                t.grid.get(a).and_then(|r| r.get(i)).copied().unwrap_or(0.0),
-            );
+            push_f32(&mut p, t.grid.get(a).and_then(|r| r.get(i)).copied().unwrap_or(0.0));
         }
     }
     for c in 0..c_max {
@@ -259,11 +244,7 @@ fn payload_v1(entries: &[(u32, f32)], raw: &RawParams, dims: (usize, usize, usiz
 }
 
 fn entries_of(raw: &RawParams) -> Vec<(u32, f32)> {
-    PARAMS
-        .iter()
-        .zip(raw.values.iter())
-        .map(|(d, &v)| (crc32(d.name.as_bytes()), v))
-        .collect()
+    PARAMS.iter().zip(raw.values.iter()).map(|(d, &v)| (crc32(d.name.as_bytes()), v)).collect()
 }
 
 /// A whole record (header + payload, padded to 8 with 0xFF) per the module doc.
@@ -298,10 +279,7 @@ fn put(mem: &mut [u8], slot: usize, rec: &[u8]) {
 fn crc32_is_iso_hdlc() {
     assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
     assert_eq!(crc32(b""), 0);
-    assert_eq!(
-        crc32(b"The quick brown fox jumps over the lazy dog"),
-        0x414F_A339
-    );
+    assert_eq!(crc32(b"The quick brown fox jumps over the lazy dog"), 0x414F_A339);
 }
 
 #[test]
@@ -354,19 +332,10 @@ fn round_trip_alternates_slots_and_survives_reboot() {
     }
     let mem = s.into_flash().mem;
     let l = boot(&mem).expect("load");
-    assert_eq!(
-        l.params, sets[3],
-        "exact, bit for bit, full table included"
-    );
-    assert_eq!(
-        (l.info.slot, l.info.seq, l.info.version),
-        (1, 4, FORMAT_VERSION)
-    );
+    assert_eq!(l.params, sets[3], "exact, bit for bit, full table included");
+    assert_eq!((l.info.slot, l.info.seq, l.info.version), (1, 4, FORMAT_VERSION));
     assert_eq!(l.info.other, SlotState::Valid { seq: 3, version: 1 });
-    assert_eq!(
-        (l.info.defaulted, l.info.unknown, l.info.table_migrated),
-        (0, 0, false)
-    );
+    assert_eq!((l.info.defaulted, l.info.unknown, l.info.table_migrated), (0, 0, false));
     assert_eq!(l.info.fault(), Faults::NONE);
 }
 
@@ -395,21 +364,10 @@ fn four_axis_table_round_trips() {
 fn record_bytes_match_the_documented_format() {
     let set = sample(5);
     let mem = flash_with(&[set.clone()]).mem;
-    let want = record(
-        1,
-        1,
-        &payload_v1(
-            &entries_of(set.raw()),
-            set.raw(),
-            (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX),
-        ),
-    );
+    let want = record(1, 1, &payload_v1(&entries_of(set.raw()), set.raw(), (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX)));
     assert_eq!(want.len(), RECORD_LEN);
     assert_eq!(&mem[..RECORD_LEN], &want[..]);
-    assert!(
-        mem[RECORD_LEN..].iter().all(|&b| b == 0xFF),
-        "rest of the region untouched"
-    );
+    assert!(mem[RECORD_LEN..].iter().all(|&b| b == 0xFF), "rest of the region untouched");
 }
 
 /// Run one save of `new` on `initial` with the power cut after `budget` bytes; returns the
@@ -464,8 +422,7 @@ fn power_cut_sweep(history: &[ParamSet], new: &ParamSet, scramble: bool) -> u64 
                     assert_eq!(l.info.fault(), Faults::NONE, "cut {n}: {:?}", l.info.other);
                 }
             }
-            (false, None, Err(LoadError::Blank))
-            | (false, None, Err(LoadError::Corrupt { .. })) => {}
+            (false, None, Err(LoadError::Blank)) | (false, None, Err(LoadError::Corrupt { .. })) => {}
             (_, _, r) => panic!("cut {n} of {total}: unexpected {r:?}"),
         }
         // Recovery: the next save on this board must succeed and win.
@@ -473,11 +430,7 @@ fn power_cut_sweep(history: &[ParamSet], new: &ParamSet, scramble: bool) -> u64 
             let mut s = store(MockFlash::from_mem(mem));
             let _ = s.load();
             s.save_blocking(&after).expect("save after reboot");
-            assert_eq!(
-                loaded_raw(&s.into_flash().mem),
-                *after.raw(),
-                "cut {n}: recovery save"
-            );
+            assert_eq!(loaded_raw(&s.into_flash().mem), *after.raw(), "cut {n}: recovery save");
         }
     }
     total + 1
@@ -532,16 +485,9 @@ fn every_single_bit_flip_in_the_newest_record_is_detected() {
             m[byte] ^= 1 << bit;
             let l = boot(&m).expect("older set still loads");
             assert_eq!(l.params, sample(1), "flip at {byte}.{bit}");
-            assert!(matches!(
-                l.info.other,
-                SlotState::Damaged | SlotState::Uncommitted
-            ));
+            assert!(matches!(l.info.other, SlotState::Damaged | SlotState::Uncommitted));
             if byte >= SLOT + 4 {
-                assert_eq!(
-                    l.info.fault(),
-                    Faults::PARAMS_CORRUPT,
-                    "flip at {byte}.{bit}"
-                );
+                assert_eq!(l.info.fault(), Faults::PARAMS_CORRUPT, "flip at {byte}.{bit}");
             }
             checked += 1;
         }
@@ -555,13 +501,7 @@ fn damage_in_both_slots_is_corrupt() {
     mem[100] ^= 0x10;
     mem[SLOT + RECORD_LEN / 2] ^= 0x01;
     let e = boot(&mem).unwrap_err();
-    assert_eq!(
-        e,
-        LoadError::Corrupt {
-            a: SlotState::Damaged,
-            b: SlotState::Damaged
-        }
-    );
+    assert_eq!(e, LoadError::Corrupt { a: SlotState::Damaged, b: SlotState::Damaged });
     assert_eq!(e.fault(), Faults::PARAMS_CORRUPT);
     let (set, f) = store(MockFlash::from_mem(mem)).load_or_defaults();
     assert_eq!((set, f), (ParamSet::defaults(), Faults::PARAMS_CORRUPT));
@@ -580,31 +520,16 @@ fn foreign_data_is_detected() {
         })
         .collect();
     let e = boot(&noise).unwrap_err();
-    assert_eq!(
-        e,
-        LoadError::Corrupt {
-            a: SlotState::Uncommitted,
-            b: SlotState::Uncommitted
-        }
-    );
+    assert_eq!(e, LoadError::Corrupt { a: SlotState::Uncommitted, b: SlotState::Uncommitted });
     // All zeros.
-    assert!(matches!(
-        boot(&vec![0; REGION]),
-        Err(LoadError::Corrupt { .. })
-    ));
+    assert!(matches!(boot(&vec![0; REGION]), Err(LoadError::Corrupt { .. })));
     // Our magic in front of foreign bytes, and a header whose length points past the slot.
     let mut m = noise.clone();
     m[..4].copy_from_slice(b"JPRM");
     m[SLOT..SLOT + 4].copy_from_slice(b"JPRM");
     m[SLOT + 6..SLOT + 8].copy_from_slice(&24u16.to_le_bytes());
     m[SLOT + 12..SLOT + 16].copy_from_slice(&u32::MAX.to_le_bytes());
-    assert_eq!(
-        boot(&m).unwrap_err(),
-        LoadError::Corrupt {
-            a: SlotState::Damaged,
-            b: SlotState::Damaged
-        }
-    );
+    assert_eq!(boot(&m).unwrap_err(), LoadError::Corrupt { a: SlotState::Damaged, b: SlotState::Damaged });
     // One good record beside garbage loads and reports the garbage.
     let mut m = flash_with(&[sample(4)]).mem;
     m[SLOT..].copy_from_slice(&noise[SLOT..]);
@@ -617,22 +542,11 @@ fn foreign_data_is_detected() {
 fn newer_format_is_refused_and_kept() {
     let set = sample(6);
     let mut mem = flash_with(&[sample(5)]).mem;
-    let payload = payload_v1(
-        &entries_of(set.raw()),
-        set.raw(),
-        (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX),
-    );
+    let payload = payload_v1(&entries_of(set.raw()), set.raw(), (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX));
     let v2 = record(7, 2, &payload);
     put(&mut mem, 1, &v2);
     let e = boot(&mem).unwrap_err();
-    assert_eq!(
-        e,
-        LoadError::UnsupportedVersion {
-            found: 2,
-            supported: 1,
-            seq: 7
-        }
-    );
+    assert_eq!(e, LoadError::UnsupportedVersion { found: 2, supported: 1, seq: 7 });
     assert_eq!(e.fault(), Faults::PARAMS_VERSION);
     // Saving from this firmware overwrites the *other* slot; the newer record stays intact.
     let mut s = store(MockFlash::from_mem(mem));
@@ -644,10 +558,7 @@ fn newer_format_is_refused_and_kept() {
     // Version 0 is not a format at all.
     let mut m = flash_with(&[]).mem;
     put(&mut m, 0, &record(1, 0, &payload));
-    assert!(matches!(
-        boot(&m),
-        Err(LoadError::UnsupportedVersion { found: 0, .. })
-    ));
+    assert!(matches!(boot(&m), Err(LoadError::UnsupportedVersion { found: 0, .. })));
 }
 
 #[test]
@@ -662,23 +573,12 @@ fn added_removed_and_reordered_parameters_migrate_by_name() {
     entries.retain(|&(id, _)| id != kd);
     entries.insert(3, (name_id("legacy_gain"), 42.0));
     let mut mem = flash_with(&[]).mem;
-    put(
-        &mut mem,
-        0,
-        &record(
-            3,
-            1,
-            &payload_v1(&entries, set.raw(), (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX)),
-        ),
-    );
+    put(&mut mem, 0, &record(3, 1, &payload_v1(&entries, set.raw(), (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX))));
     let l = boot(&mem).expect("migrates");
     let mut want = set.raw().clone();
     want.set(ParamId::PosKd, ParamId::PosKd.desc().default);
     assert_eq!(*l.params.raw(), want);
-    assert_eq!(
-        (l.info.defaulted, l.info.unknown, l.info.table_migrated),
-        (1, 1, false)
-    );
+    assert_eq!((l.info.defaulted, l.info.unknown, l.info.table_migrated), (1, 1, false));
 }
 
 #[test]
@@ -686,20 +586,9 @@ fn table_from_other_compile_time_limits_is_copied_when_it_fits() {
     // Written by a build with AXES_MAX 2, AXIS_POINTS_MAX 8, CELLS_MAX 64.
     let set = sample(4);
     let mut mem = flash_with(&[]).mem;
-    put(
-        &mut mem,
-        1,
-        &record(
-            9,
-            1,
-            &payload_v1(&entries_of(set.raw()), set.raw(), (2, 8, 64)),
-        ),
-    );
+    put(&mut mem, 1, &record(9, 1, &payload_v1(&entries_of(set.raw()), set.raw(), (2, 8, 64))));
     let l = boot(&mem).expect("fits");
-    assert_eq!(
-        l.params, set,
-        "used part identical, unused entries zero as in the sample"
-    );
+    assert_eq!(l.params, set, "used part identical, unused entries zero as in the sample");
     assert!(l.info.table_migrated);
     // Written by a build with 20 points per axis and 400 cells, using 20 points: cannot be
     // represented here, so refused rather than cut short.
@@ -709,17 +598,7 @@ fn table_from_other_compile_time_limits_is_copied_when_it_fits() {
     let mut m = flash_with(&[]).mem;
     put(&mut m, 0, &record(2, 1, &p));
     let e = boot(&m).unwrap_err();
-    assert_eq!(
-        e,
-        LoadError::Layout {
-            error: LayoutError::TableTooLarge {
-                n_axes: 2,
-                points: 20,
-                cells: 80
-            },
-            seq: 2
-        }
-    );
+    assert_eq!(e, LoadError::Layout { error: LayoutError::TableTooLarge { n_axes: 2, points: 20, cells: 80 }, seq: 2 });
     assert_eq!(e.fault(), Faults::PARAMS_VERSION);
 }
 
@@ -752,10 +631,7 @@ fn malformed_payloads_with_a_good_crc_are_refused() {
                 p.truncate(p.len() - 4);
                 p
             },
-            LayoutError::Length {
-                expected: good.len() as u32,
-                found: good.len() as u32 - 4,
-            },
+            LayoutError::Length { expected: good.len() as u32, found: good.len() as u32 - 4 },
         ),
         (
             {
@@ -771,9 +647,7 @@ fn malformed_payloads_with_a_good_crc_are_refused() {
                 p[..2].copy_from_slice(&400u16.to_le_bytes());
                 p
             },
-            LayoutError::Truncated {
-                len: good.len() as u32,
-            },
+            LayoutError::Truncated { len: good.len() as u32 },
         ),
         (
             {
@@ -781,21 +655,13 @@ fn malformed_payloads_with_a_good_crc_are_refused() {
                 e.push(e[4]);
                 payload_v1(&e, set.raw(), dims)
             },
-            LayoutError::DuplicateParam {
-                entry: PARAM_COUNT as u16,
-            },
+            LayoutError::DuplicateParam { entry: PARAM_COUNT as u16 },
         ),
     ];
     for (p, want) in cases {
         let mut m = flash_with(&[]).mem;
         put(&mut m, 0, &record(5, 1, &p));
-        assert_eq!(
-            boot(&m).unwrap_err(),
-            LoadError::Layout {
-                error: want,
-                seq: 5
-            }
-        );
+        assert_eq!(boot(&m).unwrap_err(), LoadError::Layout { error: want, seq: 5 });
     }
 }
 
@@ -805,24 +671,9 @@ fn stored_values_that_fail_check_give_defaults_and_a_fault() {
     let mut raw = set.raw().clone();
     raw.set(ParamId::Fraction, 2.0);
     let mut m = flash_with(&[]).mem;
-    put(
-        &mut m,
-        0,
-        &record(
-            5,
-            1,
-            &payload_v1(
-                &entries_of(&raw),
-                &raw,
-                (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX),
-            ),
-        ),
-    );
+    put(&mut m, 0, &record(5, 1, &payload_v1(&entries_of(&raw), &raw, (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX))));
     let e = boot(&m).unwrap_err();
-    assert!(
-        matches!(e, LoadError::Rejected { seq: 5, error } if error.param() == Some(ParamId::Fraction)),
-        "{e:?}"
-    );
+    assert!(matches!(e, LoadError::Rejected { seq: 5, error } if error.param() == Some(ParamId::Fraction)), "{e:?}");
     let (s, f) = store(MockFlash::from_mem(m)).load_or_defaults();
     assert_eq!((s, f), (ParamSet::defaults(), Faults::PARAMS_REJECTED));
 }
@@ -854,13 +705,7 @@ fn begin_save_restarts_and_progress_is_reported() {
     let mut s = store(flash_with(&[sample(1)]));
     s.load().expect("load");
     s.begin_save(&sample(2)).expect("begin");
-    assert_eq!(
-        s.poll(&sample(2)),
-        Ok(SaveProgress::Working {
-            done: 1,
-            total: ops
-        })
-    );
+    assert_eq!(s.poll(&sample(2)), Ok(SaveProgress::Working { done: 1, total: ops }));
     // A newer set arrives mid-save: start over with it.
     s.begin_save(&sample(3)).expect("restart");
     let mut polls = 0;
@@ -886,37 +731,14 @@ fn sequence_numbers_compare_across_wrap_around() {
     let set_b = sample(2);
     let dims = (AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX);
     let mut m = flash_with(&[]).mem;
-    put(
-        &mut m,
-        0,
-        &record(
-            u32::MAX,
-            1,
-            &payload_v1(&entries_of(set_a.raw()), set_a.raw(), dims),
-        ),
-    );
-    put(
-        &mut m,
-        1,
-        &record(
-            0,
-            1,
-            &payload_v1(&entries_of(set_b.raw()), set_b.raw(), dims),
-        ),
-    );
+    put(&mut m, 0, &record(u32::MAX, 1, &payload_v1(&entries_of(set_a.raw()), set_a.raw(), dims)));
+    put(&mut m, 1, &record(0, 1, &payload_v1(&entries_of(set_b.raw()), set_b.raw(), dims)));
     let l = boot(&m).expect("load");
     assert_eq!((l.params, l.info.seq), (set_b, 0));
 }
 
 fn arb_set() -> impl Strategy<Value = ParamSet> {
-    (
-        proptest::collection::vec(0.0f32..=1.0, PARAM_COUNT),
-        1u8..=2,
-        2u8..=16,
-        2u8..=16,
-        any::<bool>(),
-        any::<u64>(),
-    )
+    (proptest::collection::vec(0.0f32..=1.0, PARAM_COUNT), 1u8..=2, 2u8..=16, 2u8..=16, any::<bool>(), any::<u64>())
         .prop_filter_map("valid set", |(fr, n_axes, p0, p1, sigma, seed)| {
             let mut raw = RawParams::defaults();
             for (k, d) in PARAMS.iter().enumerate() {

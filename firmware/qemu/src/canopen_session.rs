@@ -233,7 +233,11 @@ impl<E: FnMut(&Line)> Run<'_, E> {
                 // Above its maximum: abort 0x06090031, the staged value stays.
                 let p = ParamId::FrictionA;
                 let before = self.node.staged().get(p);
-                self.rx("sdo-out-of-range", sdo_download_f32(param_index(p), p.desc().max * 2.0 + 1.0), Some(0x0609_0031));
+                self.rx(
+                    "sdo-out-of-range",
+                    sdo_download_f32(param_index(p), p.desc().max * 2.0 + 1.0),
+                    Some(0x0609_0031),
+                );
                 let kept = self.node.staged().get(p).to_bits() == before.to_bits();
                 // A 3-byte SDO request is malformed: abort, nothing written.
                 self.rx("sdo-short", f(0x600 + u16::from(me), &[0x23, 0x00, 0x20]), Some(0x0504_0001));

@@ -57,10 +57,7 @@ pub static __VECTORS: [unsafe extern "C" fn() -> !; 15] = [
     fault, // 5 BusFault
     fault, // 6 UsageFault
     fault, // 7..=10 reserved: never taken, but a valid address is cheaper than a hole
-    fault,
-    fault,
-    fault,
-    fault, // 11 SVCall
+    fault, fault, fault, fault, // 11 SVCall
     fault, // 12 DebugMonitor
     fault, // 13 reserved
     fault, // 14 PendSV

@@ -71,7 +71,14 @@ impl ArmBus {
         let mut joints = Vec::new();
         for j in 0..4 {
             let node = Node::new(NodeConfig::new(node_id(j)), MemoryStorage::default(), 0);
-            let dev = Arc::new(Mutex::new(ArmJoint { node, j, angles: angles.clone(), last_us: None, gravity: 0.0, others: [0.0; 3] }));
+            let dev = Arc::new(Mutex::new(ArmJoint {
+                node,
+                j,
+                angles: angles.clone(),
+                last_us: None,
+                gravity: 0.0,
+                others: [0.0; 3],
+            }));
             bus.attach(dev.clone());
             joints.push(dev);
         }
@@ -90,8 +97,14 @@ impl ArmBus {
     /// Push one parameter set per joint (pre-operational, whole-set commit), then start all.
     pub fn push(&mut self, sets: &[RawParams]) -> anyhow::Result<()> {
         for (j, raw) in sets.iter().enumerate() {
-            transfer::push(&mut self.master, node_id(j), raw, PushOptions { pre_operational: true, save: false }, &mut |_| {})
-                .map_err(|e| anyhow::anyhow!("joint {}: {e}", j + 1))?;
+            transfer::push(
+                &mut self.master,
+                node_id(j),
+                raw,
+                PushOptions { pre_operational: true, save: false },
+                &mut |_| {},
+            )
+            .map_err(|e| anyhow::anyhow!("joint {}: {e}", j + 1))?;
         }
         self.master.nmt(0, NMT_START)?;
         self.master.listen(Duration::from_millis(5))?;

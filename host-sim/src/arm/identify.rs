@@ -216,7 +216,8 @@ pub fn fit_table(joints: &[usize], poses: &[[f64; 4]], resid: &[f64]) -> Option<
             den[i] += wi;
         }
     }
-    let sigma = num.iter().zip(&den).map(|(n, d)| if *d > 0.0 { (n / d).sqrt().max(SIGMA_FLOOR) } else { 1.0 }).collect();
+    let sigma =
+        num.iter().zip(&den).map(|(n, d)| if *d > 0.0 { (n / d).sqrt().max(SIGMA_FLOOR) } else { 1.0 }).collect();
     Some(ResidualTable {
         joints: joints.to_vec(),
         grid,

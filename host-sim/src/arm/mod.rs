@@ -266,7 +266,10 @@ fn widen(v: &[[f32; 4]]) -> Vec<[f64; 4]> {
 /// Run the whole experiment. `progress` gets a line per stage.
 pub fn run(cfg: &ArmConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<(ArmReport, Identified)> {
     if !(cfg.clamp_k.is_finite() && cfg.clamp_k > 0.0 && cfg.clamp_k <= CLAMP_K_OFF) {
-        anyhow::bail!("--clamp-k {}: must be in (0, {CLAMP_K_OFF}] (the core's gravity_table_clamp_k range)", cfg.clamp_k);
+        anyhow::bail!(
+            "--clamp-k {}: must be in (0, {CLAMP_K_OFF}] (the core's gravity_table_clamp_k range)",
+            cfg.clamp_k
+        );
     }
     if cfg.configs == 0 {
         anyhow::bail!("--configs must be at least 1");
@@ -290,7 +293,8 @@ pub fn run(cfg: &ArmConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<(A
     // the sweep: one joint from 0 to S_j + margin in 5° steps, the others mid-range
     let sj = cfg.sweep_joint.min(3);
     let held: [f64; 4] = RANGE_DEG.map(|s| 0.5 * s * DEG);
-    let sweep_deg: Vec<f64> = (0..).map(|i| 5.0 * f64::from(i)).take_while(|&d| d <= RANGE_DEG[sj] + cfg.sweep_margin_deg + 1e-9).collect();
+    let sweep_deg: Vec<f64> =
+        (0..).map(|i| 5.0 * f64::from(i)).take_while(|&d| d <= RANGE_DEG[sj] + cfg.sweep_margin_deg + 1e-9).collect();
     let q_sweep: Vec<[f64; 4]> = sweep_deg
         .iter()
         .map(|&d| {
@@ -330,7 +334,9 @@ pub fn run(cfg: &ArmConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<(A
     let mut holds = true;
     let (mut worst, mut worst_free, mut active) = (0.0f64, 0.0f64, 0usize);
     // every configuration beyond the range: the random ones and the sweep's points past S_j
-    let beyond: Vec<usize> = (n..n_out).chain((0..q_sweep.len()).filter(|&k| sweep_deg[k] > RANGE_DEG[sj] + 1e-9).map(|k| n_out + k)).collect();
+    let beyond: Vec<usize> = (n..n_out)
+        .chain((0..q_sweep.len()).filter(|&k| sweep_deg[k] > RANGE_DEG[sj] + 1e-9).map(|k| n_out + k))
+        .collect();
     for &i in &beyond {
         let row = &fused_p[i];
         for j in 0..4 {
@@ -424,7 +430,13 @@ pub fn format_report(r: &ArmReport) -> String {
             100.0 * ji.explained
         );
     }
-    let _ = writeln!(s, "\n{} random configurations in range (seed {}), clamp k = {}", r.in_range.configs.q_deg.len(), r.seed, r.clamp_k);
+    let _ = writeln!(
+        s,
+        "\n{} random configurations in range (seed {}), clamp k = {}",
+        r.in_range.configs.q_deg.len(),
+        r.seed,
+        r.clamp_k
+    );
     let _ = writeln!(s, "RRMSE %                     joint 1  joint 2  joint 3  joint 4");
     row(&mut s, "CAD only", &r.in_range.cad.rrmse_pct, 2);
     row(&mut s, "table only (τ_m + r)", &r.in_range.table.rrmse_pct, 2);
@@ -439,7 +451,11 @@ pub fn format_report(r: &ArmReport) -> String {
     row(&mut s, "paper CAD", &PAPER_MAX_CAD, 3);
     row(&mut s, "paper BNN", &PAPER_MAX_BNN, 3);
     row(&mut s, "paper fused", &PAPER_MAX_FUSED, 3);
-    let _ = writeln!(s, "clamp active (fused held at τ_m ± k·σ_m) in {:.0} % of joint-configurations in range", 100.0 * r.in_range.clamp_active_share);
+    let _ = writeln!(
+        s,
+        "clamp active (fused held at τ_m ± k·σ_m) in {:.0} % of joint-configurations in range",
+        100.0 * r.in_range.clamp_active_share
+    );
     let o = &r.out_of_range;
     let _ = writeln!(s, "\n{} configurations beyond the table's range (S_j … S_j + margin)", o.configs.q_deg.len());
     let _ = writeln!(s, "max |error| N·m             joint 1  joint 2  joint 3  joint 4");

@@ -47,7 +47,12 @@ impl Default for ArmPlant {
             k_c: [500.0, 500.0, 400.0, 300.0],
             // shoulder abduction and flexion carry the harness: a linear pull and a stiffening
             // one towards the end of the range
-            cable: [(0.5, 0.0, 0.6, 60.0 * deg), (0.0, 0.0, 0.0, 0.0), (0.4, 0.5, 0.3, 70.0 * deg), (0.0, 0.0, 0.0, 0.0)],
+            cable: [
+                (0.5, 0.0, 0.6, 60.0 * deg),
+                (0.0, 0.0, 0.0, 0.0),
+                (0.4, 0.5, 0.3, 70.0 * deg),
+                (0.0, 0.0, 0.0, 0.0),
+            ],
             noise_sd: [0.15, 0.15, 0.1, 0.1],
         }
     }

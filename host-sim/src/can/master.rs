@@ -155,8 +155,12 @@ impl Master {
 
     /// One request, one response.
     fn transact(&mut self, node: u8, index: u16, sub: u8, req: [u8; 8]) -> Result<[u8; 8], SdoError> {
-        let f = CanFrame::new(sdo::RX_BASE + u16::from(node), &req)
-            .ok_or_else(|| SdoError::Protocol { node, index, sub, what: "node id out of range".into() })?;
+        let f = CanFrame::new(sdo::RX_BASE + u16::from(node), &req).ok_or_else(|| SdoError::Protocol {
+            node,
+            index,
+            sub,
+            what: "node id out of range".into(),
+        })?;
         self.pump()?;
         self.bus.send(&f).map_err(Self::io)?;
         self.count(&f);

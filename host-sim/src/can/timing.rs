@@ -142,7 +142,8 @@ pub fn classic_time_ns(id: u16, data: &[u8], bitrate: u32) -> u64 {
 /// Time on the wire of an FD frame with bit-rate switch, ns.
 pub fn fd_time_ns(id: u16, data: &[u8], nominal: u32, data_rate: u32, worst: bool) -> u64 {
     let (n, d) = fd_bits(id, data, worst);
-    u64::from(n) * 1_000_000_000 / u64::from(nominal.max(1)) + u64::from(d) * 1_000_000_000 / u64::from(data_rate.max(1))
+    u64::from(n) * 1_000_000_000 / u64::from(nominal.max(1))
+        + u64::from(d) * 1_000_000_000 / u64::from(data_rate.max(1))
 }
 
 #[cfg(test)]

@@ -70,7 +70,12 @@ fn table_ops(t: &RawTable) -> Vec<(u16, u8, Vec<u8>, String)> {
     if t.n_axes > 0 {
         let n = (t.n_axes as usize).min(AXES_MAX);
         let cells = t.cells().min(CELLS_MAX);
-        v.push((od::TABLE_GRID, 0, f32s(t.grid.iter().take(n).flat_map(|r| r.iter().copied())), "gravity_table_grid".into()));
+        v.push((
+            od::TABLE_GRID,
+            0,
+            f32s(t.grid.iter().take(n).flat_map(|r| r.iter().copied())),
+            "gravity_table_grid".into(),
+        ));
         v.push((od::TABLE_TORQUE, 0, f32s(t.torque.iter().take(cells).copied()), "gravity_table_torque".into()));
         if t.has_sigma {
             v.push((od::TABLE_SIGMA, 0, f32s(t.sigma.iter().take(cells).copied()), "gravity_table_sigma".into()));
@@ -100,7 +105,13 @@ pub fn push(
     let mut ops = Vec::new();
     for d in PARAMS.iter() {
         let data = raw.get(d.id).to_le_bytes().to_vec();
-        ops.push(Op::Write { index: od::PARAM_BASE + d.id.index() as u16, sub: 0, data, what: d.name.to_string(), safety: d.safety });
+        ops.push(Op::Write {
+            index: od::PARAM_BASE + d.id.index() as u16,
+            sub: 0,
+            data,
+            what: d.name.to_string(),
+            safety: d.safety,
+        });
     }
     let mut table = table_ops(&raw.table);
     table.extend(series_ops(&raw.series));
@@ -198,7 +209,9 @@ pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
         raw.set(id, f32_at(&b, 0));
     }
     let mut t = RawTable::EMPTY;
-    let byte = |m: &mut Master, s: u8| -> Result<u8, SdoError> { Ok(m.read(node, od::TABLE_SHAPE, s)?.first().copied().unwrap_or(0)) };
+    let byte = |m: &mut Master, s: u8| -> Result<u8, SdoError> {
+        Ok(m.read(node, od::TABLE_SHAPE, s)?.first().copied().unwrap_or(0))
+    };
     t.n_axes = byte(m, 1)?;
     if t.n_axes > 0 {
         for a in 0..AXES_MAX {

@@ -48,7 +48,14 @@ pub struct ArmArgs {
 }
 
 pub fn run(a: &ArmArgs) -> anyhow::Result<()> {
-    let cfg = ArmConfig { seed: a.seed, configs: a.configs, out_configs: a.out_configs, clamp_k: a.clamp_k, id_cycles: a.cycles, ..ArmConfig::default() };
+    let cfg = ArmConfig {
+        seed: a.seed,
+        configs: a.configs,
+        out_configs: a.out_configs,
+        clamp_k: a.clamp_k,
+        id_cycles: a.cycles,
+        ..ArmConfig::default()
+    };
     let (report, id) = arm::run(&cfg, &mut |s| eprintln!("arm-gravity: {s}"))?;
     print!("{}", arm::format_report(&report));
     let text = serde_json::to_string_pretty(&report)?;
@@ -60,7 +67,8 @@ pub fn run(a: &ArmArgs) -> anyhow::Result<()> {
             let cols: Vec<String> = others_of(j).iter().map(|o| format!("q_j{}", o + 1)).collect();
             let mf = ModelFile::from_raw(&raw, Some(&format!("arm joint {}", j + 1)), &cols);
             let path = dir.join(format!("arm-joint{}.toml", j + 1));
-            write_atomic(&path, |w| w.write_all(mf.to_toml_string().as_bytes())).with_context(|| format!("writing {}", path.display()))?;
+            write_atomic(&path, |w| w.write_all(mf.to_toml_string().as_bytes()))
+                .with_context(|| format!("writing {}", path.display()))?;
             // what was written must read back to the same parameters
             let back = ModelFile::read_file(&path)?.raw_params()?;
             if back != raw {

@@ -29,7 +29,12 @@ pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Opti
             let mut bus = SimBus::new(args.bitrate);
             for &n in nodes {
                 check_node(n)?;
-                bus.attach(Arc::new(Mutex::new(JointSim::new(n, None, SimStorage::Memory(MemoryStorage::default()), 0))));
+                bus.attach(Arc::new(Mutex::new(JointSim::new(
+                    n,
+                    None,
+                    SimStorage::Memory(MemoryStorage::default()),
+                    0,
+                ))));
             }
             let shared = SharedSimBus(Arc::new(Mutex::new(bus)));
             // let the joints boot

@@ -55,12 +55,15 @@ pub fn load(joints: u32, rate: f64, bitrate: u32, data_bitrate: Option<u32>) -> 
         let (w, t) = match (fd, data_bitrate) {
             (true, Some(d)) => {
                 let w = timing::fd_time_ns(id, &vec![0u8; n], bitrate, d, true) as f64;
-                let t = (0..SAMPLES).map(|_| timing::fd_time_ns(id, &payload(n), bitrate, d, false) as f64).sum::<f64>() / SAMPLES as f64;
+                let t =
+                    (0..SAMPLES).map(|_| timing::fd_time_ns(id, &payload(n), bitrate, d, false) as f64).sum::<f64>()
+                        / SAMPLES as f64;
                 (w, t)
             }
             _ => {
                 let w = f64::from(timing::classic_bits_worst(n)) * 1e9 / f64::from(bitrate);
-                let t = (0..SAMPLES).map(|_| timing::classic_time_ns(id, &payload(n), bitrate) as f64).sum::<f64>() / SAMPLES as f64;
+                let t = (0..SAMPLES).map(|_| timing::classic_time_ns(id, &payload(n), bitrate) as f64).sum::<f64>()
+                    / SAMPLES as f64;
                 (w, t)
             }
         };
@@ -117,8 +120,10 @@ pub fn run(a: &BusBudgetArgs) -> anyhow::Result<()> {
                             serde_json::json!({"joints": j, "rate_hz": r, "worst": w, "typical": t})
                         })
                         .collect();
-                    let max: Vec<serde_json::Value> =
-                        rates.iter().map(|&r| serde_json::json!({"rate_hz": r, "max_joints_80pct": max_joints(r, *b, *d, 0.8)})).collect();
+                    let max: Vec<serde_json::Value> = rates
+                        .iter()
+                        .map(|&r| serde_json::json!({"rate_hz": r, "max_joints_80pct": max_joints(r, *b, *d, 0.8)}))
+                        .collect();
                     serde_json::json!({"bus": name, "cells": cells, "max": max})
                 })
                 .collect()

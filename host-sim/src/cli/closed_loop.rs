@@ -83,7 +83,8 @@ pub struct ClosedLoopArgs {
 }
 
 fn write(p: &Path, text: &str) -> anyhow::Result<()> {
-    write_atomic(p, |f| std::io::Write::write_all(f, text.as_bytes())).with_context(|| format!("{}: cannot write", p.display()))
+    write_atomic(p, |f| std::io::Write::write_all(f, text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", p.display()))
 }
 
 fn paper_json(model: &str) -> serde_json::Value {
@@ -141,7 +142,12 @@ pub fn run(a: &ClosedLoopArgs) -> anyhow::Result<()> {
         b.finish_and_clear();
         let setup = Setup::new(&plant, &model, &LoopConfig { fraction: Some(0.0), ..cfg.clone() }, &pn, &mn)?;
         let onset = closed_loop::instability_onset(&pts);
-        println!("fraction sweep on {pn} (sensor delay {:.1} ms, {} trials × {} s per point):", 1e3 * setup.delay, a.trials, a.seconds);
+        println!(
+            "fraction sweep on {pn} (sensor delay {:.1} ms, {} trials × {} s per point):",
+            1e3 * setup.delay,
+            a.trials,
+            a.seconds
+        );
         println!("  {:>5}  {:>16}  {:>8}  {:>12}", "F", "RMSE N·m", "stable", "osc N·m RMS");
         for p in &pts {
             println!(
@@ -158,7 +164,13 @@ pub fn run(a: &ClosedLoopArgs) -> anyhow::Result<()> {
             None => println!("no instability up to F = 1 with these settings"),
         }
         if let Some(p) = &a.svg {
-            let title = format!("{} — sensor delay {:.1} ms, {} × {} s trials per F", pn, 1e3 * setup.delay, a.trials, a.seconds);
+            let title = format!(
+                "{} — sensor delay {:.1} ms, {} × {} s trials per F",
+                pn,
+                1e3 * setup.delay,
+                a.trials,
+                a.seconds
+            );
             write(p, &svg::render(&pts, &title))?;
         }
         if let Some(p) = &a.json {
@@ -198,7 +210,12 @@ pub fn run(a: &ClosedLoopArgs) -> anyhow::Result<()> {
             if t.stable { "stable".to_string() } else { format!("UNSTABLE: {}", t.stability.why.join("; ")) }
         );
     }
-    println!("tracking RMSE {:.3} ± {:.3} N·m, {}", r.tracking_rmse_mean, r.tracking_rmse_sd, if r.stable { "stable" } else { "NOT stable" });
+    println!(
+        "tracking RMSE {:.3} ± {:.3} N·m, {}",
+        r.tracking_rmse_mean,
+        r.tracking_rmse_sd,
+        if r.stable { "stable" } else { "NOT stable" }
+    );
     if let Some((j, (m, s))) = closed_loop::paper_for(&mn) {
         println!("paper ({j} joint, F = 0.7): {m:.2} ± {s:.2} N·m");
     }
@@ -225,7 +242,13 @@ fn criterion_text() -> String {
     )
 }
 
-fn run_workflow(a: &ClosedLoopArgs, plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, dir: &Path) -> anyhow::Result<()> {
+fn run_workflow(
+    a: &ClosedLoopArgs,
+    plant: &PlantFile,
+    model: &ModelFile,
+    cfg: &LoopConfig,
+    dir: &Path,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let (pn, mn) = (a.plant.display().to_string(), a.model.display().to_string());
     let o = workflow::run_workflow(plant, model, cfg, (&pn, &mn))?;
@@ -236,7 +259,10 @@ fn run_workflow(a: &ClosedLoopArgs, plant: &PlantFile, model: &ModelFile, cfg: &
     println!("plant effects: {}", if o.plant_effects.is_empty() { "none".into() } else { o.plant_effects.join(", ") });
     println!(
         "before: tracking {:.3} ± {:.3} N·m, model error {:.3} ± {:.3} N·m",
-        o.before.tracking_rmse_mean, o.before.tracking_rmse_sd, o.before.model_error_rmse_mean, o.before.model_error_rmse_sd
+        o.before.tracking_rmse_mean,
+        o.before.tracking_rmse_sd,
+        o.before.model_error_rmse_mean,
+        o.before.model_error_rmse_sd
     );
     println!("diagnose verdict: {} (selected: {})", o.verdict, o.selected.join(" → "));
     if !o.dropped_effects.is_empty() {

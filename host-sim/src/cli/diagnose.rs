@@ -55,10 +55,12 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(&d.report)?;
     let html = a.report.as_ref().map(|_| diagnose::report_html::render(&d));
     if let Some(p) = &a.json {
-        write_atomic(p, |f| std::io::Write::write_all(f, json.as_bytes())).with_context(|| format!("{}: cannot write", p.display()))?;
+        write_atomic(p, |f| std::io::Write::write_all(f, json.as_bytes()))
+            .with_context(|| format!("{}: cannot write", p.display()))?;
     }
     if let (Some(p), Some(h)) = (&a.report, &html) {
-        write_atomic(p, |f| std::io::Write::write_all(f, h.as_bytes())).with_context(|| format!("{}: cannot write", p.display()))?;
+        write_atomic(p, |f| std::io::Write::write_all(f, h.as_bytes()))
+            .with_context(|| format!("{}: cannot write", p.display()))?;
     }
     if let Some(p) = &a.emit_model {
         write_atomic(p, |f| std::io::Write::write_all(f, d.emitted_model.as_bytes()))
@@ -70,9 +72,15 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
 
 fn print_summary(r: &diagnose::Report, secs: f64) {
     let u = r.gap.unit;
-    println!("{} mode, {} samples ({} train / {} held out, {}), {:.2} s", r.mode, r.samples, r.split.train, r.split.holdout, r.split.method, secs);
+    println!(
+        "{} mode, {} samples ({} train / {} held out, {}), {:.2} s",
+        r.mode, r.samples, r.split.train, r.split.holdout, r.split.method, secs
+    );
     if let Some(rt) = &r.split.rest_tail {
-        println!("  the last {} samples (from t = {:.3} s) left out: the log and the model are both at rest there", rt.samples, rt.from_t);
+        println!(
+            "  the last {} samples (from t = {:.3} s) left out: the log and the model are both at rest there",
+            rt.samples, rt.from_t
+        );
     }
     println!(
         "gap: RMSE {:.4} {u} (held out {:.4}), noise floor ≈ {:.4} {u}",
@@ -108,7 +116,11 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
         r.verdict.holdout_rmse_before,
         r.verdict.holdout_rmse_after,
         100.0 * r.verdict.shrink,
-        if r.verdict.effects.len() > 1 { format!("; forward selection: {}", r.verdict.effects.join(" → ")) } else { String::new() }
+        if r.verdict.effects.len() > 1 {
+            format!("; forward selection: {}", r.verdict.effects.join(" → "))
+        } else {
+            String::new()
+        }
     );
     for w in &r.warnings {
         println!("warning: {w}");

@@ -62,7 +62,8 @@ pub fn run(a: &DiagnoseBenchArgs) -> anyhow::Result<()> {
     .map_err(|e| anyhow::anyhow!(e))?;
     if let Some(p) = &a.json {
         let s = serde_json::to_string_pretty(&rep)?;
-        write_atomic(p, |f| std::io::Write::write_all(f, s.as_bytes())).with_context(|| format!("{}: cannot write", p.display()))?;
+        write_atomic(p, |f| std::io::Write::write_all(f, s.as_bytes()))
+            .with_context(|| format!("{}: cannot write", p.display()))?;
     }
     let mut preds: Vec<String> = rep.confusion.values().flat_map(|m| m.keys().cloned()).collect();
     preds.sort();
@@ -85,7 +86,12 @@ pub fn run(a: &DiagnoseBenchArgs) -> anyhow::Result<()> {
     }
     let correct = rep.cases.iter().filter(|c| c.correct).count();
     println!("accuracy        {:.1} % ({correct}/{})", 100.0 * rep.accuracy, rep.cases.len());
-    println!("over-claims     {} of {} none cases ({:.1} %)", rep.overclaims, rep.none_cases, 100.0 * rep.overclaim_rate);
+    println!(
+        "over-claims     {} of {} none cases ({:.1} %)",
+        rep.overclaims,
+        rep.none_cases,
+        100.0 * rep.overclaim_rate
+    );
     println!(
         "mean shrink     {:.1} % diagnosed vs {:.1} % of the true effect's candidate (single-effect cases)",
         100.0 * rep.mean_shrink,

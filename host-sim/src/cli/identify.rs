@@ -110,7 +110,8 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
     let rep = match &a.report {
         Some(dir) => {
             let r = identify::report::validate(&data, &opts, &id)?;
-            identify::report::write_dir(dir, &r, &id, &data).with_context(|| format!("writing the report to {}", dir.display()))?;
+            identify::report::write_dir(dir, &r, &id, &data)
+                .with_context(|| format!("writing the report to {}", dir.display()))?;
             Some(r)
         }
         None => None,

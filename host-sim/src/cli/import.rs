@@ -51,9 +51,14 @@ pub fn run(a: &ImportArgs) -> anyhow::Result<()> {
     for n in &im.notes {
         eprintln!("note: {n}");
     }
-    println!("wrote {} ({} samples, {} mode)", a.out.display(), im.log.len(), match im.log.mode() {
-        crate::log::LogMode::Torque => "torque",
-        crate::log::LogMode::Trajectory => "trajectory",
-    });
+    println!(
+        "wrote {} ({} samples, {} mode)",
+        a.out.display(),
+        im.log.len(),
+        match im.log.mode() {
+            crate::log::LogMode::Torque => "torque",
+            crate::log::LogMode::Trajectory => "trajectory",
+        }
+    );
     Ok(())
 }

@@ -60,7 +60,12 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         }
     }
     if rows.is_empty() {
-        anyhow::bail!("node {}: no TPDO in {:.1} s on {} (is it operational? use --start)", a.node, a.seconds, m.bus.describe());
+        anyhow::bail!(
+            "node {}: no TPDO in {:.1} s on {} (is it operational? use --start)",
+            a.node,
+            a.seconds,
+            m.bus.describe()
+        );
     }
     let mut out = String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp\n" } else { "t,q,qd,qdd,u,temp\n" });
     let mut last_t = f64::NEG_INFINITY;
@@ -71,7 +76,10 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         }
         last_t = *t;
         if a.load_cell {
-            out.push_str(&format!("{t:.6},{},{},{},{},{},{}\n", p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature));
+            out.push_str(&format!(
+                "{t:.6},{},{},{},{},{},{}\n",
+                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature
+            ));
         } else {
             out.push_str(&format!("{t:.6},{},{},{},{},{}\n", p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature));
         }

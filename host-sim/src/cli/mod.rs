@@ -5,21 +5,21 @@
 use clap::{Parser, Subcommand};
 
 pub mod arm;
+pub mod bus_args;
+pub mod bus_budget;
 pub mod closed_loop;
 pub mod diagnose;
 pub mod diagnose_bench;
+pub mod eds;
 pub mod identify;
 pub mod import;
-pub mod simulate;
-pub mod bus_args;
-pub mod bus_budget;
-pub mod eds;
 pub mod log_can;
 pub mod pull;
 pub mod push;
 pub mod save;
 pub mod scan;
 pub mod sim_bus;
+pub mod simulate;
 pub mod watch;
 
 #[derive(Debug, Parser)]

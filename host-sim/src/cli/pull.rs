@@ -39,7 +39,8 @@ pub fn run(a: &PullArgs) -> anyhow::Result<()> {
         eprintln!("warning: node {} has staged changes not committed; the file holds the staged values", a.node);
     }
     let mf = ModelFile::from_raw(&raw, a.name.as_deref(), &a.others);
-    std::fs::write(&a.out, mf.to_toml_string()).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", a.out.display()))?;
+    std::fs::write(&a.out, mf.to_toml_string())
+        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", a.out.display()))?;
     if a.json {
         let values: serde_json::Map<String, serde_json::Value> = joint_core::params::PARAMS
             .iter()

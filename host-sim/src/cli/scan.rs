@@ -48,7 +48,14 @@ pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
         for r in &rows {
             let s = |k: &str| r[k].as_str().unwrap_or("?").to_string();
             let h = |k: &str| r[k].as_u64().map_or("?".to_string(), |v| format!("0x{v:08X}"));
-            println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", r["node"].as_u64().unwrap_or(0), s("state"), s("device_name"), h("product_code"), h("revision"));
+            println!(
+                "{:>4}  {:<16} {:<20} {:>10} {:>10}",
+                r["node"].as_u64().unwrap_or(0),
+                s("state"),
+                s("device_name"),
+                h("product_code"),
+                h("revision")
+            );
         }
         if rows.is_empty() {
             println!("no node heard on {} in {:.1} s", m.bus.describe(), a.seconds);

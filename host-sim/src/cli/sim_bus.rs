@@ -73,11 +73,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
             JointSim::new(n, plant.as_ref(), storage, now0)
         })
         .collect();
-    eprintln!(
-        "serving joint node(s) {:?} on {} (Ctrl-C to stop)",
-        a.nodes,
-        bus.describe()
-    );
+    eprintln!("serving joint node(s) {:?} on {} (Ctrl-C to stop)", a.nodes, bus.describe());
     let end_us = a.seconds.map(|s| now0 + (s * 1e6) as u64);
     let mut next_tick = now0;
     let (mut rx_frames, mut tx_frames) = (0u64, 0u64);
@@ -124,7 +120,10 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     }
     let secs = (bus.now_us() - now0) as f64 * 1e-6;
     if a.json {
-        println!("{}", serde_json::json!({"nodes": a.nodes, "seconds": secs, "frames_received": rx_frames, "frames_sent": tx_frames}));
+        println!(
+            "{}",
+            serde_json::json!({"nodes": a.nodes, "seconds": secs, "frames_received": rx_frames, "frames_sent": tx_frames})
+        );
     } else {
         eprintln!("stopped after {secs:.1} s: {rx_frames} frames received, {tx_frames} sent");
     }

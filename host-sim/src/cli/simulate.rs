@@ -113,12 +113,24 @@ pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
         let v = serde_json::json!({ "out": a.out.display().to_string(), "summary": s, "run": info });
         println!("{v}");
     } else {
-        println!("wrote {} ({} samples, {:.3} s, {} mode)", a.out.display(), s.samples, s.duration_s, match s.mode {
-            crate::log::LogMode::Torque => "torque",
-            crate::log::LogMode::Trajectory => "trajectory",
-        });
+        println!(
+            "wrote {} ({} samples, {:.3} s, {} mode)",
+            a.out.display(),
+            s.samples,
+            s.duration_s,
+            match s.mode {
+                crate::log::LogMode::Torque => "torque",
+                crate::log::LogMode::Trajectory => "trajectory",
+            }
+        );
         println!("  columns          {}", s.columns.join(","));
-        println!("  q range          {:.4} … {:.4} rad ({:.1} … {:.1}°)", s.q_min, s.q_max, s.q_min / DEG, s.q_max / DEG);
+        println!(
+            "  q range          {:.4} … {:.4} rad ({:.1} … {:.1}°)",
+            s.q_min,
+            s.q_max,
+            s.q_min / DEG,
+            s.q_max / DEG
+        );
         if let (Some(u), Some(t)) = (s.rms_u, s.rms_tau) {
             println!("  RMS u, tau       {u:.3}, {t:.3} N·m");
         }

@@ -63,11 +63,18 @@ pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
             println!("{}", serde_json::json!({"t": t, "nodes": rows}));
         } else {
             println!("t = {t:.1} s");
-            println!("{:>4}  {:<16} {:>8} {:>9} {:>9} {:>9}  faults", "node", "state", "hb ms", "q rad", "qd rad/s", "tau N·m");
+            println!(
+                "{:>4}  {:<16} {:>8} {:>9} {:>9} {:>9}  faults",
+                "node", "state", "hb ms", "q rad", "qd rad/s", "tau N·m"
+            );
             for r in &rows {
                 let f = |k: &str| r[k].as_f64().map_or("-".to_string(), |v| format!("{v:.4}"));
                 let faults = r["faults"].as_array().map_or("-".to_string(), |v| {
-                    if v.is_empty() { "none".into() } else { v.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(",") }
+                    if v.is_empty() {
+                        "none".into()
+                    } else {
+                        v.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(",")
+                    }
                 });
                 println!(
                     "{:>4}  {:<16} {:>8} {:>9} {:>9} {:>9}  {}",

@@ -102,7 +102,16 @@ pub struct LoopConfig {
 
 impl Default for LoopConfig {
     fn default() -> Self {
-        LoopConfig { fraction: None, assist_k: None, trials: 10, seconds: 20.0, seed: 1, delay: None, keep_log: false, operator: None }
+        LoopConfig {
+            fraction: None,
+            assist_k: None,
+            trials: 10,
+            seconds: 20.0,
+            seed: 1,
+            delay: None,
+            keep_log: false,
+            operator: None,
+        }
     }
 }
 
@@ -318,7 +327,12 @@ impl LoopJoint {
         let t = now_us as f64 * 1e-6;
         // 1. the encoder reads the state of `t − delay`
         let past = if self.delay_steps > 0 {
-            if self.hist.len() >= self.delay_steps { self.hist.get(self.hist.len() - self.delay_steps) } else { self.hist.front() }.copied()
+            if self.hist.len() >= self.delay_steps {
+                self.hist.get(self.hist.len() - self.delay_steps)
+            } else {
+                self.hist.front()
+            }
+            .copied()
         } else {
             None
         };
@@ -426,7 +440,13 @@ pub enum LoopError {
 impl Setup {
     /// Resolves the flags against the files: the model's `[compensation]` with `fraction` and
     /// `assist_k` overridden, the plant's delay, range and operator.
-    pub fn new(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, plant_name: &str, model_name: &str) -> Result<Setup, LoopError> {
+    pub fn new(
+        plant: &PlantFile,
+        model: &ModelFile,
+        cfg: &LoopConfig,
+        plant_name: &str,
+        model_name: &str,
+    ) -> Result<Setup, LoopError> {
         let bad = |s: String| Err(LoopError::Config(s));
         let mut mf = model.clone();
         if let Some(f) = cfg.fraction {
@@ -557,7 +577,10 @@ fn stability(tr: &Trace, diverged: bool, range: (f64, f64), rate: f64) -> Stabil
         why.push(format!("|q̇| reached {qd_max:.2} rad/s (> {})", limits::QD_MAX));
     }
     if osc > limits::OSC_TORQUE_RMS || !osc.is_finite() {
-        why.push(format!("sustained oscillation: {osc:.2} N·m RMS above the hand-motion band (> {})", limits::OSC_TORQUE_RMS));
+        why.push(format!(
+            "sustained oscillation: {osc:.2} N·m RMS above the hand-motion band (> {})",
+            limits::OSC_TORQUE_RMS
+        ));
     }
     Stability {
         stable: why.is_empty(),
@@ -571,7 +594,13 @@ fn stability(tr: &Trace, diverged: bool, range: (f64, f64), rate: f64) -> Stabil
 }
 
 /// Runs one trial; returns the trial, the push figures and (with `keep_log`) its log.
-pub fn run_trial(s: &Setup, seed: u64, seconds: f64, keep_log: bool, trial: usize) -> Result<(Trial, PushInfo, Option<JointLog>), LoopError> {
+pub fn run_trial(
+    s: &Setup,
+    seed: u64,
+    seconds: f64,
+    keep_log: bool,
+    trial: usize,
+) -> Result<(Trial, PushInfo, Option<JointLog>), LoopError> {
     let err = |msg: String| LoopError::Bus { trial, msg };
     let hold = 0.5 * (s.range.0 + s.range.1);
     let dev = Arc::new(Mutex::new(LoopJoint::new(s, hold, seed, keep_log)));

@@ -35,15 +35,20 @@ fn nice_max(v: f64) -> f64 {
 /// Renders the sweep; `title` names plant and delay.
 pub fn render(points: &[SweepPoint], title: &str) -> String {
     let finite = |x: f64| if x.is_finite() { x } else { 0.0 };
-    let y1_max = nice_max(points.iter().map(|p| finite(p.tracking_rmse_mean) + finite(p.tracking_rmse_sd)).fold(0.0, f64::max));
-    let y2_max = nice_max(points.iter().map(|p| finite(p.osc_torque_rms_max)).fold(limits::OSC_TORQUE_RMS * 1.5, f64::max));
+    let y1_max =
+        nice_max(points.iter().map(|p| finite(p.tracking_rmse_mean) + finite(p.tracking_rmse_sd)).fold(0.0, f64::max));
+    let y2_max =
+        nice_max(points.iter().map(|p| finite(p.osc_torque_rms_max)).fold(limits::OSC_TORQUE_RMS * 1.5, f64::max));
     let pw = W - L - R;
     let ph = H - T - B;
     let x = |f: f64| L + f.clamp(0.0, 1.0) * pw;
     let y1 = |v: f64| T + ph * (1.0 - (v / y1_max).clamp(0.0, 1.05));
     let y2 = |v: f64| T + ph * (1.0 - (v / y2_max).clamp(0.0, 1.05));
     let mut s = String::new();
-    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">"#);
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">"#
+    );
     let _ = writeln!(s, r#"<rect width="{W}" height="{H}" fill="white"/>"#);
     let _ = writeln!(s, r#"<text x="{}" y="22" text-anchor="middle" font-size="14">{}</text>"#, W / 2.0, esc(title));
     // axes and grid
@@ -60,7 +65,12 @@ pub fn render(points: &[SweepPoint], title: &str) -> String {
         let _ = writeln!(s, r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{f:.1}</text>"#, x(f), T + ph + 18.0);
     }
     let _ = writeln!(s, r#"<rect x="{L}" y="{T}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
-    let _ = writeln!(s, r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">compensated fraction F of C_c</text>"#, L + pw / 2.0, H - 18.0);
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">compensated fraction F of C_c</text>"#,
+        L + pw / 2.0,
+        H - 18.0
+    );
     let _ = writeln!(
         s,
         r#"<text transform="translate(18 {:.1}) rotate(-90)" text-anchor="middle">tracking RMSE, N·m (mean ± sd)</text>"#,
@@ -79,7 +89,8 @@ pub fn render(points: &[SweepPoint], title: &str) -> String {
         L + pw,
         y = y2(limits::OSC_TORQUE_RMS)
     );
-    let osc: Vec<String> = points.iter().map(|p| format!("{:.1},{:.1}", x(p.fraction), y2(finite(p.osc_torque_rms_max)))).collect();
+    let osc: Vec<String> =
+        points.iter().map(|p| format!("{:.1},{:.1}", x(p.fraction), y2(finite(p.osc_torque_rms_max)))).collect();
     let _ = writeln!(s, r##"<polyline points="{}" fill="none" stroke="#a60" stroke-width="1.5"/>"##, osc.join(" "));
     // RMSE curve with error bars
     let line: Vec<String> = points
@@ -90,9 +101,21 @@ pub fn render(points: &[SweepPoint], title: &str) -> String {
     let _ = writeln!(s, r##"<polyline points="{}" fill="none" stroke="#236" stroke-width="2"/>"##, line.join(" "));
     for p in points {
         let (cx, m, sd) = (x(p.fraction), finite(p.tracking_rmse_mean), finite(p.tracking_rmse_sd));
-        let _ = writeln!(s, r##"<line x1="{cx:.1}" y1="{:.1}" x2="{cx:.1}" y2="{:.1}" stroke="#236"/>"##, y1(m - sd), y1(m + sd));
+        let _ = writeln!(
+            s,
+            r##"<line x1="{cx:.1}" y1="{:.1}" x2="{cx:.1}" y2="{:.1}" stroke="#236"/>"##,
+            y1(m - sd),
+            y1(m + sd)
+        );
         if p.stable {
-            let _ = writeln!(s, r##"<circle cx="{cx:.1}" cy="{:.1}" r="4.5" fill="#236"><title>F = {:.2}: {:.3} ± {:.3} N·m, stable</title></circle>"##, y1(m), p.fraction, m, sd);
+            let _ = writeln!(
+                s,
+                r##"<circle cx="{cx:.1}" cy="{:.1}" r="4.5" fill="#236"><title>F = {:.2}: {:.3} ± {:.3} N·m, stable</title></circle>"##,
+                y1(m),
+                p.fraction,
+                m,
+                sd
+            );
         } else {
             let cy = y1(m);
             let _ = writeln!(
@@ -109,9 +132,31 @@ pub fn render(points: &[SweepPoint], title: &str) -> String {
     }
     // legend
     let lx = L + 10.0;
-    let _ = writeln!(s, r##"<circle cx="{:.1}" cy="{:.1}" r="4.5" fill="#236"/><text x="{:.1}" y="{:.1}">stable (all trials)</text>"##, lx + 5.0, T + 14.0, lx + 16.0, T + 18.0);
-    let _ = writeln!(s, r##"<path d="M{:.1},{:.1} l10,10 m0,-10 l-10,10" stroke="#c00" stroke-width="2.5"/><text x="{:.1}" y="{:.1}">unstable (some trial)</text>"##, lx, T + 27.0, lx + 16.0, T + 36.0);
-    let _ = writeln!(s, r##"<line x1="{lx:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#a60" stroke-dasharray="4 3"/><text x="{:.1}" y="{:.1}">oscillation threshold</text>"##, T + 50.0, lx + 12.0, T + 50.0, lx + 16.0, T + 54.0);
+    let _ = writeln!(
+        s,
+        r##"<circle cx="{:.1}" cy="{:.1}" r="4.5" fill="#236"/><text x="{:.1}" y="{:.1}">stable (all trials)</text>"##,
+        lx + 5.0,
+        T + 14.0,
+        lx + 16.0,
+        T + 18.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<path d="M{:.1},{:.1} l10,10 m0,-10 l-10,10" stroke="#c00" stroke-width="2.5"/><text x="{:.1}" y="{:.1}">unstable (some trial)</text>"##,
+        lx,
+        T + 27.0,
+        lx + 16.0,
+        T + 36.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<line x1="{lx:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#a60" stroke-dasharray="4 3"/><text x="{:.1}" y="{:.1}">oscillation threshold</text>"##,
+        T + 50.0,
+        lx + 12.0,
+        T + 50.0,
+        lx + 16.0,
+        T + 54.0
+    );
     s.push_str("</svg>\n");
     s
 }

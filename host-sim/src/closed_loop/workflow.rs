@@ -23,7 +23,8 @@ use crate::plant::PlantFile;
 use joint_core::params::ParamId;
 
 /// Effect sections of the vocabulary the firmware core compensates by feed-forward.
-pub const COMPENSABLE: [&str; 5] = ["stribeck", "asymmetric_friction", "position_ripple", "cable_spring", "dry_friction"];
+pub const COMPENSABLE: [&str; 5] =
+    ["stribeck", "asymmetric_friction", "position_ripple", "cable_spring", "dry_friction"];
 
 /// Effect sections it cannot, and why (also in docs/closed-loop.md).
 pub const NOT_COMPENSABLE: [(&str, &str); 4] = [
@@ -114,8 +115,8 @@ pub fn plant_effects(p: &PlantFile) -> Vec<String> {
 /// (returned by name, third), everything else must parse as a model file; the compensable
 /// effect sections it holds come second.
 pub fn pushable_model(text: &str, file: &str) -> Result<(ModelFile, Vec<String>, Vec<String>), LoopError> {
-    let mut table: toml::Table = toml::from_str(text)
-        .map_err(|e| LoopError::Config(format!("{file}: the emitted model is not TOML: {e}")))?;
+    let mut table: toml::Table =
+        toml::from_str(text).map_err(|e| LoopError::Config(format!("{file}: the emitted model is not TOML: {e}")))?;
     let mut dropped = Vec::new();
     for (name, _) in NOT_COMPENSABLE {
         if table.remove(name).is_some() {
@@ -130,11 +131,17 @@ pub fn pushable_model(text: &str, file: &str) -> Result<(ModelFile, Vec<String>,
 
 /// Runs the workflow (see the module documentation). `cfg.keep_log` is forced on for the
 /// "before" run, whose log is what diagnose sees.
-pub fn run_workflow(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, names: (&str, &str)) -> Result<Outcome, LoopError> {
+pub fn run_workflow(
+    plant: &PlantFile,
+    model: &ModelFile,
+    cfg: &LoopConfig,
+    names: (&str, &str),
+) -> Result<Outcome, LoopError> {
     let c_before = LoopConfig { keep_log: true, ..cfg.clone() };
     let before = run(&Setup::new(plant, model, &c_before, names.0, names.1)?, &c_before, &mut |_, _| {})?;
     let log = before.log.clone().ok_or_else(|| LoopError::Config("the before run kept no log".into()))?;
-    let d = diagnose::diagnose(&log, model, &Options::default()).map_err(|e| LoopError::Config(format!("diagnose: {e}")))?;
+    let d = diagnose::diagnose(&log, model, &Options::default())
+        .map_err(|e| LoopError::Config(format!("diagnose: {e}")))?;
     let (emitted, pushed, dropped) = pushable_model(&d.emitted_model, "emitted model")?;
     let push_it = dropped.is_empty();
     let fixed = if push_it { emitted } else { model.clone() };
@@ -194,7 +201,12 @@ pub fn true_effect_model(plant: &PlantFile, model: &ModelFile) -> Option<ModelFi
 }
 
 /// Trials with the true-parameter model ([`true_effect_model`]): the ceiling of the fix.
-pub fn ceiling(plant: &PlantFile, model: &ModelFile, cfg: &LoopConfig, names: (&str, &str)) -> Result<Option<Figures>, LoopError> {
+pub fn ceiling(
+    plant: &PlantFile,
+    model: &ModelFile,
+    cfg: &LoopConfig,
+    names: (&str, &str),
+) -> Result<Option<Figures>, LoopError> {
     let Some(m) = true_effect_model(plant, model) else { return Ok(None) };
     let c = LoopConfig { keep_log: false, ..cfg.clone() };
     let r = run(&Setup::new(plant, &m, &c, names.0, "true effect parameters")?, &c, &mut |_, _| {})?;
@@ -207,7 +219,8 @@ mod tests {
 
     #[test]
     fn non_compensable_sections_are_named_and_compensable_ones_kept() {
-        let text = "name = \"x\"\n[friction]\nc = 1.0\n[stribeck]\nlevel = 1.0\nspeed = 0.05\n[backlash]\nwidth = 0.01\n";
+        let text =
+            "name = \"x\"\n[friction]\nc = 1.0\n[stribeck]\nlevel = 1.0\nspeed = 0.05\n[backlash]\nwidth = 0.01\n";
         let (m, pushed, dropped) = pushable_model(text, "t.toml").unwrap();
         assert_eq!(pushed, vec!["stribeck".to_string()]);
         assert_eq!(dropped, vec!["backlash".to_string()]);

@@ -72,7 +72,8 @@ pub enum Mode {
 }
 
 /// Effects that pairs are drawn from (each identifiable in torque mode on a rigid joint).
-const PAIRABLE: [&str; 6] = ["stribeck", "load_dependent_friction", "position_ripple", "cable_spring", "delay", "thermal_drift"];
+const PAIRABLE: [&str; 6] =
+    ["stribeck", "load_dependent_friction", "position_ripple", "cable_spring", "delay", "thermal_drift"];
 
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseResult {
@@ -126,7 +127,9 @@ fn rigid(rng: &mut ChaCha8Rng, coulomb: bool) -> Joint {
     if coulomb {
         m += &format!("c = {c}\n");
     }
-    m += &format!("\n[weight]\namplitude = {amp}\ns = 0.802\nphi = {phi}\n\n[inertia]\nj = {j}\n\n[offset]\nc0 = {c0}\n");
+    m += &format!(
+        "\n[weight]\namplitude = {amp}\ns = 0.802\nphi = {phi}\n\n[inertia]\nj = {j}\n\n[offset]\nc0 = {c0}\n"
+    );
     Joint { name: if coulomb { "rigid" } else { "rigid_no_coulomb" }, model: m, plant_model: None, range: (0.0, 2.0) }
 }
 
@@ -145,7 +148,9 @@ fn elastic(rng: &mut ChaCha8Rng) -> Joint {
 /// The plant section of one effect with a drawn size.
 fn effect_section(kind: &str, rng: &mut ChaCha8Rng, range: (f64, f64), rate: f64) -> String {
     match kind {
-        "stribeck" => format!("[stribeck]\nlevel = {}\nspeed = {}\n", rng.random_range(0.5..1.2), rng.random_range(0.02..0.08)),
+        "stribeck" => {
+            format!("[stribeck]\nlevel = {}\nspeed = {}\n", rng.random_range(0.5..1.2), rng.random_range(0.02..0.08))
+        }
         "asymmetric_friction" => {
             let s = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             format!("[asymmetric_friction]\ndelta = {}\n", s * rng.random_range(0.25..0.6))
@@ -180,7 +185,12 @@ fn effect_section(kind: &str, rng: &mut ChaCha8Rng, range: (f64, f64), rate: f64
 
 /// The case's plant (the joint's own values, the effects, the sensors, the range), the model the
 /// diagnosis sees, and that model as the controller's parameter set.
-fn files(case: usize, joint: &Joint, effects: &str, sensors: &str) -> Result<(PlantFile, ModelFile, joint_core::params::ParamSet), String> {
+fn files(
+    case: usize,
+    joint: &Joint,
+    effects: &str,
+    sensors: &str,
+) -> Result<(PlantFile, ModelFile, joint_core::params::ParamSet), String> {
     let plant_text = format!(
         "{}\n{effects}{sensors}\n[joint_range]\nmin = {}\nmax = {}\n",
         joint.plant_model.as_ref().unwrap_or(&joint.model),
@@ -216,14 +226,24 @@ fn free_joint(rng: &mut ChaCha8Rng, coulomb: bool) -> (Joint, f64) {
     if coulomb {
         m += &format!("\n[friction]\nc = {c}\n");
     }
-    (Joint { name: if coulomb { "free" } else { "free_no_coulomb" }, model: m, plant_model: None, range: (-0.5, 0.5) }, c)
+    (
+        Joint {
+            name: if coulomb { "free" } else { "free_no_coulomb" },
+            model: m,
+            plant_model: None,
+            range: (-0.5, 0.5),
+        },
+        c,
+    )
 }
 
 /// The plant section of one effect in a free response, sized against the joint's Coulomb level
 /// `c` and spring torque (K·0.3 rad ≈ 1.5–3 N·m).
 fn free_effect_section(kind: &str, rng: &mut ChaCha8Rng, c: f64) -> String {
     match kind {
-        "stribeck" => format!("[stribeck]\nlevel = {}\nspeed = {}\n", c * rng.random_range(1.0..3.0), rng.random_range(0.1..0.5)),
+        "stribeck" => {
+            format!("[stribeck]\nlevel = {}\nspeed = {}\n", c * rng.random_range(1.0..3.0), rng.random_range(0.1..0.5))
+        }
         "asymmetric_friction" => {
             let s = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             format!("[asymmetric_friction]\ndelta = {}\n", s * c * rng.random_range(0.5..1.0))
@@ -234,7 +254,9 @@ fn free_effect_section(kind: &str, rng: &mut ChaCha8Rng, c: f64) -> String {
             rng.random_range(0.03..0.1),
             rng.random_range(-3.0..3.0)
         ),
-        "cable_spring" => format!("[cable_spring]\nk = {}\nengage = {}\n", rng.random_range(1.0..3.0), rng.random_range(0.05..0.2)),
+        "cable_spring" => {
+            format!("[cable_spring]\nk = {}\nengage = {}\n", rng.random_range(1.0..3.0), rng.random_range(0.05..0.2))
+        }
         "backlash" => format!("[backlash]\nwidth = {}\n", rng.random_range(0.02..0.06)),
         "dry_friction" => format!("[dry_friction]\nc = {}\n", rng.random_range(0.01..0.03)),
         _ => String::new(),
@@ -251,7 +273,8 @@ fn run_traj_case(case: usize, seed: u64) -> Result<(CaseResult, JointLog, ModelF
         joint.plant_model = Some(scaled(&t, "k", rng.random_range(0.9..0.95)));
     }
     let q_noise = rng.random_range(0.0001..0.0005);
-    let sensors = format!("[sensors]\nq_noise = {q_noise}\nqd_noise = {}\nqdd_noise = 0.5\n", rng.random_range(0.002..0.01));
+    let sensors =
+        format!("[sensors]\nq_noise = {q_noise}\nqd_noise = {}\nqdd_noise = 0.5\n", rng.random_range(0.002..0.01));
     let effects = free_effect_section(kind, &mut rng, c);
     let (plant, model, ctrl) = files(case, &joint, &effects, &sensors)?;
     let start = rng.random_range(0.2..0.4) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
@@ -270,7 +293,12 @@ fn run_traj_case(case: usize, seed: u64) -> Result<(CaseResult, JointLog, ModelF
 }
 
 /// Builds and runs one case; `Err` only for a bench bug (a plant that does not parse).
-pub fn run_case_in(mode: Mode, case: usize, seed: u64, seconds: f64) -> Result<(CaseResult, JointLog, ModelFile), String> {
+pub fn run_case_in(
+    mode: Mode,
+    case: usize,
+    seed: u64,
+    seconds: f64,
+) -> Result<(CaseResult, JointLog, ModelFile), String> {
     match mode {
         Mode::Torque => run_case(case, seed, seconds),
         Mode::Trajectory => run_traj_case(case, seed),
@@ -410,7 +438,8 @@ pub fn run_mode(
         let (r, log, model) = run_case_in(mode, c, seed, seconds)?;
         if let Some(dir) = dump {
             log.write_file(&dir.join(format!("case-{c}.csv"))).map_err(|e| e.to_string())?;
-            let text = format!("# bench case {c}: withheld {} ({})\n{}", r.truth, r.effect_sections, model.to_toml_string());
+            let text =
+                format!("# bench case {c}: withheld {} ({})\n{}", r.truth, r.effect_sections, model.to_toml_string());
             std::fs::write(dir.join(format!("case-{c}.toml")), text).map_err(|e| e.to_string())?;
         }
         progress(&r);

@@ -143,8 +143,17 @@ pub enum Kind {
 }
 
 impl Kind {
-    pub const ALL: [Kind; 9] =
-        [Kind::Stribeck, Kind::Asymmetric, Kind::Load, Kind::Thermal, Kind::Ripple, Kind::Cable, Kind::Backlash, Kind::Delay, Kind::Dry];
+    pub const ALL: [Kind; 9] = [
+        Kind::Stribeck,
+        Kind::Asymmetric,
+        Kind::Load,
+        Kind::Thermal,
+        Kind::Ripple,
+        Kind::Cable,
+        Kind::Backlash,
+        Kind::Delay,
+        Kind::Dry,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -164,15 +173,31 @@ impl Kind {
 /// A fitted-shape effect (its linear amplitudes come from the joint solve).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Effect {
-    Stribeck { speed: f64 },
+    Stribeck {
+        speed: f64,
+    },
     Asymmetric,
     Load,
-    Thermal { a: f64, b: f64, c: f64, src: ThermSrc },
-    Ripple { period: f64 },
-    Cable { engage: f64, width: f64 },
-    Backlash { width: f64 },
+    Thermal {
+        a: f64,
+        b: f64,
+        c: f64,
+        src: ThermSrc,
+    },
+    Ripple {
+        period: f64,
+    },
+    Cable {
+        engage: f64,
+        width: f64,
+    },
+    Backlash {
+        width: f64,
+    },
     /// lag in samples (fractional)
-    Delay { lag: f64 },
+    Delay {
+        lag: f64,
+    },
     Dry,
 }
 
@@ -382,7 +407,8 @@ impl<'a> GridCtx<'a> {
             }
             Effect::Ripple { period } => {
                 // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
-                let (zs, zc) = idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
+                let (zs, zc) =
+                    idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
                 Delta { replace: None, extra: vec![zs, zc], y_alt: None }
             }
             _ => Delta { replace: None, extra: e.cols().into_iter().map(|c| self.column(c)).collect(), y_alt: None },

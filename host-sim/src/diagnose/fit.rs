@@ -64,7 +64,8 @@ impl Gram {
             }
         }
         // Scale to unit diagonal so one ridge fits every column.
-        let scale: Vec<f64> = (0..p).map(|i| a[i * p + i]).map(|d| if d > 0.0 { 1.0 / d.sqrt() } else { 0.0 }).collect();
+        let scale: Vec<f64> =
+            (0..p).map(|i| a[i * p + i]).map(|d| if d > 0.0 { 1.0 / d.sqrt() } else { 0.0 }).collect();
         for i in 0..p {
             for j in 0..p {
                 a[i * p + j] *= scale[i] * scale[j];

@@ -87,7 +87,8 @@ pub struct Gap {
     pub unit: &'static str,
     /// optional: the held-out RMSE after the selected effects is at the floor (within 5 %, or
     /// 2 % when the log's own q̈ noise is corrected for)
-    pub at_noise_floor: bool,    /// optional (torque mode with a logged `qdd`): the white noise estimated on q̈, rad/s²,
+    pub at_noise_floor: bool,
+    /// optional (torque mode with a logged `qdd`): the white noise estimated on q̈, rad/s²,
     /// whose variance the fits remove from the inertia's normal equation
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_noise_sd: Option<f64>,
@@ -221,7 +222,10 @@ pub struct NotApplicable {
 
 /// Torque-mode effects the selection skipped for this model.
 fn torque_not_applicable(base: &Base, tried: &[&str]) -> Vec<NotApplicable> {
-    let mut v = vec![NotApplicable { effect: "initial_state", why: "trajectory mode only (torque mode has no state to integrate)" }];
+    let mut v = vec![NotApplicable {
+        effect: "initial_state",
+        why: "trajectory mode only (torque mode has no state to integrate)",
+    }];
     for k in candidates::Kind::ALL {
         if tried.contains(&k.name()) {
             continue;
@@ -460,7 +464,8 @@ fn torque_mode(
     lap("candidates and forward selection");
     let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, log);
     lap("report");
-    let final_s = sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
+    let final_s =
+        sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let emitted_model = emit_model(model, &base, final_s, &data);
     let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     Ok(Diagnosis { report, emitted_model, plots })
@@ -609,7 +614,14 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
     out
 }
 
-fn effect_out(o: &Outcome, reference: &'static str, m0: &Scored, regimes: &Regimes, d: &Data, model: &ModelFile) -> EffectOut {
+fn effect_out(
+    o: &Outcome,
+    reference: &'static str,
+    m0: &Scored,
+    regimes: &Regimes,
+    d: &Data,
+    model: &ModelFile,
+) -> EffectOut {
     let before = m0.rmse();
     let after = o.scored.rmse();
     let params = if o.scored.effects.is_empty() {
@@ -730,13 +742,18 @@ fn build_report(
         None if sel.refit.significant => ("parameters".to_string(), sel.refit.scored.rmse()),
         None => ("none".to_string(), before),
     };
-    let final_s = sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
+    let final_s =
+        sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let verdict = Verdict {
         effect: vname.clone(),
         holdout_rmse_before: before,
         holdout_rmse_after: vafter,
         shrink: shrink(before, vafter),
-        effects: if sel.chosen.is_empty() { vec![vname] } else { sel.chosen.iter().map(|o| o.name.to_string()).collect() },
+        effects: if sel.chosen.is_empty() {
+            vec![vname]
+        } else {
+            sel.chosen.iter().map(|o| o.name.to_string()).collect()
+        },
     };
     // resid evidence on the first held-out samples (at most 50 000).
     let resid = {
@@ -746,8 +763,10 @@ fn build_report(
         }
         let mut x0 = vec![0.0; sel.m0.design.cols.len()];
         let mut x1 = vec![0.0; final_s.design.cols.len()];
-        let rb: Vec<f64> = idx.iter().map(|&i| select::residual_at(d, &sel.m0.design, &sel.m0.beta, i, &mut x0)).collect();
-        let ra: Vec<f64> = idx.iter().map(|&i| select::residual_at(d, &final_s.design, &final_s.beta, i, &mut x1)).collect();
+        let rb: Vec<f64> =
+            idx.iter().map(|&i| select::residual_at(d, &sel.m0.design, &sel.m0.beta, i, &mut x0)).collect();
+        let ra: Vec<f64> =
+            idx.iter().map(|&i| select::residual_at(d, &final_s.design, &final_s.beta, i, &mut x1)).collect();
         let qd: Vec<f64> = idx.iter().map(|&i| d.qd[i]).collect();
         let u: Vec<f64> = idx.iter().map(|&i| d.u[i]).collect();
         let lag = ((0.1 / d.dt).round() as usize).clamp(10, 100);
@@ -819,7 +838,13 @@ fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Spl
         p.before.push(rb);
         p.after.push(ra);
         let b = regimes.bits[i];
-        p.speed_regime.push(if b & 1 != 0 { 0 } else if b & 2 != 0 { 1 } else { 2 });
+        p.speed_regime.push(if b & 1 != 0 {
+            0
+        } else if b & 2 != 0 {
+            1
+        } else {
+            2
+        });
         p.held.push(held[i]);
     }
     p
@@ -904,7 +929,8 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
             );
         }
         Effect::Ripple { .. } => {
-            let _ = writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
+            let _ =
+                writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
         }
         Effect::Cable { .. } => {
             let _ = writeln!(o, "k = {:?}\nengage = {:?}\nwidth = {:?}", g("k").max(0.0), g("engage"), g("width"));

@@ -63,7 +63,11 @@ impl Regimes {
         // Reversals: sign changes of q̇ between excursions beyond the low-speed limit, so noise
         // around a standstill does not count as a reversal.
         let half = ((0.05 / dt.max(1e-6)).round() as usize).clamp(2, 500);
-        let r_rev = add("reversal", "reversal", format!("±{:.3} s around a change of the direction of motion", half as f64 * dt));
+        let r_rev = add(
+            "reversal",
+            "reversal",
+            format!("±{:.3} s around a change of the direction of motion", half as f64 * dt),
+        );
         let aqdd: Vec<f64> = thin(&qdd.iter().map(|v| v.abs()).collect::<Vec<_>>());
         let a90 = percentile(&aqdd, 0.9);
         let r_acc = add("high_accel", "acceleration", format!("|qdd| > {a90:.4} rad/s² (top 10 %)"));
@@ -73,7 +77,11 @@ impl Regimes {
         for (k, r) in r_pos.iter_mut().enumerate() {
             let lo = if k == 0 { "min".to_string() } else { format!("{:.4}", qb[k - 1]) };
             let hi = if k == 3 { "max".to_string() } else { format!("{:.4}", qb[k]) };
-            *r = add(&format!("position_band_{}", k + 1), "position", format!("q in [{lo}, {hi}) rad (quartile {})", k + 1));
+            *r = add(
+                &format!("position_band_{}", k + 1),
+                "position",
+                format!("q in [{lo}, {hi}) rad (quartile {})", k + 1),
+            );
         }
         let (r_early, r_late, split_val, by_temp) = match temp {
             Some(tp) if percentile(&thin(tp), 0.9) - percentile(&thin(tp), 0.1) > 0.5 => {
@@ -96,13 +104,14 @@ impl Regimes {
         for i in 0..n {
             let v = qd[i].abs();
             let mut b = 0u32;
-            b |= 1 << if v < v_static {
-                r_static
-            } else if v < v_low {
-                r_low
-            } else {
-                r_high
-            };
+            b |= 1
+                << if v < v_static {
+                    r_static
+                } else if v < v_low {
+                    r_low
+                } else {
+                    r_high
+                };
             if qdd[i].abs() > a90 {
                 b |= 1 << r_acc;
             }

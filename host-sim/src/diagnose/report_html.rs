@@ -51,14 +51,38 @@ fn open(out: &mut String, id: &str, title: &str, xl: &str, yl: &str, f: &Frame) 
         r##"<figure><svg class="plot" id="{id}" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" role="img" aria-label="{t}">"##,
         t = esc(title)
     );
-    let _ = write!(out, r##"<rect x="{M}" y="{}" width="{}" height="{}" fill="#fafafa" stroke="#999"/>"##, 0.6 * M, W - 1.5 * M, H - 1.6 * M);
+    let _ = write!(
+        out,
+        r##"<rect x="{M}" y="{}" width="{}" height="{}" fill="#fafafa" stroke="#999"/>"##,
+        0.6 * M,
+        W - 1.5 * M,
+        H - 1.6 * M
+    );
     for k in 0..=4 {
         let xv = f.x.0 + (f.x.1 - f.x.0) * k as f64 / 4.0;
         let yv = f.y.0 + (f.y.1 - f.y.0) * k as f64 / 4.0;
-        let _ = write!(out, r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="middle">{}</text>"##, f.px(xv), H - M + 14.0, fmt(xv));
-        let _ = write!(out, r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="end">{}</text>"##, M - 4.0, f.py(yv) + 3.0, fmt(yv));
+        let _ = write!(
+            out,
+            r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="middle">{}</text>"##,
+            f.px(xv),
+            H - M + 14.0,
+            fmt(xv)
+        );
+        let _ = write!(
+            out,
+            r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="end">{}</text>"##,
+            M - 4.0,
+            f.py(yv) + 3.0,
+            fmt(yv)
+        );
     }
-    let _ = write!(out, r##"<text x="{:.1}" y="{:.1}" font-size="12" text-anchor="middle">{}</text>"##, W / 2.0, H - 8.0, esc(xl));
+    let _ = write!(
+        out,
+        r##"<text x="{:.1}" y="{:.1}" font-size="12" text-anchor="middle">{}</text>"##,
+        W / 2.0,
+        H - 8.0,
+        esc(xl)
+    );
     let _ = write!(
         out,
         r##"<text x="12" y="{:.1}" font-size="12" text-anchor="middle" transform="rotate(-90 12 {:.1})">{}</text>"##,
@@ -66,7 +90,12 @@ fn open(out: &mut String, id: &str, title: &str, xl: &str, yl: &str, f: &Frame) 
         H / 2.0,
         esc(yl)
     );
-    let _ = write!(out, r##"<text x="{:.1}" y="16" font-size="13" font-weight="bold" text-anchor="middle">{}</text>"##, W / 2.0, esc(title));
+    let _ = write!(
+        out,
+        r##"<text x="{:.1}" y="16" font-size="13" font-weight="bold" text-anchor="middle">{}</text>"##,
+        W / 2.0,
+        esc(title)
+    );
 }
 
 fn fmt(v: f64) -> String {
@@ -133,7 +162,9 @@ pub fn render(d: &Diagnosis) -> String {
     scatter(&mut o, "resid-vs-velocity", "residual vs velocity", "qd (rad/s)", &p.qd, p);
     scatter(&mut o, "resid-vs-position", "residual vs position", "q (rad)", &p.q, p);
     scatter(&mut o, "resid-vs-time", "residual vs time", "t (s)", &p.t, p);
-    o.push_str("<table id=\"regimes\"><tr><th>regime</th><th>where</th><th>share</th><th>RMSE</th><th>samples</th></tr>");
+    o.push_str(
+        "<table id=\"regimes\"><tr><th>regime</th><th>where</th><th>share</th><th>RMSE</th><th>samples</th></tr>",
+    );
     for g in &r.regimes {
         let _ = write!(
             o,
@@ -157,12 +188,23 @@ pub fn render(d: &Diagnosis) -> String {
         polyline(&mut o, &f, &p.t, &p.measured, "#888", "measured");
         polyline(&mut o, &f, &p.t, &pb, "#d95f02", "before");
         polyline(&mut o, &f, &p.t, &pa, "#1b9e77", "after");
-        let _ = write!(o, r##"<text x="{}" y="30" font-size="10"><tspan fill="#888">measured</tspan> <tspan fill="#d95f02">model</tspan> <tspan fill="#1b9e77">after</tspan></text>"##, M + 6.0);
+        let _ = write!(
+            o,
+            r##"<text x="{}" y="30" font-size="10"><tspan fill="#888">measured</tspan> <tspan fill="#d95f02">model</tspan> <tspan fill="#1b9e77">after</tspan></text>"##,
+            M + 6.0
+        );
         o.push_str("</svg></figure>\n");
         let mut both = p.before.clone();
         both.extend_from_slice(&p.after);
         let f = Frame { x: range(&p.t), y: range(&both) };
-        open(&mut o, "residual-before-after", "residual before and after", "t (s)", &format!("residual ({})", p.unit), &f);
+        open(
+            &mut o,
+            "residual-before-after",
+            "residual before and after",
+            "t (s)",
+            &format!("residual ({})", p.unit),
+            &f,
+        );
         polyline(&mut o, &f, &p.t, &p.before, "#d95f02", "before");
         polyline(&mut o, &f, &p.t, &p.after, "#1b9e77", "after");
         o.push_str("</svg></figure>\n");
@@ -174,7 +216,14 @@ pub fn render(d: &Diagnosis) -> String {
         let f = Frame { x: range(&x), y: (-1.05, 1.05) };
         open(&mut o, "autocorrelation", "residual autocorrelation (99 % band)", "lag (samples)", "correlation", &f);
         for b in [c.band99, -c.band99] {
-            let _ = write!(o, r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##, f.px(f.x.0), f.px(f.x.1), f.py(b), f.py(b));
+            let _ = write!(
+                o,
+                r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##,
+                f.px(f.x.0),
+                f.px(f.x.1),
+                f.py(b),
+                f.py(b)
+            );
         }
         polyline(&mut o, &f, &x, &c.values, "#d95f02", "before");
         polyline(&mut o, &f, &x, &ca.values, "#1b9e77", "after");
@@ -182,9 +231,23 @@ pub fn render(d: &Diagnosis) -> String {
         if let Some(xc) = res.xcorr_before.first() {
             let x: Vec<f64> = xc.lags.iter().map(|&l| l as f64).collect();
             let f = Frame { x: range(&x), y: (-1.05, 1.05) };
-            open(&mut o, "crosscorrelation", &format!("residual × {} cross-correlation", res.input.first().unwrap_or(&"input")), "lag (samples)", "correlation", &f);
+            open(
+                &mut o,
+                "crosscorrelation",
+                &format!("residual × {} cross-correlation", res.input.first().unwrap_or(&"input")),
+                "lag (samples)",
+                "correlation",
+                &f,
+            );
             for b in [xc.band99, -xc.band99] {
-                let _ = write!(o, r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##, f.px(f.x.0), f.px(f.x.1), f.py(b), f.py(b));
+                let _ = write!(
+                    o,
+                    r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##,
+                    f.px(f.x.0),
+                    f.px(f.x.1),
+                    f.py(b),
+                    f.py(b)
+                );
             }
             polyline(&mut o, &f, &x, &xc.values, "#d95f02", "before");
             if let Some(xa) = res.xcorr_after.first() {
@@ -198,15 +261,27 @@ pub fn render(d: &Diagnosis) -> String {
         let n = r.effects.len().max(1) as f64;
         let hh = 24.0 + 18.0 * n;
         let max = r.effects.iter().map(|e| e.holdout_rmse_before.max(e.holdout_rmse_after)).fold(1e-12, f64::max);
-        let _ = write!(o, r##"<figure><svg class="plot" id="ranking" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{hh}" viewBox="0 0 {W} {hh}">"##);
+        let _ = write!(
+            o,
+            r##"<figure><svg class="plot" id="ranking" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{hh}" viewBox="0 0 {W} {hh}">"##
+        );
         for (k, e) in r.effects.iter().enumerate() {
             let y = 12.0 + 18.0 * k as f64;
             let wb = (W - 200.0) * e.holdout_rmse_before / max;
             let wa = (W - 200.0) * e.holdout_rmse_after / max;
             let col = if e.significant { "#1b9e77" } else { "#bbb" };
-            let _ = write!(o, r##"<text x="170" y="{:.1}" font-size="11" text-anchor="end">{}</text>"##, y + 11.0, esc(&e.effect));
+            let _ = write!(
+                o,
+                r##"<text x="170" y="{:.1}" font-size="11" text-anchor="end">{}</text>"##,
+                y + 11.0,
+                esc(&e.effect)
+            );
             let _ = write!(o, r##"<rect x="176" y="{y:.1}" width="{wb:.1}" height="14" fill="#eee" stroke="#ccc"/>"##);
-            let _ = write!(o, r##"<rect class="bar" x="176" y="{:.1}" width="{wa:.1}" height="10" fill="{col}"/>"##, y + 2.0);
+            let _ = write!(
+                o,
+                r##"<rect class="bar" x="176" y="{:.1}" width="{wa:.1}" height="10" fill="{col}"/>"##,
+                y + 2.0
+            );
         }
         o.push_str("</svg></figure>\n");
     }

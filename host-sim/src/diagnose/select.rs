@@ -120,7 +120,15 @@ pub fn residual_at(d: &Data, des: &Design, beta: &[f64], i: usize, x: &mut [f64]
     y - x.iter().zip(beta).map(|(a, b)| a * b).sum::<f64>()
 }
 
-pub fn score(d: &Data, des: Design, beta: Vec<f64>, effects: Vec<Effect>, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+pub fn score(
+    d: &Data,
+    des: Design,
+    beta: Vec<f64>,
+    effects: Vec<Effect>,
+    split: &Split,
+    bits: &[u32],
+    n_regimes: usize,
+) -> Scored {
     let mut x = vec![0.0; des.cols.len()];
     let acc = accumulate(split, bits, n_regimes, |_, i| residual_at(d, &des, &beta, i, &mut x));
     acc.into_scored(effects, des, beta)
@@ -248,7 +256,15 @@ impl<'a> Round<'a> {
 }
 
 /// Fits `effects` on the training indices `fit_idx` and scores it.
-pub fn fit_and_score(d: &Data, base: &Base, effects: &[Effect], fit_idx: &[u32], split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
+pub fn fit_and_score(
+    d: &Data,
+    base: &Base,
+    effects: &[Effect],
+    fit_idx: &[u32],
+    split: &Split,
+    bits: &[u32],
+    n_regimes: usize,
+) -> Scored {
     let des = Design::new(base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
@@ -283,7 +299,13 @@ fn unit_t(diffs: &[f64]) -> (f64, f64) {
     }
     let mean = diffs.iter().sum::<f64>() / m;
     let var = diffs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (m - 1.0);
-    let t = if var > 0.0 { mean / (var / m).sqrt() } else if mean > 0.0 { f64::INFINITY } else { 0.0 };
+    let t = if var > 0.0 {
+        mean / (var / m).sqrt()
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
     (t, super::fit::student_t_sf(t, m - 1.0))
 }
 
@@ -346,7 +368,9 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
         // T − T_ref at the ends of its range over the whole log
         let (lo, hi) = match src {
             ThermSrc::Temp { mean } => match &d.temp {
-                Some(tp) => tp.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x - mean), b.max(x - mean))),
+                Some(tp) => {
+                    tp.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x - mean), b.max(x - mean)))
+                }
                 None => (0.0, 0.0),
             },
             ThermSrc::Time { tau, t0, mean } => {
@@ -360,7 +384,9 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
         return None;
     }
     match e.kind() {
-        Kind::Stribeck if amp <= 0.0 => Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect"),
+        Kind::Stribeck if amp <= 0.0 => {
+            Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
+        }
         Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
         Kind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
         Kind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
@@ -381,7 +407,14 @@ pub struct Selection {
 }
 
 /// Searches and scores every applicable kind on top of the round's chosen effects, in parallel.
-fn try_kinds(kinds: &[Kind], round: &Round<'_>, grid_idx: &[u32], split: &Split, bits: &[u32], n_regimes: usize) -> Vec<Scored> {
+fn try_kinds(
+    kinds: &[Kind],
+    round: &Round<'_>,
+    grid_idx: &[u32],
+    split: &Split,
+    bits: &[u32],
+    n_regimes: usize,
+) -> Vec<Scored> {
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8);
     let (d, base, chosen) = (round.d, round.base, round.chosen.as_slice());
     // One grid context for the round, shared by every kind's search.
@@ -440,7 +473,15 @@ fn try_kinds(kinds: &[Kind], round: &Round<'_>, grid_idx: &[u32], split: &Split,
 }
 
 /// The whole torque-mode selection. `floor` = noise floor (N·m); selection stops there.
-pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usize, floor: f64, max_effects: usize) -> Selection {
+pub fn select(
+    d: &Data,
+    base: &Base,
+    split: &Split,
+    bits: &[u32],
+    n_regimes: usize,
+    floor: f64,
+    max_effects: usize,
+) -> Selection {
     // Fits read at most 150 000 training rows, grids 20 000 (every k-th sample).
     let fit_idx = super::candidates::thin_idx(&split.train, 150_000);
     let grid_idx = super::candidates::thin_idx(&split.train, 20_000);
@@ -452,8 +493,15 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     let (t, p, gain) = compare(&m0, &refit_s);
     let open = |r: &Scored| r.rmse() > at_floor_factor(d) * floor;
     let at_floor = !open(&m0);
-    let refit =
-        Outcome { name: "parameters", scored: refit_s, t, p, gain, significant: !at_floor && p < alpha_each && gain >= MIN_GAIN, implausible: None };
+    let refit = Outcome {
+        name: "parameters",
+        scored: refit_s,
+        t,
+        p,
+        gain,
+        significant: !at_floor && p < alpha_each && gain >= MIN_GAIN,
+        implausible: None,
+    };
 
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
@@ -481,11 +529,8 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
         .collect();
 
     let mut chosen: Vec<Outcome> = Vec::new();
-    let best_first = candidates
-        .iter()
-        .filter(|o| o.significant)
-        .min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()))
-        .cloned();
+    let best_first =
+        candidates.iter().filter(|o| o.significant).min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse())).cloned();
     // Look-ahead for two effects that mask each other: when no single effect is significant
     // but several lower the held-out MSE, the best pairs of the three strongest are tried. A
     // pair is kept only if it is significant against the refit and against each partner alone
@@ -493,7 +538,8 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
     let best_first = match best_first {
         Some(b) => Some(b),
         None if !at_floor && max_effects >= 2 => {
-            let mut strong: Vec<&Outcome> = candidates.iter().filter(|o| o.gain >= MIN_GAIN && o.implausible.is_none()).collect();
+            let mut strong: Vec<&Outcome> =
+                candidates.iter().filter(|o| o.gain >= MIN_GAIN && o.implausible.is_none()).collect();
             strong.sort_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
             strong.truncate(3);
             let pair_alpha = ALPHA / (m_tests + 3.0);
@@ -504,13 +550,19 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
                     let Some(kb) = b.scored.effects.last().map(|e| e.kind()) else { continue };
                     let Some(eb) = search(kb, d, base, &[ea], &grid_idx) else { continue };
                     let pair = fit_and_score(d, base, &[ea, eb], &fit_idx, split, bits, n_regimes);
-                    let tests = [compare(&refit.scored, &pair), compare(&m0, &pair), compare(&a.scored, &pair), compare(&b.scored, &pair)];
+                    let tests = [
+                        compare(&refit.scored, &pair),
+                        compare(&m0, &pair),
+                        compare(&a.scored, &pair),
+                        compare(&b.scored, &pair),
+                    ];
                     if implausible(&pair, d).is_none()
                         && tests.iter().all(|&(_, p, g)| p < pair_alpha && g >= MIN_GAIN)
                         && best_pair.as_ref().map(|(_, bp)| pair.mse() < bp.scored.mse()).unwrap_or(true)
                     {
                         let (t, p, gain) = compare(&a.scored, &pair);
-                        let second = Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true, implausible: None };
+                        let second =
+                            Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true, implausible: None };
                         let mut first = (*a).clone();
                         first.significant = true;
                         best_pair = Some((first, second));
@@ -535,7 +587,8 @@ pub fn select(d: &Data, base: &Base, split: &Split, bits: &[u32], n_regimes: usi
                 break;
             }
             let effects = cur.scored.effects.clone();
-            let kinds: Vec<Kind> = Kind::ALL.iter().copied().filter(|k| !effects.iter().any(|e| e.kind() == *k)).collect();
+            let kinds: Vec<Kind> =
+                Kind::ALL.iter().copied().filter(|k| !effects.iter().any(|e| e.kind() == *k)).collect();
             let round = Round::new(d, base, &effects, &fit_idx, split);
             let next = try_kinds(&kinds, &round, &grid_idx, split, bits, n_regimes);
             let cur_s = cur.scored.clone();
@@ -565,14 +618,24 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
         let q: Vec<f64> = t.iter().map(|&t| 1.0 + 0.8 * (0.9 * t).sin() + 0.05 * (7.0 * t).sin()).collect();
-        let qd: Vec<f64> = t.iter().map(|&t| 0.72 * (0.9 * t).cos() + 0.35 * (7.0 * t).cos() + rng.random_range(-0.01..0.01)).collect();
+        let qd: Vec<f64> = t
+            .iter()
+            .map(|&t| 0.72 * (0.9 * t).cos() + 0.35 * (7.0 * t).cos() + rng.random_range(-0.01..0.01))
+            .collect();
         let qdd: Vec<f64> = t.iter().map(|&t| -0.648 * (0.9 * t).sin() - 2.45 * (7.0 * t).sin()).collect();
         let u: Vec<f64> = (0..n).map(|i| 2.0 * qd[i] + 0.3 * (3.0 * t[i]).sin()).collect();
         let band = 0.01;
         let sgn: Vec<f64> = qd.iter().map(|&v| super::super::sgn_band(v, band)).collect();
         let ws = 0.8;
         let y: Vec<f64> = (0..n)
-            .map(|i| 0.4 * qdd[i] + 2.0 * qd[i] + sgn[i] + 2.5 * (ws * q[i]).sin() + 0.3 * (q[i] * 60.0).sin() + rng.random_range(-0.1..0.1))
+            .map(|i| {
+                0.4 * qdd[i]
+                    + 2.0 * qd[i]
+                    + sgn[i]
+                    + 2.5 * (ws * q[i]).sin()
+                    + 0.3 * (q[i] * 60.0).sin()
+                    + rng.random_range(-0.1..0.1)
+            })
             .collect();
         let d = Data {
             n,
@@ -634,7 +697,11 @@ mod tests {
                 let f = fit_and_score(&d, &base, &all, &fit_idx, &split, &bits, 3);
                 assert_eq!(r.design.cols, f.design.cols, "{e:?} on {chosen:?}");
                 assert_eq!(r.beta, f.beta, "{e:?} on {chosen:?}");
-                assert_eq!((r.sse, &r.unit_sse, &r.regime_sse), (f.sse, &f.unit_sse, &f.regime_sse), "{e:?} on {chosen:?}");
+                assert_eq!(
+                    (r.sse, &r.unit_sse, &r.regime_sse),
+                    (f.sse, &f.unit_sse, &f.regime_sse),
+                    "{e:?} on {chosen:?}"
+                );
             }
         }
     }

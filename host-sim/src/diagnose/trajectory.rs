@@ -22,7 +22,10 @@ use super::candidates::{base_from_model, Col};
 use super::fit::levenberg_marquardt;
 use super::regimes::Regimes;
 use super::select::{compare, Scored, ALPHA, AT_FLOOR, MIN_GAIN};
-use super::{DiagError, Diagnosis, EffectOut, Gap, Options, PlotData, RegimeOut, RegimeShrink, Report, SplitInfo, Step, TestInfo, Verdict};
+use super::{
+    DiagError, Diagnosis, EffectOut, Gap, Options, PlotData, RegimeOut, RegimeShrink, Report, SplitInfo, Step,
+    TestInfo, Verdict,
+};
 use crate::log::JointLog;
 use crate::model_file::ModelFile;
 
@@ -109,7 +112,10 @@ impl Sim<'_> {
                 Col::AbsSgn => s.abs(),
                 Col::RipSin(p) => (std::f64::consts::TAU * q / p).sin(),
                 Col::RipCos(p) => (std::f64::consts::TAU * q / p).cos(),
-                Col::Cable { engage, width } => crate::effects::cable_spring(&crate::effects::CableSpring { k: 1.0, engage: *engage, width: *width }, q),
+                Col::Cable { engage, width } => crate::effects::cable_spring(
+                    &crate::effects::CableSpring { k: 1.0, engage: *engage, width: *width },
+                    q,
+                ),
                 _ => 0.0,
             };
             if matches!(c, Col::QdAbsQd | Col::Qd | Col::Sgn) {
@@ -130,7 +136,9 @@ impl Sim<'_> {
                 let w = std::f64::consts::TAU * q / e[2].exp();
                 e[0] * w.sin() + e[1] * w.cos()
             }
-            TKind::Cable => crate::effects::cable_spring(&crate::effects::CableSpring { k: e[0], engage: e[1], width: 0.01 }, q),
+            TKind::Cable => {
+                crate::effects::cable_spring(&crate::effects::CableSpring { k: e[0], engage: e[1], width: 0.01 }, q)
+            }
             _ => 0.0,
         };
         fr + rest + extra
@@ -149,7 +157,8 @@ impl Sim<'_> {
         // Highest spatial frequency (rad⁻¹) of a term periodic in q: a torque that varies in time
         // at κ·|q̇| however soft it is.
         let nb = self.cols.len();
-        let ripple = if kind == TKind::Ripple { th.get(nb + 2).map_or(0.0, |lp| std::f64::consts::TAU / lp.exp()) } else { 0.0 };
+        let ripple =
+            if kind == TKind::Ripple { th.get(nb + 2).map_or(0.0, |lp| std::f64::consts::TAU / lp.exp()) } else { 0.0 };
         let kappa = self
             .cols
             .iter()
@@ -224,7 +233,15 @@ struct Fitted {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn score_traj(sim_q: &[f64], q: &[f64], hold_from: usize, units: usize, bits: &[u32], nreg: usize, theta: Vec<f64>) -> Scored {
+fn score_traj(
+    sim_q: &[f64],
+    q: &[f64],
+    hold_from: usize,
+    units: usize,
+    bits: &[u32],
+    nreg: usize,
+    theta: Vec<f64>,
+) -> Scored {
     let n = q.len();
     let len = (n - hold_from).div_ceil(units).max(1);
     let mut s = Scored {
@@ -385,7 +402,8 @@ fn diagnose_window(
     let j = model.value(ParamId::InertiaJ);
     if !(j > 0.0) {
         return Err(DiagError::Input(
-            "trajectory mode integrates the model: its [inertia] j must be > 0 (the log has no u/tau for torque mode)".into(),
+            "trajectory mode integrates the model: its [inertia] j must be > 0 (the log has no u/tau for torque mode)"
+                .into(),
         ));
     }
     let (sim, beta0) = model_sim(log, model, j, qd_raw[0]);
@@ -439,7 +457,9 @@ fn diagnose_window(
         }
         let (theta, _) = best?;
         // A period that ran off its range is no ripple (a huge period is a constant torque).
-        if kind == TKind::Ripple && !theta.get(cols.len() + 2).is_some_and(|lp| (0.01..=1.5 * ripple_max).contains(&lp.exp())) {
+        if kind == TKind::Ripple
+            && !theta.get(cols.len() + 2).is_some_and(|lp| (0.01..=1.5 * ripple_max).contains(&lp.exp()))
+        {
             return None;
         }
         let s = sim.run(kind, &theta, n)?;
@@ -501,9 +521,13 @@ fn diagnose_window(
     let implausible = |f: &Fitted| -> Option<&'static str> {
         let amp = f.theta.get(cols.len()).copied()?;
         match f.kind {
-            TKind::Stribeck if amp <= 0.0 => Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect"),
+            TKind::Stribeck if amp <= 0.0 => {
+                Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
+            }
             TKind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
-            TKind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
+            TKind::Dry if amp <= 0.0 => {
+                Some("fitted dry friction level is not positive: friction cannot drive the motion")
+            }
             _ => None,
         }
     };
@@ -765,7 +789,13 @@ fn diagnose_window(
         plots.before.push(r0[i]);
         plots.after.push(ra[i]);
         let b = regimes.bits[i];
-        plots.speed_regime.push(if b & 1 != 0 { 0 } else if b & 2 != 0 { 1 } else { 2 });
+        plots.speed_regime.push(if b & 1 != 0 {
+            0
+        } else if b & 2 != 0 {
+            1
+        } else {
+            2
+        });
         plots.held.push(i >= hold_from);
     }
     Ok(Diagnosis { report, emitted_model: emitted, plots })
@@ -797,7 +827,11 @@ fn refit_values(model: &ModelFile, cols: &[Col], th: &[f64]) -> Vec<(String, f64
         }
     }
     if let Some(cc) = c(Col::Sgn) {
-        let key = if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 { "dry_friction.c" } else { "friction.c" };
+        let key = if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 {
+            "dry_friction.c"
+        } else {
+            "friction.c"
+        };
         out.push((key.into(), cc));
     }
     if let Some(l) = c(Col::Stribeck(v(ParamId::StribeckSpeed))) {
@@ -849,13 +883,19 @@ mod tests {
         let cases = [
             (vec![Col::Qd, Col::Sgn, Col::Q, Col::Const], vec![0.04, 0.012, 7.0, 0.0], 0.008, -0.3),
             (vec![Col::Qd, Col::Sgn, Col::Q, Col::Stribeck(0.05)], vec![0.04, 0.012, 7.0, 0.01], 0.008, -0.3),
-            (vec![Col::Qd, Col::Sgn, Col::Q, Col::RipSin(0.03), Col::RipCos(0.03)], vec![0.04, 0.012, 7.0, 0.02, 0.01], 0.008, -0.3),
+            (
+                vec![Col::Qd, Col::Sgn, Col::Q, Col::RipSin(0.03), Col::RipCos(0.03)],
+                vec![0.04, 0.012, 7.0, 0.02, 0.01],
+                0.008,
+                -0.3,
+            ),
             (vec![Col::Qd, Col::Sgn, Col::SinSq(1.0), Col::CosSq(1.0)], vec![0.0002, 0.003, 1.38, 0.0], 0.01, 0.8),
             (vec![Col::Qd, Col::SinSq(1.0), Col::CosSq(1.0)], vec![0.0002, 1.38, 0.0], 0.01, 0.8),
         ];
         for (cols, beta, j, q0) in cases {
             let rate = fastest_rate(&cols, &beta, j);
-            let sim = |rate: f64| Sim { t: &t, u: None, j, band: 0.01, q0: 0.0, cols: cols.clone(), init: (q0, 0.0), rate };
+            let sim =
+                |rate: f64| Sim { t: &t, u: None, j, band: 0.01, q0: 0.0, cols: cols.clone(), init: (q0, 0.0), rate };
             let fine = sim(f64::INFINITY).run(TKind::Parameters, &beta, t.len()).unwrap();
             let adaptive = sim(rate).run(TKind::Parameters, &beta, t.len()).unwrap();
             let worst = fine.iter().zip(&adaptive).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);

@@ -41,7 +41,12 @@ pub struct TableFit {
 
 impl TableFit {
     pub fn spec(&self) -> TableSpec {
-        TableSpec { axes: self.axes.clone(), grid: self.grid.clone(), torque: self.torque.clone(), sigma: Some(self.sigma.clone()) }
+        TableSpec {
+            axes: self.axes.clone(),
+            grid: self.grid.clone(),
+            torque: self.torque.clone(),
+            sigma: Some(self.sigma.clone()),
+        }
     }
 
     /// Table torque and σ at the point `x` (one value per axis), multilinear, clamped to the grid.
@@ -164,7 +169,10 @@ pub fn fit(
         }
     }
     if pts.len() < 20 {
-        return Err(format!("{} static samples; hold the joint still at several poses (or give --window START:END:static)", pts.len()));
+        return Err(format!(
+            "{} static samples; hold the joint still at several poses (or give --window START:END:static)",
+            pts.len()
+        ));
     }
     let coord = |li: usize, i: usize, a: usize| -> f64 {
         let p = logs[li].0;
@@ -184,7 +192,10 @@ pub fn fit(
     let mut grid = Vec::with_capacity(n_axes);
     for a in 0..n_axes {
         let mut v: Vec<f64> = pts.iter().map(|&(li, i)| coord(li, i, a)).collect();
-        grid.push(axis_grid(&mut v, even).ok_or_else(|| format!("axis `{}` does not vary over the static samples", axes[a]))?);
+        grid.push(
+            axis_grid(&mut v, even)
+                .ok_or_else(|| format!("axis `{}` does not vary over the static samples", axes[a]))?,
+        );
     }
     let cells: usize = grid.iter().map(Vec::len).product();
     if cells > joint_core::table::CELLS_MAX {

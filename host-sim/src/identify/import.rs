@@ -73,10 +73,9 @@ impl Table {
                 return Err(format!("{file}: line {}: {} cells, the header has {}", ln + 1, cells.len(), names.len()));
             }
             for ((c, cell), name) in cols.iter_mut().zip(cells).zip(&names) {
-                let v: f64 = cell
-                    .trim()
-                    .parse()
-                    .map_err(|_| format!("{file}: line {}, column `{name}`: `{}` is not a number", ln + 1, cell.trim()))?;
+                let v: f64 = cell.trim().parse().map_err(|_| {
+                    format!("{file}: line {}, column `{name}`: `{}` is not a number", ln + 1, cell.trim())
+                })?;
                 if !v.is_finite() {
                     return Err(format!("{file}: line {}, column `{name}`: not finite", ln + 1));
                 }
@@ -188,7 +187,8 @@ pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result
             speeds.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
             let n_hold = (o.hold * o.rate).round() as usize;
             let dt = 1.0 / o.rate;
-            let mut log = JointLog { qd: Some(Vec::new()), u: Some(Vec::new()), tau: Some(Vec::new()), ..JointLog::default() };
+            let mut log =
+                JointLog { qd: Some(Vec::new()), u: Some(Vec::new()), tau: Some(Vec::new()), ..JointLog::default() };
             let mut q = 0.0;
             for s in speeds {
                 for sign in [1.0, -1.0] {
@@ -208,7 +208,13 @@ pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result
                     }
                 }
             }
-            notes.push(format!("{} table rows held {} s each at {} Hz; torque × {} to the joint side", rows.len(), o.hold, o.rate, o.gear_ratio));
+            notes.push(format!(
+                "{} table rows held {} s each at {} Hz; torque × {} to the joint side",
+                rows.len(),
+                o.hold,
+                o.rate,
+                o.gear_ratio
+            ));
             log
         }
     };
@@ -224,7 +230,8 @@ mod tests {
 
     #[test]
     fn dfki_rows_map_to_spec_columns_and_repeated_times_are_dropped() {
-        let text = "time,position,velocity,torque\n0,0.1,0.2,0.3\n0.01,0.2,0.3,0.4\n0.01,0.2,0.3,0.4\n0.02,0.3,0.4,0.5\n";
+        let text =
+            "time,position,velocity,torque\n0,0.1,0.2,0.3\n0.01,0.2,0.3,0.4\n0.01,0.2,0.3,0.4\n0.02,0.3,0.4,0.5\n";
         let im = convert(Format::DfkiPendulum, text, "x.csv", &ImportOpts::default()).unwrap();
         assert_eq!(im.log.t, vec![0.0, 0.01, 0.02]);
         assert_eq!(im.log.u.as_deref(), Some(&[0.3, 0.4, 0.5][..]));
@@ -243,7 +250,8 @@ mod tests {
 
     #[test]
     fn ur5e_rows_become_out_and_back_plateaus() {
-        let text = "joint,ang_vel_rad_s,motor_voltage_V,motor_current_A,temperature_C,friction_torque_motor_side_Nm,Km\n\
+        let text =
+            "joint,ang_vel_rad_s,motor_voltage_V,motor_current_A,temperature_C,friction_torque_motor_side_Nm,Km\n\
                     0,-1.0,0,0,40,-0.1,0\n0,1.0,0,0,40,0.1,0\n1,1.0,0,0,40,0.5,0\n";
         let o = ImportOpts { joint: Some(0), hold: 0.1, rate: 100.0, gear_ratio: 100.0 };
         let im = convert(Format::Ur5eFriction, text, "t.csv", &o).unwrap();

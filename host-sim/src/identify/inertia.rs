@@ -41,12 +41,7 @@ pub struct InertiaData {
 
 /// The filtered regression data of every log. `model(q, qd)` is the known part (friction,
 /// weight, static offset).
-pub fn data(
-    logs: &[(&Prepared, &[Segment])],
-    model: &dyn Fn(f64, f64) -> f64,
-    cutoff: f64,
-    v_min: f64,
-) -> InertiaData {
+pub fn data(logs: &[(&Prepared, &[Segment])], model: &dyn Fn(f64, f64) -> f64, cutoff: f64, v_min: f64) -> InertiaData {
     let mut out = InertiaData { acc: Vec::new(), y: Vec::new(), mask: Vec::new() };
     let mut tmp = Vec::new();
     for (p, segs) in logs {

@@ -271,7 +271,11 @@ pub fn identify_data(
     let has = |t: Term| terms.contains(&t) && (papers || t == Term::Spring);
     let mut inertia_acc: Option<(Vec<Vec<f64>>, f64)> = None;
     for round in 0..2u64 {
-        progress.stage(if round == 0 { "friction, weight, inertia" } else { "second round (J·q̈ removed)" }, round, total);
+        progress.stage(
+            if round == 0 { "friction, weight, inertia" } else { "second round (J·q̈ removed)" },
+            round,
+            total,
+        );
         if has(Term::Friction) {
             let accel = inertia_acc.as_ref().map(|(a, j)| (a.as_slice(), *j));
             let pts = friction::points(&kept_pairs, accel, (opts.segments.a_strict, opts.segments.a_strict_rel));
@@ -484,7 +488,9 @@ fn identify_spring(
         return Err(term_err("spring", "neither static torque–angle poses nor a free oscillation found"));
     }
     if k.is_none() {
-        notes.push("spring: without K only ω_n and ζ of the free oscillation are known (J = K/ω_n², B = 2ζω_n·J)".into());
+        notes.push(
+            "spring: without K only ω_n and ζ of the free oscillation are known (J = K/ω_n², B = 2ζω_n·J)".into(),
+        );
     }
     Ok(SpringResult { stat, free, k, j, b })
 }
@@ -537,7 +543,11 @@ pub fn model_file(id: &Identified, name: Option<&str>) -> Result<ModelFile, Iden
 }
 
 /// Identifies from logs with every sample available to the fit.
-pub fn identify(logs: &[JointLog], opts: &Options, progress: &dyn Progress) -> Result<(Data, Identified), IdentifyError> {
+pub fn identify(
+    logs: &[JointLog],
+    opts: &Options,
+    progress: &dyn Progress,
+) -> Result<(Data, Identified), IdentifyError> {
     let data = Data::new(logs, opts);
     let id = identify_data(&data, opts, &|_, _| true, progress)?;
     Ok((data, id))

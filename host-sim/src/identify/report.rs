@@ -18,7 +18,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::segments::SegKind;
-use super::{friction_torque, inertia, spring, Data, IdentifyError, Identified, Options, Quiet};
+use super::{friction_torque, inertia, spring, Data, Identified, IdentifyError, Options, Quiet};
 
 /// Length of a hold-out block, s.
 pub const BLOCK_S: f64 = 4.0;
@@ -44,11 +44,7 @@ pub struct Report {
 }
 
 fn held_out(data: &Data, log: usize, t: f64) -> bool {
-    let (t0, t1) = data
-        .prepared
-        .get(log)
-        .and_then(|p| Some((*p.t.first()?, *p.t.last()?)))
-        .unwrap_or((0.0, 0.0));
+    let (t0, t1) = data.prepared.get(log).and_then(|p| Some((*p.t.first()?, *p.t.last()?))).unwrap_or((0.0, 0.0));
     let block = BLOCK_S.min((t1 - t0) / 8.0).max(1e-9);
     ((t - t0) / block).floor() as i64 % 4 == 3
 }
@@ -117,7 +113,13 @@ fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i:
         if let (Some(k), Some(st)) = (s.k, &s.stat) {
             let h = 0.5 * st.dead_zone;
             let x = q - st.q0;
-            d += k * if x > h { x - h } else if x < -h { x + h } else { 0.0 };
+            d += k * if x > h {
+                x - h
+            } else if x < -h {
+                x + h
+            } else {
+                0.0
+            };
         }
         if let Some(b) = s.b {
             d += b * p.qd[i];
@@ -130,7 +132,8 @@ fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i:
 pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report, IdentifyError> {
     let mut rep = Report { block_s: BLOCK_S, refit_error: None, scores: Vec::new() };
     let train = |li: usize, t: f64| !held_out(data, li, t);
-    let refit = match super::identify_data(data, &Options { terms: full.terms.clone(), ..opts.clone() }, &train, &Quiet) {
+    let refit = match super::identify_data(data, &Options { terms: full.terms.clone(), ..opts.clone() }, &train, &Quiet)
+    {
         Ok(r) => Some(r),
         Err(e) => {
             rep.refit_error = Some(e.to_string());
@@ -154,7 +157,9 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
         let fr = r.friction.clone();
         let c0s = r.weight.as_ref().map_or(r.c0.unwrap_or(0.0), |w| w.c0);
         let band = r.v_band;
-        let model = |q: f64, v: f64| fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q));
+        let model = |q: f64, v: f64| {
+            fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q))
+        };
         let dat = inertia::data(&data.pairs(), &model, opts.accel_cutoff, opts.v_min_inertia);
         if let Some(inr) = r.inertia.as_ref().filter(|_| opts.method == super::Method::Papers) {
             let (mut meas, mut pred) = (Vec::new(), Vec::new());
@@ -207,7 +212,14 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
                 let tt: Vec<f64> = p.t[seg.0..seg.1].iter().map(|t| t - f.t0).collect();
                 let w = s.stat.as_ref().map_or(0.0, |s| s.dead_zone);
                 spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
-                push_score(&mut rep.scores, "spring free oscillation (angle, in-sample)", &p.q[seg.0..seg.1], &sim, "rad", false);
+                push_score(
+                    &mut rep.scores,
+                    "spring free oscillation (angle, in-sample)",
+                    &p.q[seg.0..seg.1],
+                    &sim,
+                    "rad",
+                    false,
+                );
                 // Held out: fit the first 70 % of the stretch, let the fitted model run on and
                 // score it on the last 30 % it never saw.
                 let cut = seg.0 + (seg.1 - seg.0) * 7 / 10;
@@ -218,7 +230,14 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
                     let mut sim = vec![0.0; tt.len()];
                     spring::simulate(&tt, g.k_over_j, g.b_over_j, g.q0, w, g.q_start, g.qd_start, &mut sim);
                     let k = cut - seg.0;
-                    push_score(&mut rep.scores, "spring free oscillation (angle, last 30 % held out)", &p.q[cut..seg.1], &sim[k..], "rad", true);
+                    push_score(
+                        &mut rep.scores,
+                        "spring free oscillation (angle, last 30 % held out)",
+                        &p.q[cut..seg.1],
+                        &sim[k..],
+                        "rad",
+                        true,
+                    );
                 }
             }
         }
@@ -226,7 +245,11 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
     Ok(rep)
 }
 
-fn free_stretch<'a>(data: &'a Data, _opts: &Options, f: &spring::FreeFit) -> Option<(&'a super::segments::Prepared, (usize, usize))> {
+fn free_stretch<'a>(
+    data: &'a Data,
+    _opts: &Options,
+    f: &spring::FreeFit,
+) -> Option<(&'a super::segments::Prepared, (usize, usize))> {
     let p = data.prepared.get(f.log)?;
     let s = p.t.partition_point(|&t| t < f.t0);
     let e = p.t.partition_point(|&t| t <= f.t1);
@@ -239,7 +262,15 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
     if let Some(f) = &id.friction {
         let _ = writeln!(s, "friction   a = {:.4} [{:.4}, {:.4}] N·m·s²/rad²", f.a, f.ci95[0].0, f.ci95[0].1);
         let _ = writeln!(s, "           b = {:.4} [{:.4}, {:.4}] N·m·s/rad", f.b, f.ci95[1].0, f.ci95[1].1);
-        let _ = writeln!(s, "           c = {:.4} [{:.4}, {:.4}] N·m   ({} points, {} rejected, 95 % CI)", f.c, f.ci95[2].0, f.ci95[2].1, f.points.len(), f.weights.iter().filter(|w| **w == 0.0).count());
+        let _ = writeln!(
+            s,
+            "           c = {:.4} [{:.4}, {:.4}] N·m   ({} points, {} rejected, 95 % CI)",
+            f.c,
+            f.ci95[2].0,
+            f.ci95[2].1,
+            f.points.len(),
+            f.weights.iter().filter(|w| **w == 0.0).count()
+        );
     }
     if let Some(w) = &id.weight {
         let _ = writeln!(
@@ -254,7 +285,11 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
         );
     }
     if let Some(i) = &id.inertia {
-        let _ = writeln!(s, "inertia    j = {:.4} [{:.4}, {:.4}] kg·m²   ({} samples, {} Hz zero-phase)", i.j, i.ci95[0].0, i.ci95[0].1, i.n, i.cutoff_hz);
+        let _ = writeln!(
+            s,
+            "inertia    j = {:.4} [{:.4}, {:.4}] kg·m²   ({} samples, {} Hz zero-phase)",
+            i.j, i.ci95[0].0, i.ci95[0].1, i.n, i.cutoff_hz
+        );
     }
     if let Some(c0) = id.c0 {
         let _ = writeln!(s, "offset     c0 = {c0:.4} N·m");
@@ -268,7 +303,11 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
             );
         }
         if let Some(f) = &sp.free {
-            let _ = writeln!(s, "free       ω_n = {:.4} rad/s, ζ = {:.4}, angle RMS {:.5} rad over {} samples", f.omega_n, f.zeta, f.rms, f.n);
+            let _ = writeln!(
+                s,
+                "free       ω_n = {:.4} rad/s, ζ = {:.4}, angle RMS {:.5} rad over {} samples",
+                f.omega_n, f.zeta, f.rms, f.n
+            );
         }
         if let (Some(j), Some(b)) = (sp.j, sp.b) {
             let _ = writeln!(s, "           j = {j:.5} kg·m², b = {b:.5} N·m·s/rad");
@@ -360,15 +399,43 @@ pub fn svg_plot(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) 
     );
     let _ = write!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
     let _ = write!(s, r#"<text x="{}" y="22" text-anchor="middle" font-size="14">{}</text>"#, w / 2.0, esc(title));
-    let _ = write!(s, r##"<rect x="{ml}" y="{mt}" width="{}" height="{}" fill="none" stroke="#444"/>"##, w - ml - mr, h - mt - mb);
+    let _ = write!(
+        s,
+        r##"<rect x="{ml}" y="{mt}" width="{}" height="{}" fill="none" stroke="#444"/>"##,
+        w - ml - mr,
+        h - mt - mb
+    );
     for t in nice_ticks(x0, x1) {
-        let _ = write!(s, r##"<line x1="{0:.1}" x2="{0:.1}" y1="{1}" y2="{2}" stroke="#ddd"/><text x="{0:.1}" y="{3}" text-anchor="middle">{4}</text>"##, sx(t), mt, h - mb, h - mb + 16.0, fmt_tick(t));
+        let _ = write!(
+            s,
+            r##"<line x1="{0:.1}" x2="{0:.1}" y1="{1}" y2="{2}" stroke="#ddd"/><text x="{0:.1}" y="{3}" text-anchor="middle">{4}</text>"##,
+            sx(t),
+            mt,
+            h - mb,
+            h - mb + 16.0,
+            fmt_tick(t)
+        );
     }
     for t in nice_ticks(y0, y1) {
-        let _ = write!(s, r##"<line x1="{0}" x2="{1}" y1="{2:.1}" y2="{2:.1}" stroke="#ddd"/><text x="{3}" y="{4:.1}" text-anchor="end">{5}</text>"##, ml, w - mr, sy(t), ml - 6.0, sy(t) + 4.0, fmt_tick(t));
+        let _ = write!(
+            s,
+            r##"<line x1="{0}" x2="{1}" y1="{2:.1}" y2="{2:.1}" stroke="#ddd"/><text x="{3}" y="{4:.1}" text-anchor="end">{5}</text>"##,
+            ml,
+            w - mr,
+            sy(t),
+            ml - 6.0,
+            sy(t) + 4.0,
+            fmt_tick(t)
+        );
     }
-    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, (ml + w - mr) / 2.0, h - 12.0, esc(xlabel));
-    let _ = write!(s, r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#, (mt + h - mb) / 2.0, esc(ylabel));
+    let _ =
+        write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, (ml + w - mr) / 2.0, h - 12.0, esc(xlabel));
+    let _ = write!(
+        s,
+        r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#,
+        (mt + h - mb) / 2.0,
+        esc(ylabel)
+    );
     for (k, se) in series.iter().enumerate() {
         if se.line {
             let mut d = String::new();
@@ -382,7 +449,16 @@ pub fn svg_plot(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) 
             }
         }
         let ly = mt + 14.0 + 16.0 * k as f64;
-        let _ = write!(s, r#"<rect x="{}" y="{}" width="10" height="10" fill="{}"/><text x="{}" y="{}">{}</text>"#, ml + 10.0, ly - 9.0, se.color, ml + 26.0, ly, esc(se.name));
+        let _ = write!(
+            s,
+            r#"<rect x="{}" y="{}" width="10" height="10" fill="{}"/><text x="{}" y="{}">{}</text>"#,
+            ml + 10.0,
+            ly - 9.0,
+            se.color,
+            ml + 26.0,
+            ly,
+            esc(se.name)
+        );
     }
     s.push_str("</svg>\n");
     s
@@ -391,7 +467,11 @@ pub fn svg_plot(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) 
 fn fmt_tick(t: f64) -> String {
     let s = format!("{t:.4}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.to_string() }
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
 }
 
 fn esc(s: &str) -> String {
@@ -418,8 +498,18 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                 "speed |q̇| (rad/s)",
                 "friction torque (N·m)",
                 &[
-                    Series { name: "plateau points", points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(), line: false, color: "#1f77b4" },
-                    Series { name: "rejected (bisquare weight 0)", points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(), line: false, color: "#d62728" },
+                    Series {
+                        name: "plateau points",
+                        points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(),
+                        line: false,
+                        color: "#1f77b4",
+                    },
+                    Series {
+                        name: "rejected (bisquare weight 0)",
+                        points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(),
+                        line: false,
+                        color: "#d62728",
+                    },
                     Series { name: "a·v² + b·v + c", points: curve, line: true, color: "#111" },
                 ],
             ),
@@ -427,7 +517,8 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
     }
     if let Some(w) = &id.weight {
         let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
-        let curve: Vec<(f64, f64)> = (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
+        let curve: Vec<(f64, f64)> =
+            (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
         plots.push((
             "static.svg",
             svg_plot(
@@ -435,7 +526,12 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                 "q (rad)",
                 "torque (N·m)",
                 &[
-                    Series { name: "poses", points: id.poses.iter().map(|p| (p.q, p.d)).collect(), line: false, color: "#1f77b4" },
+                    Series {
+                        name: "poses",
+                        points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
+                        line: false,
+                        color: "#1f77b4",
+                    },
                     Series { name: "C_w0·sin(s·q + φ) + C_0", points: curve, line: true, color: "#111" },
                 ],
             ),
@@ -448,12 +544,15 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
             let w = id.weight.clone();
             let c0s = id.weight.as_ref().map_or(id.c0.unwrap_or(0.0), |w| w.c0);
             let band = id.v_band;
-            let model = |q: f64, v: f64| fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q));
+            let model = |q: f64, v: f64| {
+                fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q))
+            };
             let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
             let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
             let idx: Vec<usize> = subsample(&(0..p.len()).collect::<Vec<_>>(), 4000);
             let meas: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], d[i])).collect();
-            let pred: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], predict(id, data, Some(&dat.acc), li, i))).collect();
+            let pred: Vec<(f64, f64)> =
+                idx.iter().map(|&i| (p.t[i], predict(id, data, Some(&dat.acc), li, i))).collect();
             plots.push((
                 "overall.svg",
                 svg_plot(
@@ -470,7 +569,8 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                 let idx: Vec<usize> = (0..p.len()).filter(|&i| dat.mask[li][i]).collect();
                 let idx = subsample(&idx, 3000);
                 let pts: Vec<(f64, f64)> = idx.iter().map(|&i| (dat.acc[li][i], dat.y[li][i])).collect();
-                let (a0, a1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
+                let (a0, a1) =
+                    pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
                 plots.push((
                     "inertia.svg",
                     svg_plot(
@@ -479,7 +579,12 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                         "torque (N·m)",
                         &[
                             Series { name: "moving samples", points: pts, line: false, color: "#1f77b4" },
-                            Series { name: "J·q̈ + ΔC_0", points: vec![(a0, inr.j * a0 + inr.dc0), (a1, inr.j * a1 + inr.dc0)], line: true, color: "#111" },
+                            Series {
+                                name: "J·q̈ + ΔC_0",
+                                points: vec![(a0, inr.j * a0 + inr.dc0), (a1, inr.j * a1 + inr.dc0)],
+                                line: true,
+                                color: "#111",
+                            },
                         ],
                     ),
                 ));
@@ -496,7 +601,8 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
             (0..4).map(|k| second[k * (second.len() - 1) / 3]).collect()
         };
         let (q0, q1) = (t.grid[0][0], t.grid[0][t.grid[0].len() - 1]);
-        let names: Vec<String> = pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
+        let names: Vec<String> =
+            pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
         let mut series = Vec::new();
         for (k, v) in pick.iter().enumerate() {
             let pts = (0..=100)
@@ -508,19 +614,37 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                     (q, t.eval(&x).0)
                 })
                 .collect();
-            series.push(Series { name: if t.axes.len() > 1 { &names[k] } else { "table" }, points: pts, line: true, color: colors[k % 4] });
+            series.push(Series {
+                name: if t.axes.len() > 1 { &names[k] } else { "table" },
+                points: pts,
+                line: true,
+                color: colors[k % 4],
+            });
         }
-        plots.push(("gravity_table.svg", svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series)));
+        plots.push((
+            "gravity_table.svg",
+            svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series),
+        ));
     }
     if let Some(sp) = &id.spring {
         if let Some(st) = &sp.stat {
-            let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+            let (q0, q1) =
+                id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
             let h = 0.5 * st.dead_zone;
             let curve: Vec<(f64, f64)> = (0..=200)
                 .map(|k| q0 + (q1 - q0) * k as f64 / 200.0)
                 .map(|q| {
                     let x = q - st.q0;
-                    (q, st.k * if x > h { x - h } else if x < -h { x + h } else { 0.0 })
+                    (
+                        q,
+                        st.k * if x > h {
+                            x - h
+                        } else if x < -h {
+                            x + h
+                        } else {
+                            0.0
+                        },
+                    )
                 })
                 .collect();
             plots.push((
@@ -530,7 +654,12 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                     "q (rad)",
                     "torque (N·m)",
                     &[
-                        Series { name: "poses", points: id.poses.iter().map(|p| (p.q, p.d)).collect(), line: false, color: "#1f77b4" },
+                        Series {
+                            name: "poses",
+                            points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
+                            line: false,
+                            color: "#1f77b4",
+                        },
                         Series { name: "K·dz(q − q0)", points: curve, line: true, color: "#111" },
                     ],
                 ),
@@ -550,8 +679,18 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
                         "t (s)",
                         "q (rad)",
                         &[
-                            Series { name: "logged", points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(), line: false, color: "#1f77b4" },
-                            Series { name: "fitted model", points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(), line: true, color: "#111" },
+                            Series {
+                                name: "logged",
+                                points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(),
+                                line: false,
+                                color: "#1f77b4",
+                            },
+                            Series {
+                                name: "fitted model",
+                                points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(),
+                                line: true,
+                                color: "#111",
+                            },
                         ],
                     ),
                 ));
@@ -564,7 +703,16 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
     let _ = writeln!(md, "Hold-out: every 4th block of {BLOCK_S} s (or an eighth of a shorter log) is left out of a refit and used to score it.\n");
     md.push_str("| score | n | RMSE | r² | data |\n|---|---|---|---|---|\n");
     for s in &rep.scores {
-        let _ = writeln!(md, "| {} | {} | {:.4} {} | {:.4} | {} |", s.what, s.n, s.rmse, s.unit, s.r2, if s.held_out { "held-out" } else { "in-sample" });
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.4} {} | {:.4} | {} |",
+            s.what,
+            s.n,
+            s.rmse,
+            s.unit,
+            s.r2,
+            if s.held_out { "held-out" } else { "in-sample" }
+        );
     }
     md.push('\n');
     for (name, svg) in &plots {

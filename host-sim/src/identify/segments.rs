@@ -221,9 +221,11 @@ pub fn find(p: &Prepared, cfg: &SegmentCfg, windows: &[Window]) -> Vec<Segment> 
     if !given(SegKind::Plateau) {
         // Split by direction so a plateau never spans a reversal.
         for dir in [1.0f64, -1.0] {
-            let mask = p.qd_f.iter().zip(&p.qdd_f).map(|(v, a)| {
-                dir * v >= cfg.v_move && a.abs() <= cfg.a_flat + cfg.a_flat_rel * v.abs()
-            });
+            let mask = p
+                .qd_f
+                .iter()
+                .zip(&p.qdd_f)
+                .map(|(v, a)| dir * v >= cfg.v_move && a.abs() <= cfg.a_flat + cfg.a_flat_rel * v.abs());
             for (s, e) in runs(mask, n_plateau.max(2)) {
                 segs.push(Segment { kind: SegKind::Plateau, start: s, end: e });
             }

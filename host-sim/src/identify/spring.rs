@@ -149,12 +149,8 @@ pub fn free_fit(p: &Prepared, log: usize, seg: &Segment, q0: Option<f64>, w: f64
     // crosses zero at random and would fake a high frequency.
     let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let live = v.iter().rposition(|x| x.abs() > 0.1 * vmax).unwrap_or(n - 1) + 1;
-    let crossings: Vec<f64> = v[..live]
-        .windows(2)
-        .zip(t.windows(2))
-        .filter(|(v, _)| v[0] * v[1] < 0.0)
-        .map(|(_, t)| t[0])
-        .collect();
+    let crossings: Vec<f64> =
+        v[..live].windows(2).zip(t.windows(2)).filter(|(v, _)| v[0] * v[1] < 0.0).map(|(_, t)| t[0]).collect();
     let omega0 = if crossings.len() >= 3 {
         let span = crossings[crossings.len() - 1] - crossings[0];
         std::f64::consts::PI * (crossings.len() - 1) as f64 / span.max(1e-9)

@@ -158,6 +158,7 @@ pub fn fit(poses: &[Pose], with_offset: bool) -> Option<WeightFit> {
     let (alpha, beta) = (lf.beta[0], lf.beta[1]);
     let (a, s, phi) = normalise(alpha.hypot(beta), 1.0, beta.atan2(alpha));
     let c0 = if with_offset { lf.beta[2] } else { 0.0 };
-    let rms = (q.iter().zip(&y).map(|(q, y)| (a * (q + phi).sin() + c0 - y).powi(2)).sum::<f64>() / q.len() as f64).sqrt();
+    let rms =
+        (q.iter().zip(&y).map(|(q, y)| (a * (q + phi).sin() + c0 - y).powi(2)).sum::<f64>() / q.len() as f64).sqrt();
     Some(WeightFit { amplitude: a, s, phi, c0, fitted_offset: with_offset, se: lf.se, rms, s_fixed: true })
 }

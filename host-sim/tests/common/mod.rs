@@ -58,5 +58,9 @@ pub fn rms(v: &[f64]) -> f64 {
 }
 
 pub fn sign(x: f64) -> f64 {
-    if x >= 0.0 { 1.0 } else { -1.0 }
+    if x >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    }
 }

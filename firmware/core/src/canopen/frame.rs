@@ -39,21 +39,13 @@ impl CanFrame {
         }
         let mut d = [0u8; 8];
         d.get_mut(..data.len())?.copy_from_slice(data);
-        Some(CanFrame {
-            id,
-            len: data.len() as u8,
-            data: d,
-        })
+        Some(CanFrame { id, len: data.len() as u8, data: d })
     }
 
     /// A frame from a fixed 8-byte payload of which the first `len` bytes count (`len` and `id`
     /// are clamped into range, so this cannot fail; the node uses it for its own replies).
     pub fn from_parts(id: u16, data: [u8; 8], len: u8) -> CanFrame {
-        CanFrame {
-            id: id & ID_MAX,
-            len: len.min(8),
-            data,
-        }
+        CanFrame { id: id & ID_MAX, len: len.min(8), data }
     }
 
     /// The 11-bit identifier (COB-ID).

@@ -36,8 +36,8 @@ use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
-use crate::series::{RawSeries, TERMS_MAX, TERM_BYTES};
 use crate::safety::{Faults, Safety, SafetyConfig};
+use crate::series::{RawSeries, TERMS_MAX, TERM_BYTES};
 use crate::table::{AXES_MAX, AXIS_POINTS_MAX, AXIS_SOURCE_MAX, CELLS_MAX};
 
 /// NMT command specifiers (byte 0 of a 0x000 frame).
@@ -139,12 +139,8 @@ pub struct NodeConfig {
 
 /// Identity of this project's joint node. The vendor id is 0 ("unassigned" in CiA's list):
 /// we hold no CiA vendor id; a product shipping to others must get one.
-pub const DEFAULT_IDENTITY: Identity = Identity {
-    vendor_id: 0x0000_0000,
-    product_code: 0x4A4E_0001,
-    revision: 0x0001_0000,
-    serial: 0,
-};
+pub const DEFAULT_IDENTITY: Identity =
+    Identity { vendor_id: 0x0000_0000, product_code: 0x4A4E_0001, revision: 0x0001_0000, serial: 0 };
 
 impl NodeConfig {
     pub const fn new(node_id: u8) -> NodeConfig {
@@ -279,22 +275,8 @@ enum Value {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Transfer {
     Idle,
-    Download {
-        info: SubInfo,
-        toggle: bool,
-        len: usize,
-        expected: Option<usize>,
-        last_us: u64,
-    },
-    Upload {
-        index: u16,
-        sub: u8,
-        src: Big,
-        toggle: bool,
-        offset: usize,
-        total: usize,
-        last_us: u64,
-    },
+    Download { info: SubInfo, toggle: bool, len: usize, expected: Option<usize>, last_us: u64 },
+    Upload { index: u16, sub: u8, src: Big, toggle: bool, offset: usize, total: usize, last_us: u64 },
 }
 
 /// The joint's CANopen node. See the module documentation.
@@ -372,14 +354,8 @@ impl<S: ParamStorage> Node<S> {
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
             rpdo_cob: [0; od::RPDO_COUNT as usize],
-            tpdo: [Tpdo {
-                cob_id: 0,
-                transmission: 0,
-                inhibit: 0,
-                event_ms: 0,
-                next_us: 0,
-                last_us: None,
-            }; od::TPDO_COUNT as usize],
+            tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None };
+                od::TPDO_COUNT as usize],
             assist_cmd: 0.0,
             others: [0.0; 3],
             state: JointState::default(),
@@ -424,12 +400,7 @@ impl<S: ParamStorage> Node<S> {
         let id = u16::from(self.cfg.node_id);
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
-        self.rpdo_cob = [
-            u32::from(RPDO1_BASE + id),
-            COB_INVALID,
-            COB_INVALID,
-            COB_INVALID,
-        ];
+        self.rpdo_cob = [u32::from(RPDO1_BASE + id), COB_INVALID, COB_INVALID, COB_INVALID];
         for (n, t) in self.tpdo.iter_mut().enumerate() {
             *t = Tpdo {
                 cob_id: u32::from(TPDO1_BASE + 0x100 * n as u16 + id),
@@ -513,13 +484,7 @@ impl<S: ParamStorage> Node<S> {
     /// `tau_out`/`u_motor` after the safety layer; records the state for the TPDOs.
     pub fn control(&mut self, now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output {
         let mode = self.mode();
-        let inp = Input {
-            q,
-            qd,
-            qdd,
-            others: self.others,
-            assist_cmd: self.assist_cmd,
-        };
+        let inp = Input { q, qd, qdd, others: self.others, assist_cmd: self.assist_cmd };
         let p = self.active.current();
         let mut out = self.controller.step(p, mode, &inp, dt);
         let tau = self.safety.update(now_us, out.tau_out);
@@ -551,11 +516,7 @@ impl<S: ParamStorage> Node<S> {
         if !self.boot_sent {
             self.boot_sent = true;
             self.nmt = NmtState::PreOperational;
-            tx(frame(
-                HEARTBEAT_BASE + u16::from(self.cfg.node_id),
-                [0; 8],
-                1,
-            ));
+            tx(frame(HEARTBEAT_BASE + u16::from(self.cfg.node_id), [0; 8], 1));
             self.next_heartbeat_us = now_us.saturating_add(u64::from(self.heartbeat_ms) * 1000);
         }
     }
@@ -575,10 +536,7 @@ impl<S: ParamStorage> Node<S> {
             }
             return;
         }
-        if id == HEARTBEAT_BASE + u16::from(self.host_id)
-            && self.host_id != 0
-            && self.host_id != self.cfg.node_id
-        {
+        if id == HEARTBEAT_BASE + u16::from(self.host_id) && self.host_id != 0 && self.host_id != self.cfg.node_id {
             // Any state byte counts: the host is alive. Boot-up (0) too.
             if d.len() == 1 {
                 self.safety.on_heartbeat(now_us);
@@ -599,11 +557,7 @@ impl<S: ParamStorage> Node<S> {
         }
         if self.nmt == NmtState::Operational {
             for n in 0..od::RPDO_COUNT {
-                let cob = self
-                    .rpdo_cob
-                    .get(n as usize)
-                    .copied()
-                    .unwrap_or(COB_INVALID);
+                let cob = self.rpdo_cob.get(n as usize).copied().unwrap_or(COB_INVALID);
                 if cob & COB_INVALID == 0 && u32::from(id) == cob & 0x7FF {
                     self.rpdo(n, d, tx);
                 }
@@ -612,10 +566,7 @@ impl<S: ParamStorage> Node<S> {
     }
 
     fn rpdo(&mut self, n: u8, d: &[u8], tx: &mut impl FnMut(CanFrame)) {
-        let need: usize = od::rpdo_mapping(n)
-            .iter()
-            .map(|m| (m & 0xFF) as usize / 8)
-            .sum();
+        let need: usize = od::rpdo_mapping(n).iter().map(|m| (m & 0xFF) as usize / 8).sum();
         if d.len() < need {
             // CiA 301: a PDO shorter than its mapping is not processed; EMCY 0x8210.
             self.emcy(EMCY_PDO_LENGTH, [n, d.len() as u8, 0, 0, 0], tx);
@@ -669,17 +620,10 @@ impl<S: ParamStorage> Node<S> {
         }
         let me = u16::from(self.cfg.node_id);
         if self.heartbeat_ms != 0 && now_us >= self.next_heartbeat_us {
-            tx(frame(
-                HEARTBEAT_BASE + me,
-                [self.nmt.heartbeat_byte(), 0, 0, 0, 0, 0, 0, 0],
-                1,
-            ));
+            tx(frame(HEARTBEAT_BASE + me, [self.nmt.heartbeat_byte(), 0, 0, 0, 0, 0, 0, 0], 1));
             let period = u64::from(self.heartbeat_ms) * 1000;
             // Catch up without a burst after a stall.
-            self.next_heartbeat_us = self
-                .next_heartbeat_us
-                .saturating_add(period)
-                .max(now_us.saturating_add(1));
+            self.next_heartbeat_us = self.next_heartbeat_us.saturating_add(period).max(now_us.saturating_add(1));
         }
 
         // Advance the watchdog clock so a lost heartbeat is noticed even without control steps.
@@ -696,10 +640,7 @@ impl<S: ParamStorage> Node<S> {
         self.last_faults = faults;
         if self.pending_commit_emcy && self.nmt != NmtState::Stopped {
             self.pending_commit_emcy = false;
-            let (code, param) = self
-                .commit_error
-                .as_ref()
-                .map_or((0, 0xFFFF), |e| (e.code, e.param));
+            let (code, param) = self.commit_error.as_ref().map_or((0, 0xFFFF), |e| (e.code, e.param));
             let p = param.to_le_bytes();
             let f = faults.bits().to_le_bytes();
             // manufacturer bytes: commit error code, parameter index (0x2000 + it is the object), faults
@@ -707,28 +648,13 @@ impl<S: ParamStorage> Node<S> {
         }
 
         match self.transfer {
-            Transfer::Download { info, last_us, .. }
-                if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US =>
-            {
+            Transfer::Download { info, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
                 self.transfer = Transfer::Idle;
-                tx(frame(
-                    sdo::TX_BASE + me,
-                    sdo::abort_payload(info.index, info.sub, Abort::Timeout),
-                    8,
-                ));
+                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(info.index, info.sub, Abort::Timeout), 8));
             }
-            Transfer::Upload {
-                index,
-                sub,
-                last_us,
-                ..
-            } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
+            Transfer::Upload { index, sub, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
                 self.transfer = Transfer::Idle;
-                tx(frame(
-                    sdo::TX_BASE + me,
-                    sdo::abort_payload(index, sub, Abort::Timeout),
-                    8,
-                ));
+                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
             }
             _ => {}
         }
@@ -756,10 +682,7 @@ impl<S: ParamStorage> Node<S> {
         tx(frame((t.cob_id & 0x7FF) as u16, data, len));
         if let Some(t) = self.tpdo.get_mut(n as usize) {
             let period = u64::from(t.event_ms) * 1000;
-            t.next_us = t
-                .next_us
-                .saturating_add(period)
-                .max(now_us.saturating_add(1));
+            t.next_us = t.next_us.saturating_add(period).max(now_us.saturating_add(1));
             t.last_us = Some(now_us);
         }
     }
@@ -786,16 +709,7 @@ impl<S: ParamStorage> Node<S> {
 
     fn emcy(&mut self, code: u16, mfr: [u8; 5], tx: &mut impl FnMut(CanFrame)) {
         let c = code.to_le_bytes();
-        let d = [
-            c[0],
-            c[1],
-            self.error_register(),
-            mfr[0],
-            mfr[1],
-            mfr[2],
-            mfr[3],
-            mfr[4],
-        ];
+        let d = [c[0], c[1], self.error_register(), mfr[0], mfr[1], mfr[2], mfr[3], mfr[4]];
         tx(frame(EMCY_BASE + u16::from(self.cfg.node_id), d, 8));
     }
 
@@ -810,10 +724,7 @@ impl<S: ParamStorage> Node<S> {
         if f.intersects(Faults::HEARTBEAT_LOST.union(Faults::CAN_BUS_OFF)) {
             r |= 0x10;
         }
-        if !f
-            .difference(Faults::HEARTBEAT_LOST.union(Faults::CAN_BUS_OFF))
-            .is_empty()
-        {
+        if !f.difference(Faults::HEARTBEAT_LOST.union(Faults::CAN_BUS_OFF)).is_empty() {
             r |= 0x80;
         }
         r
@@ -843,10 +754,7 @@ impl<S: ParamStorage> Node<S> {
             sdo::CCS_DOWNLOAD_SEGMENT => self.download_segment(now_us, cmd, d),
             sdo::CCS_INITIATE_UPLOAD => {
                 self.transfer = Transfer::Idle;
-                Some(
-                    self.initiate_upload(now_us, index, sub)
-                        .unwrap_or_else(|a| sdo::abort_payload(index, sub, a)),
-                )
+                Some(self.initiate_upload(now_us, index, sub).unwrap_or_else(|a| sdo::abort_payload(index, sub, a)))
             }
             sdo::CCS_UPLOAD_SEGMENT => self.upload_segment(now_us, cmd),
             sdo::CCS_ABORT => {
@@ -860,67 +768,30 @@ impl<S: ParamStorage> Node<S> {
         }
     }
 
-    fn initiate_download(
-        &mut self,
-        now_us: u64,
-        index: u16,
-        sub: u8,
-        cmd: u8,
-        d: &[u8],
-    ) -> Result<[u8; 8], Abort> {
+    fn initiate_download(&mut self, now_us: u64, index: u16, sub: u8, cmd: u8, d: &[u8]) -> Result<[u8; 8], Abort> {
         let info = od::sub_info(index, sub)?;
         if !info.access.writable() {
             return Err(Abort::ReadOnly);
         }
         let expedited = cmd & 0x02 != 0;
         let sized = cmd & 0x01 != 0;
-        let ok = [
-            0x60,
-            d.get(1).copied().unwrap_or(0),
-            d.get(2).copied().unwrap_or(0),
-            sub,
-            0,
-            0,
-            0,
-            0,
-        ];
+        let ok = [0x60, d.get(1).copied().unwrap_or(0), d.get(2).copied().unwrap_or(0), sub, 0, 0, 0, 0];
         if expedited {
-            let len = if sized {
-                4 - ((cmd >> 2) & 0x03) as usize
-            } else {
-                info.dtype.size().unwrap_or(4).min(4)
-            };
+            let len = if sized { 4 - ((cmd >> 2) & 0x03) as usize } else { info.dtype.size().unwrap_or(4).min(4) };
             let data = d.get(4..4 + len).ok_or(Abort::TypeLength)?;
             self.write_value(&info, data, true)?;
             return Ok(ok);
         }
-        let expected = if sized {
-            Some(le_u32(d.get(4..8).unwrap_or(&[])) as usize)
-        } else {
-            None
-        };
+        let expected = if sized { Some(le_u32(d.get(4..8).unwrap_or(&[])) as usize) } else { None };
         if let Some(n) = expected {
             check_len(&info, n)?;
         }
-        self.transfer = Transfer::Download {
-            info,
-            toggle: false,
-            len: 0,
-            expected,
-            last_us: now_us,
-        };
+        self.transfer = Transfer::Download { info, toggle: false, len: 0, expected, last_us: now_us };
         Ok(ok)
     }
 
     fn download_segment(&mut self, now_us: u64, cmd: u8, d: &[u8]) -> Option<[u8; 8]> {
-        let Transfer::Download {
-            info,
-            toggle,
-            len,
-            expected,
-            ..
-        } = self.transfer
-        else {
+        let Transfer::Download { info, toggle, len, expected, .. } = self.transfer else {
             return Some(sdo::abort_payload(0, 0, Abort::Command));
         };
         let abort = |s: &mut Self, a: Abort| {
@@ -943,13 +814,7 @@ impl<S: ParamStorage> Node<S> {
         }
         let resp = [0x20 | (u8::from(t) << 4), 0, 0, 0, 0, 0, 0, 0];
         if cmd & 0x01 == 0 {
-            self.transfer = Transfer::Download {
-                info,
-                toggle: !toggle,
-                len: end,
-                expected,
-                last_us: now_us,
-            };
+            self.transfer = Transfer::Download { info, toggle: !toggle, len: end, expected, last_us: now_us };
             return Some(resp);
         }
         self.transfer = Transfer::Idle;
@@ -974,16 +839,7 @@ impl<S: ParamStorage> Node<S> {
         }
         let i = index.to_le_bytes();
         match self.read_value(&info)? {
-            Value::Small(v, n) => Ok([
-                0x43 | (((4 - n.min(4)) as u8) << 2),
-                i[0],
-                i[1],
-                sub,
-                v[0],
-                v[1],
-                v[2],
-                v[3],
-            ]),
+            Value::Small(v, n) => Ok([0x43 | (((4 - n.min(4)) as u8) << 2), i[0], i[1], sub, v[0], v[1], v[2], v[3]]),
             Value::Big(src) => {
                 let total = self.big_len(src);
                 if total <= 4 {
@@ -994,27 +850,10 @@ impl<S: ParamStorage> Node<S> {
                     // An empty value still needs one byte on the wire for expedited; use a
                     // segmented upload of 0 bytes instead.
                     if total > 0 {
-                        return Ok([
-                            0x43 | (((4 - total) as u8) << 2),
-                            i[0],
-                            i[1],
-                            sub,
-                            v[0],
-                            v[1],
-                            v[2],
-                            v[3],
-                        ]);
+                        return Ok([0x43 | (((4 - total) as u8) << 2), i[0], i[1], sub, v[0], v[1], v[2], v[3]]);
                     }
                 }
-                self.transfer = Transfer::Upload {
-                    index,
-                    sub,
-                    src,
-                    toggle: false,
-                    offset: 0,
-                    total,
-                    last_us: now_us,
-                };
+                self.transfer = Transfer::Upload { index, sub, src, toggle: false, offset: 0, total, last_us: now_us };
                 let s = (total as u32).to_le_bytes();
                 Ok([0x41, i[0], i[1], sub, s[0], s[1], s[2], s[3]])
             }
@@ -1022,16 +861,7 @@ impl<S: ParamStorage> Node<S> {
     }
 
     fn upload_segment(&mut self, now_us: u64, cmd: u8) -> Option<[u8; 8]> {
-        let Transfer::Upload {
-            index,
-            sub,
-            src,
-            toggle,
-            offset,
-            total,
-            ..
-        } = self.transfer
-        else {
+        let Transfer::Upload { index, sub, src, toggle, offset, total, .. } = self.transfer else {
             return Some(sdo::abort_payload(0, 0, Abort::Command));
         };
         let t = cmd & 0x10 != 0;
@@ -1051,15 +881,7 @@ impl<S: ParamStorage> Node<S> {
         self.transfer = if last {
             Transfer::Idle
         } else {
-            Transfer::Upload {
-                index,
-                sub,
-                src,
-                toggle: !toggle,
-                offset: offset + n,
-                total,
-                last_us: now_us,
-            }
+            Transfer::Upload { index, sub, src, toggle: !toggle, offset: offset + n, total, last_us: now_us }
         };
         Some(resp)
     }
@@ -1083,23 +905,13 @@ impl<S: ParamStorage> Node<S> {
         let f = |v: Option<&f32>| v.map_or(0, |x| x.to_le_bytes().get(i % 4).copied().unwrap_or(0));
         match src {
             Big::DeviceName => self.cfg.device_name.as_bytes().get(i).copied().unwrap_or(0),
-            Big::SoftwareVersion => self
-                .cfg
-                .software_version
-                .as_bytes()
-                .get(i)
-                .copied()
-                .unwrap_or(0),
-            Big::ErrorMessage => self
-                .commit_error
-                .as_ref()
-                .and_then(|e| e.message.as_bytes().get(i).copied())
-                .unwrap_or(0),
+            Big::SoftwareVersion => self.cfg.software_version.as_bytes().get(i).copied().unwrap_or(0),
+            Big::ErrorMessage => {
+                self.commit_error.as_ref().and_then(|e| e.message.as_bytes().get(i).copied()).unwrap_or(0)
+            }
             Big::Grid => {
                 let k = i / 4;
-                f(t.grid
-                    .get(k / AXIS_POINTS_MAX)
-                    .and_then(|r| r.get(k % AXIS_POINTS_MAX)))
+                f(t.grid.get(k / AXIS_POINTS_MAX).and_then(|r| r.get(k % AXIS_POINTS_MAX)))
             }
             Big::Torque => f(t.torque.get(i / 4)),
             Big::Sigma => f(t.sigma.get(i / 4)),
@@ -1117,9 +929,7 @@ impl<S: ParamStorage> Node<S> {
             Key::Count(n) => put_u8(n),
             // bit 0: saves on command
             Key::StoreAll | Key::RestoreAll => put_u32(1),
-            Key::ConsumerHeartbeat => {
-                put_u32((u32::from(self.host_id) << 16) | self.heartbeat_timeout_ms())
-            }
+            Key::ConsumerHeartbeat => put_u32((u32::from(self.host_id) << 16) | self.heartbeat_timeout_ms()),
             Key::ProducerHeartbeat => put_u16(self.heartbeat_ms),
             Key::Identity(s) => put_u32(match s {
                 1 => self.cfg.identity.vendor_id,
@@ -1127,31 +937,14 @@ impl<S: ParamStorage> Node<S> {
                 3 => self.cfg.identity.revision,
                 _ => self.cfg.identity.serial,
             }),
-            Key::RpdoCobId(n) => put_u32(
-                self.rpdo_cob
-                    .get(n as usize)
-                    .copied()
-                    .unwrap_or(COB_INVALID),
-            ),
+            Key::RpdoCobId(n) => put_u32(self.rpdo_cob.get(n as usize).copied().unwrap_or(COB_INVALID)),
             Key::RpdoType(_) => put_u8(0xFE),
-            Key::RpdoMap(n, s) => put_u32(
-                od::rpdo_mapping(n)
-                    .get((s as usize).wrapping_sub(1))
-                    .copied()
-                    .unwrap_or(0),
-            ),
-            Key::TpdoCobId(n) => {
-                put_u32(self.tpdo.get(n as usize).map_or(COB_INVALID, |t| t.cob_id))
-            }
+            Key::RpdoMap(n, s) => put_u32(od::rpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+            Key::TpdoCobId(n) => put_u32(self.tpdo.get(n as usize).map_or(COB_INVALID, |t| t.cob_id)),
             Key::TpdoType(n) => put_u8(self.tpdo.get(n as usize).map_or(0xFE, |t| t.transmission)),
             Key::TpdoInhibit(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.inhibit)),
             Key::TpdoEvent(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.event_ms)),
-            Key::TpdoMap(n, s) => put_u32(
-                od::tpdo_mapping(n)
-                    .get((s as usize).wrapping_sub(1))
-                    .copied()
-                    .unwrap_or(0),
-            ),
+            Key::TpdoMap(n, s) => put_u32(od::tpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
             Key::Param(p) => put_u32(self.staged.get(p).to_bits()),
             Key::TableShape(s) => put_u8(match s {
                 1 => t.n_axes,
@@ -1184,13 +977,9 @@ impl<S: ParamStorage> Node<S> {
                 }
             }
             Key::AssistCmd => put_i16(to_i16(self.assist_cmd, pdo::TAU_LSB)),
-            Key::OtherAngle(s) => put_i16(to_i16(
-                self.others
-                    .get((s as usize).wrapping_sub(1))
-                    .copied()
-                    .unwrap_or(0.0),
-                pdo::Q_LSB,
-            )),
+            Key::OtherAngle(s) => {
+                put_i16(to_i16(self.others.get((s as usize).wrapping_sub(1)).copied().unwrap_or(0.0), pdo::Q_LSB))
+            }
         })
     }
 
@@ -1226,9 +1015,7 @@ impl<S: ParamStorage> Node<S> {
                 if u != od::LOAD_SIGNATURE {
                     return Err(Abort::CannotStore);
                 }
-                self.storage
-                    .restore_defaults()
-                    .map_err(|_| Abort::CannotStore)?;
+                self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
                 self.staged = RawParams::defaults();
                 Ok(())
             }
@@ -1314,10 +1101,7 @@ impl<S: ParamStorage> Node<S> {
                     if !math::is_finite(v) {
                         return Err(Abort::InvalidValue);
                     }
-                    if let Some(x) = grid
-                        .get_mut(k / AXIS_POINTS_MAX)
-                        .and_then(|r| r.get_mut(k % AXIS_POINTS_MAX))
-                    {
+                    if let Some(x) = grid.get_mut(k / AXIS_POINTS_MAX).and_then(|r| r.get_mut(k % AXIS_POINTS_MAX)) {
                         *x = v;
                     }
                 }
@@ -1374,10 +1158,7 @@ impl<S: ParamStorage> Node<S> {
                 if u != 1 {
                     return Err(Abort::InvalidValue);
                 }
-                self.safety
-                    .clear_faults(self.now_us)
-                    .map(|_| ())
-                    .map_err(|_| Abort::DeviceState)
+                self.safety.clear_faults(self.now_us).map(|_| ()).map_err(|_| Abort::DeviceState)
             }
             Key::AssistCmd => {
                 if from_sdo && self.nmt != NmtState::Operational {
@@ -1402,16 +1183,8 @@ impl<S: ParamStorage> Node<S> {
         let t = &mut self.staged.table;
         let (limit, slot) = match s {
             1 => (AXES_MAX as u8, &mut t.n_axes),
-            2..=5 => (
-                AXIS_SOURCE_MAX,
-                t.axis_source
-                    .get_mut(s as usize - 2)
-                    .ok_or(Abort::NoSubIndex)?,
-            ),
-            6..=9 => (
-                AXIS_POINTS_MAX as u8,
-                t.points.get_mut(s as usize - 6).ok_or(Abort::NoSubIndex)?,
-            ),
+            2..=5 => (AXIS_SOURCE_MAX, t.axis_source.get_mut(s as usize - 2).ok_or(Abort::NoSubIndex)?),
+            6..=9 => (AXIS_POINTS_MAX as u8, t.points.get_mut(s as usize - 6).ok_or(Abort::NoSubIndex)?),
             _ => {
                 if v > 1 {
                     return Err(Abort::TooHigh);
@@ -1435,17 +1208,13 @@ impl<S: ParamStorage> Node<S> {
     fn commit(&mut self) -> Result<(), Abort> {
         let old = self.active.current().raw();
         if !self.in_preop() {
-            let changed = PARAMS
-                .iter()
-                .find(|d| d.safety && self.staged.get(d.id).to_bits() != old.get(d.id).to_bits());
+            let changed =
+                PARAMS.iter().find(|d| d.safety && self.staged.get(d.id).to_bits() != old.get(d.id).to_bits());
             if let Some(d) = changed {
                 self.set_commit_error(
                     5,
                     d.id.index() as u16,
-                    format_args!(
-                        "{} is safety-relevant: commit it in pre-operational",
-                        d.name
-                    ),
+                    format_args!("{} is safety-relevant: commit it in pre-operational", d.name),
                 );
                 return Err(Abort::DeviceState);
             }
@@ -1459,14 +1228,9 @@ impl<S: ParamStorage> Node<S> {
             Err(e) => {
                 let (code, abort) = match e {
                     ParamError::NotFinite { .. } => (1, Abort::InvalidValue),
-                    ParamError::OutOfRange { value, max, .. } => (
-                        2,
-                        if value > max {
-                            Abort::TooHigh
-                        } else {
-                            Abort::TooLow
-                        },
-                    ),
+                    ParamError::OutOfRange { value, max, .. } => {
+                        (2, if value > max { Abort::TooHigh } else { Abort::TooLow })
+                    }
                     ParamError::Inconsistent { .. } => (3, Abort::InvalidValue),
                     ParamError::Table(_) => (4, Abort::InvalidValue),
                     ParamError::Series(_) => (6, Abort::InvalidValue),
@@ -1482,11 +1246,7 @@ impl<S: ParamStorage> Node<S> {
         let mut message = heapless::String::<120>::new();
         // A message longer than the buffer is cut; the code and param index stay exact.
         let _ = core::fmt::write(&mut Truncate(&mut message), msg);
-        self.commit_error = Some(CommitError {
-            code,
-            param,
-            message,
-        });
+        self.commit_error = Some(CommitError { code, param, message });
         self.pending_commit_emcy = true;
     }
 
@@ -1577,11 +1337,7 @@ fn check_cob(u: u32) -> Result<u32, Abort> {
 fn emcy_code(new: Faults) -> u16 {
     if new.contains(Faults::HEARTBEAT_LOST) {
         EMCY_HEARTBEAT
-    } else if new.intersects(
-        Faults::PARAMS_CORRUPT
-            .union(Faults::PARAMS_REJECTED)
-            .union(Faults::PARAMS_VERSION),
-    ) {
+    } else if new.intersects(Faults::PARAMS_CORRUPT.union(Faults::PARAMS_REJECTED).union(Faults::PARAMS_VERSION)) {
         EMCY_PARAMS
     } else if new.contains(Faults::CAN_BUS_OFF) {
         EMCY_BUS_OFF

@@ -212,16 +212,8 @@ pub const JS_TAU_MEAS: u8 = 6;
 pub const JS_TEMP: u8 = 7;
 pub const JS_GAIN: u8 = 8;
 
-const JOINT_STATE_NAMES: [&str; 8] = [
-    "q",
-    "qd",
-    "tau_cmd",
-    "faults",
-    "qdd",
-    "tau_measured",
-    "temperature",
-    "gain_permille",
-];
+const JOINT_STATE_NAMES: [&str; 8] =
+    ["q", "qd", "tau_cmd", "faults", "qdd", "tau_measured", "temperature", "gain_permille"];
 const SHAPE_NAMES: [&str; 11] = [
     "n_axes",
     "axis_source_0",
@@ -235,31 +227,12 @@ const SHAPE_NAMES: [&str; 11] = [
     "has_sigma",
     "residual",
 ];
-const IDENTITY_NAMES: [&str; 4] = [
-    "vendor_id",
-    "product_code",
-    "revision_number",
-    "serial_number",
-];
-const MAP_NAMES: [&str; 4] = [
-    "mapped_object_1",
-    "mapped_object_2",
-    "mapped_object_3",
-    "mapped_object_4",
-];
+const IDENTITY_NAMES: [&str; 4] = ["vendor_id", "product_code", "revision_number", "serial_number"];
+const MAP_NAMES: [&str; 4] = ["mapped_object_1", "mapped_object_2", "mapped_object_3", "mapped_object_4"];
 const OTHER_NAMES: [&str; 3] = ["other_angle_1", "other_angle_2", "other_angle_3"];
-const RPDO_NAMES: [&str; 4] = [
-    "rpdo1_communication",
-    "rpdo2_communication",
-    "rpdo3_communication",
-    "rpdo4_communication",
-];
-const RPDO_MAP_NAMES: [&str; 4] = [
-    "rpdo1_mapping",
-    "rpdo2_mapping",
-    "rpdo3_mapping",
-    "rpdo4_mapping",
-];
+const RPDO_NAMES: [&str; 4] =
+    ["rpdo1_communication", "rpdo2_communication", "rpdo3_communication", "rpdo4_communication"];
+const RPDO_MAP_NAMES: [&str; 4] = ["rpdo1_mapping", "rpdo2_mapping", "rpdo3_mapping", "rpdo4_mapping"];
 const TPDO_NAMES: [&str; 2] = ["tpdo1_communication", "tpdo2_communication"];
 const TPDO_MAP_NAMES: [&str; 2] = ["tpdo1_mapping", "tpdo2_mapping"];
 
@@ -356,14 +329,7 @@ const TPDO_COMM_SUBS: &[u8] = &[0, 1, 2, 3, 5];
 /// The object at `index`, if the dictionary has it.
 pub fn object_info(index: u16) -> Option<ObjectInfo> {
     use ObjectKind::*;
-    let o = |name, kind, subs| {
-        Some(ObjectInfo {
-            index,
-            name,
-            kind,
-            subs,
-        })
-    };
+    let o = |name, kind, subs| Some(ObjectInfo { index, name, kind, subs });
     match index {
         DEVICE_TYPE => o("device_type", Var, SUB0),
         ERROR_REGISTER => o("error_register", Var, SUB0),
@@ -374,39 +340,21 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         CONSUMER_HEARTBEAT => o("consumer_heartbeat_time", Array, SUBS_1),
         PRODUCER_HEARTBEAT => o("producer_heartbeat_time", Var, SUB0),
         IDENTITY => o("identity", Record, SUBS_4),
-        i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => o(
-            RPDO_NAMES
-                .get((i - RPDO_COMM) as usize)
-                .copied()
-                .unwrap_or(""),
-            Record,
-            SUBS_2,
-        ),
+        i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
+            o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
+        }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
             let n = (i - RPDO_MAP) as u8;
             let subs = SUBS_4.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
-            o(
-                RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""),
-                Record,
-                subs,
-            )
+            o(RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
         }
-        i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => o(
-            TPDO_NAMES
-                .get((i - TPDO_COMM) as usize)
-                .copied()
-                .unwrap_or(""),
-            Record,
-            TPDO_COMM_SUBS,
-        ),
+        i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
+            o(TPDO_NAMES.get((i - TPDO_COMM) as usize).copied().unwrap_or(""), Record, TPDO_COMM_SUBS)
+        }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
             let n = (i - TPDO_MAP) as u8;
             let subs = SUBS_4.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
-            o(
-                TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""),
-                Record,
-                subs,
-            )
+            o(TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let d = PARAMS.get((i - PARAM_BASE) as usize)?;
@@ -451,107 +399,53 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
     };
     let highest = obj.subs.last().copied().unwrap_or(0);
     if sub == 0 && obj.kind != ObjectKind::Var {
-        return Ok(mk(
-            "highest_sub_index",
-            Unsigned8,
-            Const,
-            Key::Count(highest),
-        ));
+        return Ok(mk("highest_sub_index", Unsigned8, Const, Key::Count(highest)));
     }
     let idx_in = |base: u16| (index - base) as u8;
     let info = match index {
         DEVICE_TYPE => mk("device_type", Unsigned32, Const, Key::DeviceType),
-        ERROR_REGISTER => SubInfo {
-            pdo: true,
-            ..mk("error_register", Unsigned8, Ro, Key::ErrorRegister)
-        },
-        DEVICE_NAME => mk(
-            "manufacturer_device_name",
-            VisibleString,
-            Const,
-            Key::DeviceName,
-        ),
-        SOFTWARE_VERSION => mk(
-            "manufacturer_software_version",
-            VisibleString,
-            Const,
-            Key::SoftwareVersion,
-        ),
+        ERROR_REGISTER => SubInfo { pdo: true, ..mk("error_register", Unsigned8, Ro, Key::ErrorRegister) },
+        DEVICE_NAME => mk("manufacturer_device_name", VisibleString, Const, Key::DeviceName),
+        SOFTWARE_VERSION => mk("manufacturer_software_version", VisibleString, Const, Key::SoftwareVersion),
         STORE_PARAMETERS => mk("save_all_parameters", Unsigned32, Rw, Key::StoreAll),
-        RESTORE_DEFAULTS => mk(
-            "restore_all_default_parameters",
-            Unsigned32,
-            Rw,
-            Key::RestoreAll,
-        ),
-        CONSUMER_HEARTBEAT => mk(
-            "consumer_heartbeat_time_1",
-            Unsigned32,
-            Rw,
-            Key::ConsumerHeartbeat,
-        ),
-        PRODUCER_HEARTBEAT => mk(
-            "producer_heartbeat_time",
-            Unsigned16,
-            Rw,
-            Key::ProducerHeartbeat,
-        ),
+        RESTORE_DEFAULTS => mk("restore_all_default_parameters", Unsigned32, Rw, Key::RestoreAll),
+        CONSUMER_HEARTBEAT => mk("consumer_heartbeat_time_1", Unsigned32, Rw, Key::ConsumerHeartbeat),
+        PRODUCER_HEARTBEAT => mk("producer_heartbeat_time", Unsigned16, Rw, Key::ProducerHeartbeat),
         IDENTITY => {
-            let name = IDENTITY_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
+            let name = IDENTITY_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             mk(name, Unsigned32, Ro, Key::Identity(sub))
         }
         i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
             let n = idx_in(RPDO_COMM);
             match sub {
-                1 => SubInfo {
-                    node_relative: n == 0,
-                    ..mk("cob_id", Unsigned32, Rw, Key::RpdoCobId(n))
-                },
+                1 => SubInfo { node_relative: n == 0, ..mk("cob_id", Unsigned32, Rw, Key::RpdoCobId(n)) },
                 _ => mk("transmission_type", Unsigned8, Ro, Key::RpdoType(n)),
             }
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
-            let name = MAP_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
+            let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             mk(name, Unsigned32, Ro, Key::RpdoMap(idx_in(RPDO_MAP), sub))
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
             let n = idx_in(TPDO_COMM);
             match sub {
-                1 => SubInfo {
-                    node_relative: true,
-                    ..mk("cob_id", Unsigned32, Rw, Key::TpdoCobId(n))
-                },
+                1 => SubInfo { node_relative: true, ..mk("cob_id", Unsigned32, Rw, Key::TpdoCobId(n)) },
                 2 => mk("transmission_type", Unsigned8, Rw, Key::TpdoType(n)),
                 3 => mk("inhibit_time", Unsigned16, Rw, Key::TpdoInhibit(n)),
                 _ => mk("event_timer", Unsigned16, Rw, Key::TpdoEvent(n)),
             }
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
-            let name = MAP_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
+            let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             mk(name, Unsigned32, Ro, Key::TpdoMap(idx_in(TPDO_MAP), sub))
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let id = ParamId::from_index((i - PARAM_BASE) as usize).ok_or(Abort::NoObject)?;
             let d = id.desc();
-            SubInfo {
-                limits: Some((d.min, d.max)),
-                ..mk(d.name, Real32, Rw, Key::Param(id))
-            }
+            SubInfo { limits: Some((d.min, d.max)), ..mk(d.name, Real32, Rw, Key::Param(id)) }
         }
         TABLE_SHAPE => {
-            let name = SHAPE_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
+            let name = SHAPE_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             mk(name, Unsigned8, Rw, Key::TableShape(sub))
         }
         TABLE_GRID => mk("gravity_table_grid", Domain, Rw, Key::TableGrid),
@@ -568,33 +462,14 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         CLEAR_FAULTS => mk("clear_faults", Unsigned8, Wo, Key::ClearFaults),
         PENDING => mk("params_pending", Unsigned8, Ro, Key::Pending),
         JOINT_STATE => {
-            let name = JOINT_STATE_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
-            let dtype = if sub == JS_FAULTS || sub == JS_GAIN {
-                Unsigned16
-            } else {
-                Integer16
-            };
-            SubInfo {
-                pdo: true,
-                ..mk(name, dtype, Ro, Key::JointState(sub))
-            }
+            let name = JOINT_STATE_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
+            let dtype = if sub == JS_FAULTS || sub == JS_GAIN { Unsigned16 } else { Integer16 };
+            SubInfo { pdo: true, ..mk(name, dtype, Ro, Key::JointState(sub)) }
         }
-        HOST_COMMAND => SubInfo {
-            pdo: true,
-            ..mk("assist_cmd", Integer16, Rw, Key::AssistCmd)
-        },
+        HOST_COMMAND => SubInfo { pdo: true, ..mk("assist_cmd", Integer16, Rw, Key::AssistCmd) },
         OTHER_ANGLES => {
-            let name = OTHER_NAMES
-                .get((sub as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or("");
-            SubInfo {
-                pdo: true,
-                ..mk(name, Integer16, Rw, Key::OtherAngle(sub))
-            }
+            let name = OTHER_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
+            SubInfo { pdo: true, ..mk(name, Integer16, Rw, Key::OtherAngle(sub)) }
         }
         _ => return Err(Abort::NoObject),
     };

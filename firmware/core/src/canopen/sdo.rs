@@ -97,9 +97,7 @@ impl Abort {
             Abort::WriteOnly => "attempt to read a write-only object",
             Abort::ReadOnly => "attempt to write a read-only object",
             Abort::NoObject => "object does not exist in the object dictionary",
-            Abort::TypeLength => {
-                "data type does not match, length of service parameter does not match"
-            }
+            Abort::TypeLength => "data type does not match, length of service parameter does not match",
             Abort::TooLong => "data type does not match, length of service parameter too high",
             Abort::TooShort => "data type does not match, length of service parameter too low",
             Abort::NoSubIndex => "sub-index does not exist",
@@ -108,9 +106,7 @@ impl Abort {
             Abort::TooLow => "value of parameter written too low",
             Abort::General => "general error",
             Abort::CannotStore => "data cannot be transferred or stored to the application",
-            Abort::DeviceState => {
-                "data cannot be transferred or stored because of the present device state"
-            }
+            Abort::DeviceState => "data cannot be transferred or stored because of the present device state",
         }
     }
 }

@@ -238,13 +238,15 @@ fn run() -> i32 {
         ("math::sin (core f32 routine)", each(&inp, |i| joint_core::math::sin(i.q))),
         ("Friction::torque", each(&inp, |i| t.friction.torque(i.qd))),
         ("Weight::torque", each(&inp, |i| t.weight.torque(i.q))),
-        ("table::interpolate (2-D, one value array)", each(&inp, |i| {
-            joint_core::table::interpolate(tbl, &tbl.torque, &[i.q, i.others[0], 0.0, 0.0])
-        })),
+        (
+            "table::interpolate (2-D, one value array)",
+            each(&inp, |i| joint_core::table::interpolate(tbl, &tbl.torque, &[i.q, i.others[0], 0.0, 0.0])),
+        ),
         ("table::fuse", each(&inp, |i| joint_core::table::fuse(i.q, 0.3, i.qd, 0.2, 1.0))),
-        ("control::gravity (weight + 2 interpolations + fuse)", each(&inp, |i| {
-            joint_core::control::gravity(&table, i.q, &i.others)
-        })),
+        (
+            "control::gravity (weight + 2 interpolations + fuse)",
+            each(&inp, |i| joint_core::control::gravity(&table, i.q, &i.others)),
+        ),
         ("Differentiator::update", {
             let mut d = joint_core::control::Differentiator::new();
             each(&inp, |i| d.update(i.q, 0.001, 100.0))
