@@ -12,12 +12,12 @@ bash scripts/python-venv-diag.sh > /dev/null
 dir="$PWD/target/diag-bench"
 mkdir -p "$dir"
 # First run: builds the bench and writes bench-1m.csv/bench-model.toml into $dir if missing.
-DIAG_BENCH_KEEP="$dir" cargo bench -q -p host-sim --bench diagnose > /dev/null
+DIAG_BENCH_KEEP="$dir" cargo bench -q -p joint-analysis --bench diagnose > /dev/null
 csv="$dir/bench-1m.csv" model="$dir/bench-model.toml"
 rust=() numpy=() lstsq=()
 figure() { sed -n 's/.*total_s=\([0-9.]*\).*/\1/p'; }
 for i in $(seq "$runs"); do
-    r=$(DIAG_BENCH_KEEP="$dir" cargo bench -q -p host-sim --bench diagnose | tee /dev/stderr | grep DIAG_BENCH | figure)
+    r=$(DIAG_BENCH_KEEP="$dir" cargo bench -q -p joint-analysis --bench diagnose | tee /dev/stderr | grep DIAG_BENCH | figure)
     n=$(.venv/bin/python tests/python/bench_numpy_diagnose.py "$csv" "$model" | tee /dev/stderr | grep NUMPY_BENCH | figure)
     l=$(.venv/bin/python tests/python/bench_numpy_diagnose.py --lstsq "$csv" "$model" | tee /dev/stderr | grep NUMPY_BENCH | figure)
     rust+=("$r") numpy+=("$n") lstsq+=("$l")

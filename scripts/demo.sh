@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 mkdir -p out
-cargo run --release -q -p host-sim --bin jointctl -- simulate \
+cargo run --release -q -p jointctl --bin jointctl -- simulate \
     --plant examples/plants/trunk-right.toml \
     --controller examples/models/trunk-right.toml \
     --scenario hand --seconds 20 --seed 1 \

@@ -16,8 +16,8 @@ echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 
 bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
-echo "== host-sim lints (jointctl and its library)"
-cargo clippy -q -p host-sim --lib --bins -- -D warnings
+echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
+cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl --lib --bins -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"
 bash scripts/python-venv.sh
 echo "== headless Chromium for the diagnosis report test"

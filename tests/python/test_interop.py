@@ -36,7 +36,7 @@ def jointctl() -> str:
         return exe
     target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
     exe = Path(target) / "debug" / "jointctl"
-    assert exe.exists(), f"{exe} missing: `cargo build -p host-sim`, or set JOINTCTL to the binary"
+    assert exe.exists(), f"{exe} missing: `cargo build -p jointctl`, or set JOINTCTL to the binary"
     return str(exe)
 
 

@@ -10,11 +10,11 @@
 use std::process::Command;
 use std::time::Instant;
 
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 
@@ -34,7 +34,7 @@ fn child(log: &str, model: &str) {
     let t_read = t0.elapsed().as_secs_f64();
     let m = ModelFile::read_file(std::path::Path::new(model)).unwrap();
     let t1 = Instant::now();
-    let d = host_sim::diagnose::diagnose(&l, &m, &host_sim::diagnose::Options::default()).unwrap();
+    let d = joint_analysis::diagnose::diagnose(&l, &m, &joint_analysis::diagnose::Options::default()).unwrap();
     let t_diag = t1.elapsed().as_secs_f64();
     let json = serde_json::to_string(&d.report).unwrap();
     let total = t0.elapsed().as_secs_f64();

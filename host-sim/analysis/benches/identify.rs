@@ -7,14 +7,14 @@
 
 use std::time::Instant;
 
-use host_sim::identify::{self, Options, Quiet};
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{self, SimConfig};
+use joint_analysis::identify::{self, Options, Quiet};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 fn stats(name: &str, mut v: Vec<f64>) {
     v.sort_by(f64::total_cmp);

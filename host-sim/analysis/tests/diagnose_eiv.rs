@@ -4,16 +4,16 @@
 //! diagnosis now estimates σ² from the q̈ column and removes it from the fits' normal equations.
 #![allow(clippy::unwrap_used)]
 
-use host_sim::diagnose::{candidates::white_noise_var, diagnose, Options};
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
+use joint_analysis::diagnose::{candidates::white_noise_var, diagnose, Options};
+use joint_formats::model_file::ModelFile;
 
 const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 const QDD_NOISE: f64 = 0.8;
 
-fn log(seconds: f64) -> host_sim::log::JointLog {
+fn log(seconds: f64) -> joint_formats::log::JointLog {
     let plant = PlantFile::parse(
         &format!("{MODEL}[sensors]\nq_noise = 0.0001\nqd_noise = 0.002\nqdd_noise = {QDD_NOISE}\ntau_noise = 0.08\n[joint_range]\nmin = 0.0\nmax = 2.0\n"),
         "eiv-plant",

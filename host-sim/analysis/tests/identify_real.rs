@@ -6,13 +6,13 @@
 
 use std::path::PathBuf;
 
-use host_sim::identify::import::{convert, Format, ImportOpts};
-use host_sim::identify::segments::{SegKind, Window};
-use host_sim::identify::{self, filter, Method, Options, Quiet, Term};
-use host_sim::log::JointLog;
+use joint_analysis::identify::segments::{SegKind, Window};
+use joint_analysis::identify::{self, filter, Method, Options, Quiet, Term};
+use joint_formats::import::{convert, Format, ImportOpts};
+use joint_formats::log::JointLog;
 
 fn data(rel: &str) -> Option<String> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/real")).join(rel);
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/real")).join(rel);
     match std::fs::read_to_string(&p) {
         Ok(t) => Some(t),
         Err(_) => {

@@ -3,15 +3,15 @@
 //! poses (torque mode), J and B from a free release (trajectory mode, no u/tau).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use host_sim::identify::{self, Options, Quiet, Term};
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{self, SimConfig};
+use joint_analysis::identify::{self, Options, Quiet, Term};
 use joint_core::params::ParamId;
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 fn sim(plant: &str, scn: ScenarioKind, secs: f64, torque: bool) -> (JointLog, ModelFile) {
     let plant = PlantFile::read_file(std::path::Path::new(&format!("{ROOT}/examples/plants/{plant}"))).unwrap();

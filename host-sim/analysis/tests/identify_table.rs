@@ -3,10 +3,10 @@
 //! the firmware core's own `gravity()`, must reproduce the plant's static torque.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use host_sim::identify::{self, Options, Quiet, Term};
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{self, SimConfig};
+use joint_analysis::identify::{self, Options, Quiet, Term};
 use joint_core::control;
 use joint_core::params::ParamId;
 
@@ -61,7 +61,7 @@ fn table_over_two_joints_reproduces_the_static_torque() {
     };
     let qs_col = log.other("q_shoulder").unwrap();
     let (mut e_table, mut e_weight, mut n) = (0.0, 0.0, 0.0);
-    for s in id.segments[0].iter().filter(|s| s.kind == host_sim::identify::segments::SegKind::Static) {
+    for s in id.segments[0].iter().filter(|s| s.kind == joint_analysis::identify::segments::SegKind::Static) {
         for i in (s.start..s.end).step_by(20) {
             let (q, qs) = (log.q[i], qs_col[i]);
             let tr = static_torque(&truth, q, qs);

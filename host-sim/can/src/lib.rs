@@ -1,12 +1,11 @@
 //! CAN on the host: one [`Bus`] trait over the in-process simulated bus (virtual time, with a
 //! bit-timing model), Lawicel `slcan` serial adapters and Linux SocketCAN; the SDO master that
-//! `jointctl` uses; the EDS generator; and the simulated joints `jointctl sim` serves.
+//! `jointctl` uses; and the EDS generator.
 //!
 //! Bus names on the command line: `sim` (in-process), `slcan:PATH[@BITRATE]` (a CANable or any
 //! Lawicel adapter, or one end of a `socat` pty pair), `socketcan:IFACE`.
 
 pub mod eds;
-pub mod joint;
 pub mod master;
 pub mod sim_bus;
 pub mod slcan;

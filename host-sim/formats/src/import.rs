@@ -21,12 +21,22 @@
 use crate::log::JointLog;
 
 /// The known formats.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     DfkiPendulum,
     JensenFreeSwing,
     PandaGaz,
     Ur5eFriction,
+}
+
+impl Format {
+    /// Every format with the name a command line or a script gives it.
+    pub const NAMES: [(&'static str, Format); 4] = [
+        ("dfki-pendulum", Format::DfkiPendulum),
+        ("jensen-free-swing", Format::JensenFreeSwing),
+        ("panda-gaz", Format::PandaGaz),
+        ("ur5e-friction", Format::Ur5eFriction),
+    ];
 }
 
 /// Options some formats need.
@@ -174,9 +184,11 @@ pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result
             let joints = tab.col("joint", file)?;
             let vel = tab.col("ang_vel_rad_s", file)?;
             let fr = tab.col("friction_torque_motor_side_Nm", file)?;
-            let rows: Vec<(f64, f64)> = (0..joints.len())
-                .filter(|&i| joints[i].round() as usize == j)
-                .map(|i| (vel[i], fr[i] * o.gear_ratio))
+            let rows: Vec<(f64, f64)> = joints
+                .iter()
+                .zip(vel.iter().zip(fr))
+                .filter(|(joint, _)| joint.round() as usize == j)
+                .map(|(_, (v, f))| (*v, f * o.gear_ratio))
                 .collect();
             if rows.is_empty() {
                 return Err(format!("{file}: no rows for joint {j}"));

@@ -38,11 +38,11 @@ use serde::Deserialize;
 use toml::Spanned;
 
 /// A section of scalar keys, validated against `PARAMS` after parsing.
-pub(crate) type Section = BTreeMap<String, Spanned<f64>>;
+pub type Section = BTreeMap<String, Spanned<f64>>;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct GravityTableToml {
+pub struct GravityTableToml {
     pub axes: Spanned<Vec<String>>,
     pub grid: Spanned<Vec<Vec<f64>>>,
     pub torque: Spanned<Vec<f64>>,
@@ -68,36 +68,37 @@ pub(crate) struct GravitySeriesToml {
 
 /// Declares a serde struct holding the model sections plus extra fields (the plant file adds its
 /// effect sections), so the model part is declared once for both files.
+#[macro_export]
 macro_rules! model_toml_struct {
     ($(#[$meta:meta])* $vis:vis struct $name:ident { $($extra:tt)* }) => {
         $(#[$meta])*
-        #[derive(Clone, Debug, Deserialize)]
+        #[derive(Clone, Debug, serde::Deserialize)]
         #[serde(deny_unknown_fields)]
         $vis struct $name {
             #[serde(default)]
             pub name: Option<String>,
             #[serde(default)]
-            pub friction: Option<Section>,
+            pub friction: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub weight: Option<Section>,
+            pub weight: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub inertia: Option<Section>,
+            pub inertia: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub offset: Option<Section>,
+            pub offset: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub spring: Option<Section>,
+            pub spring: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub gravity_table: Option<GravityTableToml>,
+            pub gravity_table: Option<$crate::model_file::GravityTableToml>,
             #[serde(default)]
-            pub compensation: Option<Section>,
+            pub compensation: Option<$crate::model_file::Section>,
             #[serde(default)]
-            pub controller: Option<Section>,
+            pub controller: Option<$crate::model_file::Section>,
             $($extra)*
         }
 
         impl $name {
             /// The scalar sections by TOML name, for the `PARAMS` lookup.
-            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&Section>); 7] {
+            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&$crate::model_file::Section>); 7] {
                 [
                     ("friction", self.friction.as_ref()),
                     ("weight", self.weight.as_ref()),
@@ -111,7 +112,6 @@ macro_rules! model_toml_struct {
         }
     };
 }
-pub(crate) use model_toml_struct;
 
 model_toml_struct! {
     /// The model file: the common sections plus the effect terms the core can compensate.
@@ -248,7 +248,7 @@ impl ModelFile {
         Ok(mf)
     }
 
-    pub(crate) fn from_parts(
+    pub fn from_parts(
         name: Option<String>,
         sections: &[(&'static str, Option<&Section>)],
         table: Option<&GravityTableToml>,

@@ -2,7 +2,7 @@
 //! and tolerant of harmless variants; the writer round-trips exactly.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use host_sim::log::{JointLog, LogError, LogMode};
+use joint_formats::log::{JointLog, LogError, LogMode};
 
 fn parse(s: &str) -> Result<JointLog, LogError> {
     JointLog::parse(s.as_bytes(), "x.csv")

@@ -18,17 +18,21 @@
 //! or `parameters`, or `none`) equals the withheld set. An over-claim is a `none` case reported
 //! as anything else.
 
+// Cases index fixed tables modulo their length and per-sample series built to the log's
+// length, like the diagnosis kernels this bench was split from.
+#![allow(clippy::indexing_slicing)]
+
 use std::collections::BTreeMap;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::log::JointLog;
-use crate::model_file::ModelFile;
-use crate::plant::PlantFile;
-use crate::scenario::ScenarioKind;
-use crate::sim::{simulate, SimConfig};
+use host_sim::plant::PlantFile;
+use host_sim::scenario::ScenarioKind;
+use host_sim::sim::{simulate, SimConfig};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 /// Case kinds in the order they cycle.
 pub const KINDS: [&str; 13] = [
@@ -383,7 +387,8 @@ fn score_case(
     model: ModelFile,
 ) -> Result<(CaseResult, JointLog, ModelFile), String> {
     let t0 = std::time::Instant::now();
-    let d = super::diagnose(&log, &model, &super::Options::default()).map_err(|e| format!("case {case}: {e}"))?;
+    let d = joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default())
+        .map_err(|e| format!("case {case}: {e}"))?;
     let seconds_taken = t0.elapsed().as_secs_f64();
     let r = &d.report;
     let mut predicted = r.verdict.effects.clone();

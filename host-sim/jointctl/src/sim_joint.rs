@@ -8,12 +8,12 @@
 //! the node's torque, and a gentle "operator" (a 20 N·m/rad, 2 N·m·s/rad impedance toward a
 //! 0.25 Hz, 0.4 rad sine) moves it so the telemetry shows motion.
 
-use super::sim_bus::SimDevice;
-use crate::model_file::ModelFile;
-use crate::plant::{Operator, Plant, PlantFile, State};
+use host_sim::plant::{Operator, Plant, PlantFile, State};
+use joint_can::sim_bus::SimDevice;
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
 use joint_core::canopen::CanFrame;
 use joint_core::params::{ParamId, ParamSet, RawParams};
+use joint_formats::model_file::ModelFile;
 use std::path::PathBuf;
 
 /// Parameter storage of a simulated joint: in memory, or a model TOML file (the host-side

@@ -6,10 +6,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
-use host_sim::arm::{self, bus::node_id, cad, ArmConfig, Method};
-use host_sim::can::transfer::{self, PushOptions};
-use host_sim::model_file::{ModelError, ModelFile};
+use joint_can::transfer::{self, PushOptions};
 use joint_core::series::TERMS_MAX;
+use joint_formats::model_file::{ModelError, ModelFile};
+use jointctl::arm::{self, bus::node_id, cad, ArmConfig, Method};
 
 #[test]
 fn fused_beats_cad_on_every_joint_and_the_clamp_holds_beyond_the_range() {

@@ -5,7 +5,7 @@
 
 use std::process::Command;
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 fn jointctl(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
@@ -54,7 +54,7 @@ fn log_writes_a_joint_log_the_spec_reader_accepts() {
     // TPDOs every 10 ms
     let rows = v["rows"].as_u64().unwrap();
     assert!((48..=52).contains(&rows), "{v}");
-    let log = host_sim::log::JointLog::read_file(&out).unwrap();
+    let log = joint_formats::log::JointLog::read_file(&out).unwrap();
     assert_eq!(log.len() as u64, rows);
 }
 

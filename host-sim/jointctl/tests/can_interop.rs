@@ -14,7 +14,7 @@ fn python_canopen_master_talks_to_jointctl_sim_over_slcan() {
         eprintln!("SKIPPED: JOINT_SKIP_INTEROP is set; the python-canopen interop test did not run");
         return;
     }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let python = root.join(".venv/bin/python");
     assert!(
         python.exists(),

@@ -4,21 +4,21 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
-use host_sim::can::joint::{JointSim, SimStorage};
-use host_sim::can::master::Master;
-use host_sim::can::sim_bus::{SharedSimBus, SimBus};
-use host_sim::can::transfer::{self, PushOptions};
-use host_sim::model_file::ModelFile;
+use joint_can::master::Master;
+use joint_can::sim_bus::{SharedSimBus, SimBus};
+use joint_can::transfer::{self, PushOptions};
 use joint_core::canopen::node::{MemoryStorage, NmtState, ParamStorage, EMCY_HEARTBEAT, NMT_START};
 use joint_core::canopen::pdo::Tpdo1;
 use joint_core::params::{ParamId, RawParams};
 use joint_core::safety::Faults;
+use joint_formats::model_file::ModelFile;
+use jointctl::sim_joint::{JointSim, SimStorage};
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 fn root() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 fn model(name: &str) -> RawParams {

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 struct Kill(Child);
 impl Drop for Kill {
@@ -73,10 +73,11 @@ fn scan_push_pull_over_a_socat_pty_pair() {
     let out = dir.path().join("pulled.toml");
     let o = jointctl(&["pull", "--node", "6", "--bus", &bus, "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let want = host_sim::model_file::ModelFile::read_file(&Path::new(ROOT).join("examples/models/trunk-right.toml"))
-        .unwrap()
-        .raw_params()
-        .unwrap();
-    let got = host_sim::model_file::ModelFile::read_file(&out).unwrap().raw_params().unwrap();
+    let want =
+        joint_formats::model_file::ModelFile::read_file(&Path::new(ROOT).join("examples/models/trunk-right.toml"))
+            .unwrap()
+            .raw_params()
+            .unwrap();
+    let got = joint_formats::model_file::ModelFile::read_file(&out).unwrap().raw_params().unwrap();
     assert_eq!(got, want);
 }

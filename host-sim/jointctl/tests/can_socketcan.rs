@@ -4,11 +4,11 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
-use host_sim::can::joint::{JointSim, SimStorage};
-use host_sim::can::master::Master;
-use host_sim::can::socketcan::SocketCanBus;
-use host_sim::can::Bus;
+use joint_can::master::Master;
+use joint_can::socketcan::SocketCanBus;
+use joint_can::Bus;
 use joint_core::canopen::node::MemoryStorage;
+use jointctl::sim_joint::{JointSim, SimStorage};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;

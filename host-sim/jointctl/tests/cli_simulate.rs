@@ -4,7 +4,7 @@
 
 use std::process::Command;
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 fn jointctl(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
@@ -35,7 +35,7 @@ fn simulate_writes_a_log_and_a_json_summary() {
     let r = v["summary"]["rms_residual"].as_f64().unwrap();
     let f = v["summary"]["noise_floor"].as_f64().unwrap();
     assert!(r < 1.5 * f, "residual {r} floor {f}");
-    let log = host_sim::log::JointLog::read_file(&out).unwrap();
+    let log = joint_formats::log::JointLog::read_file(&out).unwrap();
     assert_eq!(log.len(), 4000);
 }
 

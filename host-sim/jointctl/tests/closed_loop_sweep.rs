@@ -10,7 +10,7 @@ fn sweep_finds_instability_at_high_fraction_with_delay() {
     let dir = tempfile::tempdir().unwrap();
     let (json, svg) = (dir.path().join("sweep.json"), dir.path().join("sweep.svg"));
     let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
         .args([
             "closed-loop",
             "--plant",

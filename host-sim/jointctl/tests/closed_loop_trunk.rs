@@ -12,7 +12,7 @@ use std::process::Command;
 
 fn run(joint: &str, out: &std::path::Path) -> serde_json::Value {
     let st = Command::new(env!("CARGO_BIN_EXE_jointctl"))
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
         .args(["closed-loop", "--plant", &format!("examples/plants/trunk-{joint}.toml"), "--model"])
         .arg(format!("examples/models/trunk-{joint}.toml"))
         .args(["--fraction", "0.7", "--trials", "4", "--seconds", "10", "--seed", "3", "--json"])
@@ -60,7 +60,7 @@ fn both_trunk_joints_at_f07() {
 #[test]
 fn bad_fraction_is_refused_with_the_flag_named() {
     let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
         .args([
             "closed-loop",
             "--plant",

@@ -5,17 +5,17 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use host_sim::closed_loop::workflow::{ceiling, run_workflow};
-use host_sim::closed_loop::LoopConfig;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
+use joint_formats::model_file::ModelFile;
+use jointctl::closed_loop::workflow::{ceiling, run_workflow};
+use jointctl::closed_loop::LoopConfig;
 use std::path::Path;
 
 fn root() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
 }
 
-fn case(effect_file: &str) -> (host_sim::closed_loop::workflow::Outcome, host_sim::closed_loop::workflow::Figures) {
+fn case(effect_file: &str) -> (jointctl::closed_loop::workflow::Outcome, jointctl::closed_loop::workflow::Figures) {
     let plant = PlantFile::read_file(&root().join(format!("examples/plants/trunk-right-{effect_file}.toml"))).unwrap();
     let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
     let cfg = LoopConfig { fraction: Some(0.7), trials: 4, seconds: 10.0, seed: 1, ..LoopConfig::default() };

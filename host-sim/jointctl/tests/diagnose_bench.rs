@@ -4,7 +4,7 @@
 //! them, are in docs/diagnosis.md; the misses there are mostly asymmetric friction, which in
 //! torque mode differs from a constant offset only while the joint stands still.
 
-use host_sim::diagnose::bench;
+use jointctl::bench;
 
 #[test]
 fn withheld_effects_are_named_and_none_is_not_overclaimed() {

@@ -4,7 +4,7 @@
 //! weak spot (while the joint swings it is a constant torque, which the refit's offset absorbs),
 //! so the bar is 80 % with no over-claim.
 
-use host_sim::diagnose::bench::{self, Mode};
+use jointctl::bench::{self, Mode};
 
 #[test]
 fn free_responses_name_the_withheld_effect_and_none_is_not_overclaimed() {

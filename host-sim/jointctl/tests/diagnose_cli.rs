@@ -6,11 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 fn jointctl(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_jointctl")).args(args).output().unwrap()

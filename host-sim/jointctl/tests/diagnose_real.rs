@@ -9,16 +9,16 @@
 
 use std::path::PathBuf;
 
-use host_sim::diagnose::{diagnose, Options};
-use host_sim::identify::import::{convert, Format, ImportOpts};
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
+use joint_analysis::diagnose::{diagnose, Options};
+use joint_formats::import::{convert, Format, ImportOpts};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 /// The authors' sys-id fit of the DFKI pendulum (their `Fc·atan(100 q̇)` as `c = Fc·π/2`).
 const DFKI_MODEL: &str = "[friction]\nb = 0.04707\nc = 0.2889\nv_band = 0.02\n\n[weight]\namplitude = 1.0026\ns = 1.0\nphi = 0.0\n\n[inertia]\nj = 0.06259\n\n[offset]\nc0 = -0.07586\n";
 
 fn import(rel: &str) -> Option<JointLog> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/real")).join(rel);
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/real")).join(rel);
     let Ok(text) = std::fs::read_to_string(&p) else {
         eprintln!("skipped: {} not found", p.display());
         return None;
@@ -85,7 +85,7 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
 fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let p = PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/real/panda_gaz2019/panda_exciting_traj1_measured.csv"
+        "/../../../shared/data/real/panda_gaz2019/panda_exciting_traj1_measured.csv"
     ));
     let Ok(text) = std::fs::read_to_string(&p) else {
         eprintln!("skipped: {} not found", p.display());

@@ -6,10 +6,10 @@
 
 use std::process::Command;
 
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
+use joint_formats::model_file::ModelFile;
 
 const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 

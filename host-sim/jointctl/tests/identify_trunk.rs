@@ -3,15 +3,15 @@
 //! motion, identified in-process and through the `jointctl` binary.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use host_sim::identify::{self, Options, Quiet};
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{self, SimConfig};
+use joint_analysis::identify::{self, Options, Quiet};
 use joint_core::params::ParamId;
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 const DEG: f64 = std::f64::consts::PI / 180.0;
 const SPEEDS_DEG: [f64; 10] = [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0];
 
@@ -219,7 +219,7 @@ fn a_log_without_plateaus_is_refused_with_the_reason() {
 /// §3.4 data); the inertia stays within 3 %.
 #[test]
 fn motion_window_uses_only_the_hand_motion() {
-    use host_sim::identify::segments::{SegKind, Window};
+    use joint_analysis::identify::segments::{SegKind, Window};
     let (log, truth) = simulate("right", 11);
     let opts =
         Options { windows: vec![Window { start: 80.0, end: 120.0, kind: SegKind::Motion }], ..Options::default() };

@@ -27,8 +27,9 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::effects::{self, Effects};
-use crate::model_file::{model_toml_struct, GravityTableToml, ModelError, ModelFile, Section};
 use joint_core::params::ParamId;
+use joint_formats::model_file::{GravityTableToml, ModelError, ModelFile, Section};
+use joint_formats::model_toml_struct;
 
 /// Sensor models; every value is a standard deviation (white Gaussian) unless said otherwise.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]

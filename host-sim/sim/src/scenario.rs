@@ -25,7 +25,7 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 const SWEEP_POS_GAIN: f64 = 2.0;
 
 /// The scenario names `--scenario` accepts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ScenarioKind {
     Sweep,

@@ -15,15 +15,16 @@
 
 use std::collections::VecDeque;
 
-use joint_core::control::{self, Controller, Differentiator, Input};
+use joint_core::control::{Controller, Differentiator, Input};
 use joint_core::params::{ParamId, ParamSet};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::log::JointLog;
 use crate::plant::{Operator, Plant, PlantFile, State};
 use crate::scenario::{RandomPath, Scenario, ScenarioCfg, ScenarioKind};
+use joint_formats::log::JointLog;
+use joint_formats::predict::{predicted, residual, rms};
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
@@ -313,41 +314,6 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
     Ok((log, info))
 }
 
-/// The model's predicted disturbance at every sample of a torque-mode log (needs qd and qdd).
-/// `other_columns` names the log columns feeding `others` (see `ModelFile::other_columns`).
-pub fn predicted(log: &JointLog, p: &ParamSet, other_columns: &[String]) -> Option<Vec<f64>> {
-    let (qd, qdd) = (log.qd.as_ref()?, log.qdd.as_ref()?);
-    let others: Vec<&[f64]> = other_columns.iter().map(|n| log.other(n)).collect::<Option<Vec<_>>>()?;
-    Some(
-        (0..log.len())
-            .map(|i| {
-                let mut o = [0.0f32; 3];
-                for (dst, col) in o.iter_mut().zip(others.iter()) {
-                    *dst = col.get(i).copied().unwrap_or(0.0) as f32;
-                }
-                let q = log.q.get(i).copied().unwrap_or(0.0) as f32;
-                let v = qd.get(i).copied().unwrap_or(0.0) as f32;
-                let a = qdd.get(i).copied().unwrap_or(0.0) as f32;
-                f64::from(control::disturbance(p, q, v, a, &o))
-            })
-            .collect(),
-    )
-}
-
-/// `d − prediction` per sample of a torque-mode log, `None` without u/tau/qd/qdd.
-pub fn residual(log: &JointLog, p: &ParamSet, other_columns: &[String]) -> Option<Vec<f64>> {
-    let (u, tau) = (log.u.as_ref()?, log.tau.as_ref()?);
-    let pred = predicted(log, p, other_columns)?;
-    Some(u.iter().zip(tau).zip(pred).map(|((u, t), m)| u - t - m).collect())
-}
-
-pub fn rms(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
-}
-
 /// The residual RMS that the sensor noise alone produces: `tau_noise² + u_noise²` plus the
 /// spread of the model's prediction when its inputs are disturbed by the sensor noise (q: noise
 /// and a uniform quantisation error; qd; qdd), estimated by redrawing that noise once per
@@ -394,7 +360,7 @@ pub fn noise_floor(
 pub struct Summary {
     pub samples: usize,
     pub duration_s: f64,
-    pub mode: crate::log::LogMode,
+    pub mode: joint_formats::log::LogMode,
     pub q_min: f64,
     pub q_max: f64,
     pub rms_u: Option<f64>,
@@ -426,7 +392,7 @@ pub fn summarize(
         rms_tau: log.tau.as_deref().map(rms),
         rms_residual: residual(log, p, other_columns).map(|r| rms(&r)),
         noise_floor: match (log.mode(), sensors) {
-            (crate::log::LogMode::Torque, Some((s, seed))) => noise_floor(log, p, other_columns, s, seed),
+            (joint_formats::log::LogMode::Torque, Some((s, seed))) => noise_floor(log, p, other_columns, s, seed),
             _ => None,
         },
         columns: log.column_names().iter().map(|s| s.to_string()).collect(),

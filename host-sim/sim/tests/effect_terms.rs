@@ -2,7 +2,7 @@
 //! model emitted by `jointctl diagnose --emit-model` cancels the effect it names.
 
 use host_sim::effects::{AsymmetricFriction, CableSpring, DryFriction, Effects, PositionRipple, Stribeck};
-use host_sim::model_file::ModelFile;
+use joint_formats::model_file::ModelFile;
 
 const MODEL: &str = r#"
 [friction]

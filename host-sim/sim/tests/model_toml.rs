@@ -4,9 +4,9 @@
 
 mod common;
 
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use joint_core::params::{ParamId, RawParams};
+use joint_formats::model_file::ModelFile;
 
 fn err(text: &str) -> String {
     match ModelFile::parse(text, "m.toml").and_then(|m| m.param_set().map(|_| ())) {

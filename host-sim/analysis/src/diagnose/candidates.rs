@@ -1,6 +1,6 @@
 //! The candidate terms of torque mode: every effect of the vocabulary as regressor columns added
-//! to the model's own (refittable) terms, with the same parametrisation as host-sim's plant
-//! effect sections (see [`crate::effects`]) so a fitted candidate is a plant section as it is.
+//! to the model's own (refittable) terms, with the parametrisation of the plant's effect sections (the shapes
+//! themselves are this crate's own, [`super::shapes`]) so a fitted candidate is a plant section as it is.
 //!
 //! The model's prediction of `d = u − tau` splits into a part linear in the model's coefficients
 //! (`J·q̈`, `a·q̇|q̇|`, `b·q̇`, `c·sgn(q̇)`, the weight as `α·sin(s·q) + β·cos(s·q)` at the model's
@@ -103,7 +103,7 @@ impl Col {
             Col::SinSq(s) => (s * d.q[i]).sin(),
             Col::CosSq(s) => (s * d.q[i]).cos(),
             Col::Q => d.q[i],
-            Col::DeadZone { q0, w } => crate::effects::dead_zone(d.q[i] - q0, w),
+            Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - q0, w),
             Col::Const => 1.0,
             Col::Stribeck(v) => {
                 let r = qd / v;
@@ -121,9 +121,7 @@ impl Col {
             }
             Col::RipSin(p) => (std::f64::consts::TAU * d.q[i] / p).sin(),
             Col::RipCos(p) => (std::f64::consts::TAU * d.q[i] / p).cos(),
-            Col::Cable { engage, width } => {
-                crate::effects::cable_spring(&crate::effects::CableSpring { k: 1.0, engage, width }, d.q[i])
-            }
+            Col::Cable { engage, width } => super::shapes::engaged_spring(1.0, engage, width, d.q[i]),
         }
     }
 }
@@ -279,7 +277,7 @@ impl Design {
     pub fn row(&self, d: &Data, i: usize, x: &mut [f64]) -> f64 {
         for (xk, c) in x.iter_mut().zip(&self.cols) {
             *xk = match c {
-                Col::DeadZone { w, .. } => crate::effects::dead_zone(d.q[i] - d.q0, *w),
+                Col::DeadZone { w, .. } => super::shapes::dead_zone(d.q[i] - d.q0, *w),
                 _ => c.eval(d, i),
             };
         }
@@ -396,7 +394,7 @@ impl<'a> GridCtx<'a> {
         match *e {
             Effect::Backlash { width } => {
                 let at = self.des.cols.iter().position(|c| matches!(c, Col::Q));
-                let z = || idx.iter().map(|&i| crate::effects::dead_zone(d.q[i as usize] - d.q0, width)).collect();
+                let z = || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0, width)).collect();
                 Delta { replace: at.map(|j| (j, z())), extra: Vec::new(), y_alt: None }
             }
             Effect::Delay { lag } => {
@@ -681,7 +679,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
 }
 
 /// The model's refittable terms from its parameter values.
-pub fn base_from_model(m: &crate::model_file::ModelFile) -> Base {
+pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
     use joint_core::params::ParamId as P;
     let v = |id| m.value(id);
     let mut cols = Vec::new();

@@ -15,13 +15,13 @@
 // indexing lint would only repeat that invariant at each of a few hundred sites.
 #![allow(clippy::indexing_slicing)]
 
-pub mod bench;
 pub mod candidates;
 pub mod fit;
 pub mod regimes;
 pub mod report_html;
 pub mod resid;
 pub mod select;
+pub mod shapes;
 pub mod trajectory;
 
 use std::collections::BTreeMap;
@@ -29,9 +29,9 @@ use std::collections::BTreeMap;
 use joint_core::params::ParamId;
 use serde::Serialize;
 
-use crate::log::{JointLog, LogMode};
-use crate::model_file::ModelFile;
 use candidates::{base_from_model, Base, Col, Data, Effect, ThermSrc};
+use joint_formats::log::{JointLog, LogMode};
+use joint_formats::model_file::ModelFile;
 use regimes::Regimes;
 use select::{Outcome, Scored, Selection, Split};
 
@@ -403,7 +403,7 @@ fn torque_mode(
     let qd = smooth(&qd, ((VELOCITY_SMOOTHING_S / dt).round() as usize).min(25));
     let mut full = JointLog { t: log.t.clone(), q: log.q.clone(), qd: Some(qd), qdd: Some(qdd), ..JointLog::default() };
     full.others = others.iter().filter_map(|o| log.other(o).map(|v| (o.clone(), v.to_vec()))).collect();
-    let pred0 = crate::sim::predicted(&full, params, others)
+    let pred0 = joint_formats::predict::predicted(&full, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
     let (u, tau) = match (&log.u, &log.tau) {
         (Some(u), Some(t)) => (u.clone(), t),

@@ -26,8 +26,8 @@ use super::{
     DiagError, Diagnosis, EffectOut, Gap, Options, PlotData, RegimeOut, RegimeShrink, Report, SplitInfo, Step,
     TestInfo, Verdict,
 };
-use crate::log::JointLog;
-use crate::model_file::ModelFile;
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum TKind {
@@ -100,7 +100,7 @@ impl Sim<'_> {
                 Col::SinSq(w) => sc(*w).0,
                 Col::CosSq(w) => sc(*w).1,
                 Col::Q => match kind {
-                    TKind::Backlash => crate::effects::dead_zone(q - self.q0, e[0].exp()) + self.q0,
+                    TKind::Backlash => super::shapes::dead_zone(q - self.q0, e[0].exp()) + self.q0,
                     _ => q,
                 },
                 Col::Const => 1.0,
@@ -112,10 +112,7 @@ impl Sim<'_> {
                 Col::AbsSgn => s.abs(),
                 Col::RipSin(p) => (std::f64::consts::TAU * q / p).sin(),
                 Col::RipCos(p) => (std::f64::consts::TAU * q / p).cos(),
-                Col::Cable { engage, width } => crate::effects::cable_spring(
-                    &crate::effects::CableSpring { k: 1.0, engage: *engage, width: *width },
-                    q,
-                ),
+                Col::Cable { engage, width } => super::shapes::engaged_spring(1.0, *engage, *width, q),
                 _ => 0.0,
             };
             if matches!(c, Col::QdAbsQd | Col::Qd | Col::Sgn) {
@@ -136,9 +133,7 @@ impl Sim<'_> {
                 let w = std::f64::consts::TAU * q / e[2].exp();
                 e[0] * w.sin() + e[1] * w.cos()
             }
-            TKind::Cable => {
-                crate::effects::cable_spring(&crate::effects::CableSpring { k: e[0], engage: e[1], width: 0.01 }, q)
-            }
+            TKind::Cable => super::shapes::engaged_spring(e[0], e[1], 0.01, q),
             _ => 0.0,
         };
         fr + rest + extra

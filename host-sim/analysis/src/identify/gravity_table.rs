@@ -20,7 +20,7 @@
 
 use super::robust::solve_spd;
 use super::segments::{Prepared, SegKind, Segment};
-use crate::model_file::TableSpec;
+use joint_formats::model_file::TableSpec;
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TableFit {

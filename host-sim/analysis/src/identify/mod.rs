@@ -17,7 +17,6 @@
 pub mod filter;
 pub mod friction;
 pub mod gravity_table;
-pub mod import;
 pub mod inertia;
 pub mod nls;
 pub mod report;
@@ -28,8 +27,8 @@ pub mod weight;
 
 use joint_core::params::ParamId;
 
-use crate::log::JointLog;
-use crate::model_file::ModelFile;
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 use segments::{Prepared, SegKind, Segment, SegmentCfg, Window};
 
 /// A model term identification can produce.
@@ -70,7 +69,7 @@ impl Term {
 }
 
 /// How the rigid-joint terms are found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// the papers' procedures: friction from plateaus, weight from poses, inertia and offset
@@ -80,6 +79,22 @@ pub enum Method {
     /// one least-squares fit of all rigid terms on every sample (for logs without plateaus or
     /// poses, e.g. a swing-up run); the weight's s is fixed at 1
     JointLs,
+}
+
+impl Method {
+    /// Every method with its name (as in the JSON) and a line saying what it does.
+    pub const NAMES: [(&'static str, Method, &'static str); 2] = [
+        (
+            "papers",
+            Method::Papers,
+            "the papers' procedures: friction from plateaus, weight from poses, inertia and offset from motion with both known",
+        ),
+        (
+            "joint-ls",
+            Method::JointLs,
+            "one least-squares fit of all rigid terms on every sample (for logs without plateaus or poses, e.g. a swing-up run); the weight's s is fixed at 1",
+        ),
+    ];
 }
 
 /// Settings of a run.

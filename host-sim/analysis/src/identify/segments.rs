@@ -11,7 +11,7 @@
 //! first `settle_share` is dropped (the joint is still settling there).
 
 use super::filter;
-use crate::log::JointLog;
+use joint_formats::log::JointLog;
 
 /// What a segment is used for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]

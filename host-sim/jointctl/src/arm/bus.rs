@@ -5,9 +5,9 @@
 //! which is the gravity term alone here: no friction, inertia, spring or offset is pushed).
 
 use super::cad::others_of;
-use crate::can::master::Master;
-use crate::can::sim_bus::{SharedSimBus, SimBus, SimDevice};
-use crate::can::transfer::{self, PushOptions};
+use joint_can::master::Master;
+use joint_can::sim_bus::{SharedSimBus, SimBus, SimDevice};
+use joint_can::transfer::{self, PushOptions};
 use joint_core::canopen::node::{MemoryStorage, NmtState, Node, NodeConfig, NMT_START, TPDO1_BASE};
 use joint_core::canopen::od;
 use joint_core::canopen::CanFrame;

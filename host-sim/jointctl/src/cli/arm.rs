@@ -8,8 +8,8 @@ use anyhow::Context;
 use clap::Args;
 
 use crate::arm::{self, cad::others_of, ArmConfig, Method};
-use crate::log::write_atomic;
-use crate::model_file::ModelFile;
+use joint_formats::log::write_atomic;
+use joint_formats::model_file::ModelFile;
 
 /// Arm gravity fusion (arm paper): a 4-joint arm whose CAD model is the paper's Appendix A,
 /// a plant with the torques the CAD model misses (cable, joint compliance, an assembly offset,

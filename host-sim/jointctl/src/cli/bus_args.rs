@@ -2,11 +2,11 @@
 //! on it. `--bus sim` builds the in-process simulated bus with simulated joints at the node
 //! ids the command addresses, so every command can be tried (and timed) without hardware.
 
-use crate::can::joint::{JointSim, SimStorage};
-use crate::can::master::Master;
-use crate::can::sim_bus::{SharedSimBus, SimBus};
-use crate::can::{self, BusSpec};
+use crate::sim_joint::{JointSim, SimStorage};
 use clap::Args;
+use joint_can::master::Master;
+use joint_can::sim_bus::{SharedSimBus, SimBus};
+use joint_can::BusSpec;
 use joint_core::canopen::node::MemoryStorage;
 use std::sync::{Arc, Mutex};
 
@@ -42,7 +42,7 @@ pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Opti
             m.listen(std::time::Duration::from_millis(5))?;
             Ok((m, Some(shared)))
         }
-        spec => Ok((Master::new(can::open(spec)?), None)),
+        spec => Ok((Master::new(joint_can::open(spec)?), None)),
     }
 }
 

@@ -1,7 +1,7 @@
 //! `jointctl bus-budget`: bus load of joint telemetry from the real frame layout.
 
-use crate::can::timing;
 use clap::Args;
+use joint_can::timing;
 
 /// Bus load of J joints streaming telemetry at R Hz, from the frames' real bit length (bit
 /// stuffing included: worst case, and typical = mean over random payloads).

@@ -10,9 +10,9 @@ use clap::Args;
 use serde_json::json;
 
 use crate::closed_loop::{self, svg, workflow, LoopConfig, Setup};
-use crate::log::write_atomic;
-use crate::model_file::ModelFile;
-use crate::plant::PlantFile;
+use host_sim::plant::PlantFile;
+use joint_formats::log::write_atomic;
+use joint_formats::model_file::ModelFile;
 
 /// Run closed-loop assistance trials: the joint node gets MODEL by SDO push on a simulated
 /// CAN bus, runs u = (K·β + F·C_c)/(N − 1) at 1 kHz against PLANT (its effects, sensors and

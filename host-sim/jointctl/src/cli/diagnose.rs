@@ -7,9 +7,9 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::diagnose::{self, Options};
-use crate::log::{write_atomic, JointLog};
-use crate::model_file::ModelFile;
+use joint_analysis::diagnose::{self, Options};
+use joint_formats::log::{write_atomic, JointLog};
+use joint_formats::model_file::ModelFile;
 
 /// Compare a joint log with a model: split the residual by regime, test every effect of the
 /// vocabulary on held-out data, and report how far the best one shrinks the gap.

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::diagnose::bench;
-use crate::log::write_atomic;
+use crate::bench;
+use joint_formats::log::write_atomic;
 
 /// Generate logs with a known effect withheld from the model, diagnose them blind, and print the
 /// confusion matrix, the accuracy, the over-claim rate on `none` cases and the mean shrink.

@@ -14,7 +14,7 @@ pub struct EdsArgs {
 }
 
 pub fn run(a: &EdsArgs) -> anyhow::Result<()> {
-    let text = crate::can::eds::generate();
+    let text = joint_can::eds::generate();
     match &a.out {
         Some(p) => std::fs::write(p, text).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", p.display()))?,
         None => print!("{text}"),

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::identify::segments::Window;
-use crate::identify::{self, Method, Options, Progress, Term};
-use crate::log::{self, JointLog};
+use joint_analysis::identify::segments::Window;
+use joint_analysis::identify::{self, Method, Options, Progress, Term};
+use joint_formats::log::{self, JointLog};
 
 /// Identify the joint model from logged tests and write the model TOML (ready for `push`).
 ///
@@ -45,7 +45,7 @@ pub struct IdentifyArgs {
     pub windows: Vec<Window>,
     /// papers = the papers' procedures (plateaus, poses, motion); joint-ls = one least-squares
     /// fit of all rigid terms on every sample, for logs without plateaus or poses
-    #[arg(long, value_enum, default_value_t = Method::Papers)]
+    #[arg(long, value_parser = super::choice::described(&Method::NAMES), default_value = "papers")]
     pub method: Method,
     /// Zero-phase low-pass cut-off of the inertia (and joint-ls) fit, Hz
     #[arg(long, value_name = "HZ", default_value_t = 5.0)]

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::identify::import::{self, Format, ImportOpts};
+use joint_formats::import::{self, Format, ImportOpts};
 
 /// Convert a data set's file into a joint log (CSV, spec §1).
 ///
@@ -20,7 +20,7 @@ use crate::identify::import::{self, Format, ImportOpts};
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct ImportArgs {
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = super::choice::named(&Format::NAMES))]
     pub format: Format,
     /// Upstream file
     #[arg(long, value_name = "FILE")]
@@ -56,8 +56,8 @@ pub fn run(a: &ImportArgs) -> anyhow::Result<()> {
         a.out.display(),
         im.log.len(),
         match im.log.mode() {
-            crate::log::LogMode::Torque => "torque",
-            crate::log::LogMode::Trajectory => "trajectory",
+            joint_formats::log::LogMode::Torque => "torque",
+            joint_formats::log::LogMode::Trajectory => "trajectory",
         }
     );
     Ok(())

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 pub mod arm;
 pub mod bus_args;
 pub mod bus_budget;
+pub mod choice;
 pub mod closed_loop;
 pub mod diagnose;
 pub mod diagnose_bench;

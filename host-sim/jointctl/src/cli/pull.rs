@@ -1,9 +1,9 @@
 //! `jointctl pull`: read a joint's parameter set into a model TOML.
 
 use super::bus_args::{check_node, open_master, BusArgs};
-use crate::can::transfer;
-use crate::model_file::ModelFile;
 use clap::Args;
+use joint_can::transfer;
+use joint_formats::model_file::ModelFile;
 use std::path::PathBuf;
 
 /// Read a joint node's parameters (scalars and gravity table) into a model TOML.

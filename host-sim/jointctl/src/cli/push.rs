@@ -1,9 +1,9 @@
 //! `jointctl push`: stage a model's parameters on a joint by SDO, read them back, commit.
 
 use super::bus_args::{check_node, open_master, BusArgs};
-use crate::can::transfer::{self, PushOptions};
-use crate::model_file::ModelFile;
 use clap::Args;
+use joint_can::transfer::{self, PushOptions};
+use joint_formats::model_file::ModelFile;
 use std::path::PathBuf;
 
 /// Push a model TOML to a joint node: every parameter is staged by SDO, read back, and the
@@ -60,7 +60,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let r = r?;
     let bitrate = match &a.bus.bus {
-        crate::can::BusSpec::Slcan { bitrate, .. } => *bitrate,
+        joint_can::BusSpec::Slcan { bitrate, .. } => *bitrate,
         _ => a.bus.bitrate,
     };
     let wire = transfer::wire_minimum_us(&r, bitrate);

@@ -1,10 +1,10 @@
 //! `jointctl sim`: serve simulated joints (the core's CANopen node + host-sim's plant) on a
 //! real bus, so any CANopen master can talk to them.
 
-use crate::can::joint::{JointSim, SimStorage};
-use crate::can::{self, BusSpec};
-use crate::plant::PlantFile;
+use crate::sim_joint::{JointSim, SimStorage};
 use clap::Args;
+use host_sim::plant::PlantFile;
+use joint_can::BusSpec;
 use joint_core::canopen::node::MemoryStorage;
 use joint_core::canopen::CanFrame;
 use std::path::PathBuf;
@@ -55,7 +55,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         anyhow::bail!("`jointctl sim` serves joints to other programs: give a real bus (slcan:PATH or socketcan:IFACE); the in-process bus is what push/pull/scan use with --bus sim");
     }
     let plant = a.plant.as_ref().map(|p| PlantFile::read_file(p)).transpose()?;
-    let mut bus = can::open(&a.bus)?;
+    let mut bus = joint_can::open(&a.bus)?;
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();

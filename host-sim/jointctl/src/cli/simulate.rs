@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::model_file::ModelFile;
-use crate::plant::PlantFile;
-use crate::scenario::ScenarioKind;
-use crate::sim::{self, SimConfig};
+use host_sim::plant::PlantFile;
+use host_sim::scenario::ScenarioKind;
+use host_sim::sim::{self, SimConfig};
+use joint_formats::model_file::ModelFile;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
@@ -119,8 +119,8 @@ pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
             s.samples,
             s.duration_s,
             match s.mode {
-                crate::log::LogMode::Torque => "torque",
-                crate::log::LogMode::Trajectory => "trajectory",
+                joint_formats::log::LogMode::Torque => "torque",
+                joint_formats::log::LogMode::Trajectory => "trajectory",
             }
         );
         println!("  columns          {}", s.columns.join(","));

@@ -39,13 +39,13 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 
-use crate::can::master::Master;
-use crate::can::sim_bus::{SharedSimBus, SimBus, SimDevice};
-use crate::can::transfer::{self, PushOptions};
-use crate::log::JointLog;
-use crate::model_file::ModelFile;
-use crate::plant::{Operator, Plant, PlantFile, State};
-use crate::scenario::RandomPath;
+use host_sim::plant::{Operator, Plant, PlantFile, State};
+use host_sim::scenario::RandomPath;
+use joint_can::master::Master;
+use joint_can::sim_bus::{SharedSimBus, SimBus, SimDevice};
+use joint_can::transfer::{self, PushOptions};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 /// Node id of the simulated joint.
@@ -254,7 +254,7 @@ pub struct LoopJoint {
     dqd: Differentiator,
     q_noise: f64,
     q_res: f64,
-    sensors: crate::plant::Sensors,
+    sensors: host_sim::plant::Sensors,
     k_h: f64,
     b_h: f64,
     hold: f64,
@@ -432,7 +432,7 @@ pub enum LoopError {
     #[error("{0}")]
     Config(String),
     #[error("{0}")]
-    Model(#[from] crate::model_file::ModelError),
+    Model(#[from] joint_formats::model_file::ModelError),
     #[error("trial {trial}: {msg}")]
     Bus { trial: usize, msg: String },
 }
@@ -479,7 +479,7 @@ impl Setup {
             if !(d.is_finite() && (0.0..=0.2).contains(&d)) {
                 return bad(format!("--delay {d}: must lie in 0..=0.2 s"));
             }
-            plant.effects.delay = if d > 0.0 { Some(crate::effects::Delay { seconds: d }) } else { None };
+            plant.effects.delay = if d > 0.0 { Some(host_sim::effects::Delay { seconds: d }) } else { None };
         }
         let delay = plant.effects.delay.as_ref().map_or(0.0, |d| d.seconds);
         let range = plant.range.as_ref().map_or((0.0, 116.5 * DEG), |r| (r.min, r.max));

@@ -16,11 +16,11 @@
 use serde::Serialize;
 
 use super::{run, LoopConfig, LoopError, LoopReport, Setup};
-use crate::diagnose::{self, Options};
-use crate::log::JointLog;
-use crate::model_file::ModelFile;
-use crate::plant::PlantFile;
+use host_sim::plant::PlantFile;
+use joint_analysis::diagnose::{self, Options};
 use joint_core::params::ParamId;
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
 /// Effect sections of the vocabulary the firmware core compensates by feed-forward.
 pub const COMPENSABLE: [&str; 5] =

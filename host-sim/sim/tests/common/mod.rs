@@ -1,14 +1,14 @@
-//! Helpers shared by the host-sim integration tests: build a plant from the trunk-right model
+//! Helpers shared by the simulator's and jointctl's integration tests: build a plant from the trunk-right model
 //! plus extra TOML, simulate, and compute the residual against the unchanged model.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use host_sim::log::JointLog;
-use host_sim::model_file::ModelFile;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{self, SimConfig};
+use joint_formats::log::JointLog;
+use joint_formats::model_file::ModelFile;
 
-pub const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+pub const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 pub fn example(rel: &str) -> String {
     std::fs::read_to_string(format!("{ROOT}/{rel}")).unwrap()
@@ -32,7 +32,7 @@ pub fn run_with(plant_text: &str, ctrl_text: &str, scn: &[ScenarioKind], secs: f
     let p = model.param_set().unwrap();
     let cfg = SimConfig { scenarios: scn.to_vec(), seconds: secs, seed, ..SimConfig::default() };
     let (log, _) = sim::simulate(&plant, &p, &cfg).unwrap();
-    let resid = sim::residual(&log, &p, &model.other_columns()).unwrap();
+    let resid = joint_formats::predict::residual(&log, &p, &model.other_columns()).unwrap();
     let floor = sim::noise_floor(&log, &p, &model.other_columns(), &plant.sensors, seed);
     Run { log, resid, floor }
 }
@@ -54,7 +54,7 @@ pub fn mean(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 pub fn rms(v: &[f64]) -> f64 {
-    host_sim::sim::rms(v)
+    joint_formats::predict::rms(v)
 }
 
 pub fn sign(x: f64) -> f64 {

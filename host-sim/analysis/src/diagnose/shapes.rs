@@ -1,0 +1,57 @@
+//! The shapes the candidates fit, written here and nowhere else in the analysis.
+//!
+//! The simulator's plant has its own effect code; the two are kept apart on purpose: a bench
+//! whose effects came from the same functions the candidates fit could only ever agree with
+//! itself. The parametrisation is the one `--emit-model` writes (so an emitted section means
+//! to the plant what it meant to the fit); the code is this module's.
+
+/// Dead zone of total width `w` centred on 0: a backlash gap in an elastic element.
+pub fn dead_zone(x: f64, w: f64) -> f64 {
+    let h = w / 2.0;
+    if x > h {
+        x - h
+    } else if x < -h {
+        x + h
+    } else {
+        0.0
+    }
+}
+
+/// A cable or harness that engages at `engage` and goes from slack to stiffness `k` over
+/// `width` (a quadratic blend, so the torque and its slope are continuous).
+pub fn engaged_spring(k: f64, engage: f64, width: f64, q: f64) -> f64 {
+    let x = q - engage;
+    if x <= 0.0 {
+        0.0
+    } else if x < width {
+        k * x * x / (2.0 * width)
+    } else {
+        k * (x - width / 2.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dead_zone_is_zero_inside_and_shifted_outside() {
+        assert_eq!(dead_zone(0.004, 0.01), 0.0);
+        assert_eq!(dead_zone(-0.005, 0.01), 0.0);
+        assert!((dead_zone(0.02, 0.01) - 0.015).abs() < 1e-15);
+        assert!((dead_zone(-0.02, 0.01) + 0.015).abs() < 1e-15);
+    }
+
+    #[test]
+    fn engaged_spring_is_continuous_with_its_slope() {
+        let (k, e, w) = (3.0, 0.2, 0.01);
+        assert_eq!(engaged_spring(k, e, w, 0.19), 0.0);
+        let at = |q: f64| engaged_spring(k, e, w, q);
+        // value and slope continuous where the blend meets the line
+        let q1 = e + w;
+        assert!((at(q1 - 1e-9) - at(q1 + 1e-9)).abs() < 1e-7);
+        let slope = |q: f64| (at(q + 1e-7) - at(q - 1e-7)) / 2e-7;
+        assert!((slope(q1 - 1e-6) - k).abs() < 1e-3 && (slope(q1 + 1e-6) - k).abs() < 1e-6);
+        assert!((at(e + 1.0) - k * (1.0 - w / 2.0)).abs() < 1e-12);
+    }
+}
