@@ -8,8 +8,8 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 TARGET=thumbv7em-none-eabihf
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
-cargo build --release -p firmware-qemu --bin qemu-bench --target "$TARGET" >&2 || exit 2
+cargo build --profile fw -p firmware-qemu --bin qemu-bench --target "$TARGET" >&2 || exit 2
 timeout "${QEMU_TIMEOUT:-60}" qemu-system-arm -M mps2-an386 -nographic \
     -semihosting-config enable=on,target=native -icount shift=7 \
-    -kernel "$TARGET_DIR/$TARGET/release/qemu-bench" | grep -v '^bench '
+    -kernel "$TARGET_DIR/$TARGET/fw/qemu-bench" | grep -v '^bench '
 exit "${PIPESTATUS[0]}"

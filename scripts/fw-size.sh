@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the release board image and prints its flash and static RAM use against the
+# Builds the board image (profile fw) and prints its flash and static RAM use against the
 # budget (flash <= 64 KiB, static RAM <= 16 KiB; stretch 48 KiB / 12 KiB). Exits 1 when
 # over budget, 2 when the build or the measurement itself fails.
 #
@@ -21,8 +21,8 @@ if [[ ! -x "$LLVM_SIZE" ]]; then
     exit 2
 fi
 
-cargo build --release -p firmware --target "$TARGET" >&2 || exit 2
-ELF="$TARGET_DIR/$TARGET/release/firmware"
+cargo build --profile fw -p firmware --target "$TARGET" >&2 || exit 2
+ELF="$TARGET_DIR/$TARGET/fw/firmware"
 [[ -f "$ELF" ]] || { echo "fw-size: no image at $ELF" >&2; exit 2; }
 
 # llvm-size -A: "section size addr" rows.

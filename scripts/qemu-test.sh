@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the joint core on QEMU's mps2-an386 (Cortex-M4F) and checks it against the host:
-#   1. builds the QEMU images (firmware-qemu, release, thumbv7em-none-eabihf);
+#   1. builds the QEMU images (firmware-qemu, profile fw, thumbv7em-none-eabihf);
 #   2. qemu-core-checks: on-target facts about the core, exit status counts;
 #   3. qemu-parity: the scripted session's every output, compared bit for bit with the
 #      same session computed natively (tests/tests/qemu_parity.rs reads this run's log);
@@ -15,14 +15,14 @@ cd "$(dirname "$0")/.."
 TARGET=thumbv7em-none-eabihf
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
 case "$TARGET_DIR" in /*) ;; *) TARGET_DIR="$PWD/$TARGET_DIR" ;; esac
-BIN="$TARGET_DIR/$TARGET/release"
+BIN="$TARGET_DIR/$TARGET/fw"
 QEMU_TIMEOUT=${QEMU_TIMEOUT:-60}
 LOG_DIR=$(mktemp -d)
 trap 'rm -rf "$LOG_DIR"' EXIT
 
 command -v qemu-system-arm >/dev/null || { echo "qemu-test: qemu-system-arm not installed (apt-get install qemu-system-arm)" >&2; exit 2; }
 
-cargo build --release -p firmware-qemu --target "$TARGET" || { echo "qemu-test: build failed" >&2; exit 2; }
+cargo build --profile fw -p firmware-qemu --target "$TARGET" || { echo "qemu-test: build failed" >&2; exit 2; }
 
 qemu() { # ELF -> runs it, stdout to $LOG_DIR/NAME.out, returns QEMU's exit status
     local elf=$1 name

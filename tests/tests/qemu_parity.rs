@@ -42,7 +42,7 @@ fn build_image(bin: &str) -> PathBuf {
     let status = Command::new(cargo)
         .current_dir(&root)
         .env("CARGO_TARGET_DIR", &target_dir)
-        .args(["build", "--release", "-p", "firmware-qemu", "--bin", bin, "--target", TARGET])
+        .args(["build", "--profile", "fw", "-p", "firmware-qemu", "--bin", bin, "--target", TARGET])
         .status()
         .expect("running cargo to build the QEMU parity image");
     assert!(
@@ -50,7 +50,7 @@ fn build_image(bin: &str) -> PathBuf {
         "building the QEMU image {bin} failed ({status}); is the target installed? \
          (rustup target add {TARGET})"
     );
-    target_dir.join(TARGET).join("release").join(bin)
+    target_dir.join(TARGET).join("fw").join(bin)
 }
 
 fn run_qemu(elf: &Path) -> String {
