@@ -8,6 +8,9 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 echo "== format (cargo fmt --check; rustfmt.toml)"
 cargo fmt --all -- --check
+echo "== host crates keep their dependency rules (cargo tree)"
+bash scripts/check-deps.sh --self-test
+bash scripts/check-deps.sh
 echo "== firmware image size (budget: flash ≤ 64 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh
 echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
