@@ -381,7 +381,10 @@ fn fastest_rate(cols: &[Col], beta: &[f64], j: f64) -> f64 {
     3.0 * (damping / j).max((stiffness / j).sqrt())
 }
 
-/// The analysis of `log`; `m0_sim`: the file's model already integrated over it, if it was.
+/// One window's analysis, step by step: [`Window::prepare`] (velocities, the model's simulator,
+/// the split, the regimes and the file's model's response), [`Window::fit_candidates`] (every
+/// candidate fitted from its starts), [`Window::judge`] (significance and the verdict), then the
+/// report, the emitted model and the plots from what those steps found.
 fn diagnose_window(
     log: &JointLog,
     model: &ModelFile,
@@ -390,52 +393,156 @@ fn diagnose_window(
     m0_sim: Option<Vec<f64>>,
 ) -> Result<Diagnosis, DiagError> {
     let _ = (params, opts);
-    let n = log.len();
-    let dt = super::median_dt(&log.t);
-    let (qd_raw, qdd) = super::velocities(log, dt);
-    let qd = super::smooth(&qd_raw, ((super::VELOCITY_SMOOTHING_S / dt).round() as usize).min(25));
-    let j = model.value(ParamId::InertiaJ);
-    if !(j > 0.0) {
-        return Err(DiagError::Input(
-            "trajectory mode integrates the model: its [inertia] j must be > 0 (the log has no u/tau for torque mode)"
-                .into(),
-        ));
-    }
-    let (sim, beta0) = model_sim(log, model, j, qd_raw[0]);
-    let cols = sim.cols.clone();
-    let hold_from = (0.7 * n as f64).round() as usize;
-    let units = 20usize.min((n - hold_from) / 5).max(3);
-    let regimes = Regimes::build(&log.t, &log.q, &qd, &qdd, log.temp.as_deref(), dt);
-    let nreg = regimes.defs.len();
-    let train_idx: Vec<usize> = (0..hold_from).step_by(hold_from.div_ceil(2000).max(1)).collect();
-    let m0_sim = match m0_sim {
-        Some(s) => s,
-        None => sim
-            .run(TKind::Parameters, &beta0, n)
-            .ok_or_else(|| DiagError::Input("the model diverges when integrated from the log's first sample".into()))?,
+    let w = Window::prepare(log, model, m0_sim)?;
+    let refit = w
+        .fit(TKind::Parameters, vec![w.beta0.clone()])
+        .ok_or_else(|| DiagError::Input("the refit of the model's own terms diverged".into()))?;
+    let fitted = w.fit_candidates(&refit.theta);
+    let judged = w.judge(&refit, &fitted);
+    let final_fit = match judged.best {
+        Some(k) => Some(judged.outcomes[k].fitted),
+        None if judged.refit_sig => Some(&refit),
+        None => None,
     };
-    let m0 = score_traj(&m0_sim, &log.q, hold_from, units, &regimes.bits, nreg, beta0.clone());
-    let r0: Vec<f64> = log.q.iter().zip(&m0_sim).map(|(a, b)| a - b).collect();
-    let floor = super::noise_floor(&r0);
+    let final_sim: &[f64] = final_fit.map(|f| f.sim.as_slice()).unwrap_or(&w.m0_sim);
+    let ra: Vec<f64> = log.q.iter().zip(final_sim).map(|(a, b)| a - b).collect();
+    let report = w.report(&refit, &judged, final_fit, &ra);
+    let emitted_model = emitted_model(model, &w.cols, final_fit);
+    let plots = w.plots(&ra);
+    Ok(Diagnosis { report, emitted_model, plots })
+}
 
-    let qmin = log.q.iter().take(hold_from).copied().fold(f64::INFINITY, f64::min);
-    let qmax = log.q.iter().take(hold_from).copied().fold(f64::NEG_INFINITY, f64::max);
-    let span = (qmax - qmin).max(1e-3);
-    // Ripple periods searched: short (gear mesh, cogging, wave generator: ≤ 0.2 rad) and at
-    // least three periods inside the angles travelled, as in torque mode.
-    let ripple_max = (span / 3.0).min(0.2);
-    // LM fit of one kind from several starts; residuals on the training samples only. With many
-    // starts (a searched period) each gets 4 iterations first and only the 3 best go on.
-    let lm = |kind: TKind, th0: &[f64], iters: usize| {
+/// What every step of one window's analysis reads.
+struct Window<'a> {
+    log: &'a JointLog,
+    model: &'a ModelFile,
+    n: usize,
+    dt: f64,
+    /// q̇ as logged or derived (the start of the file's model)
+    qd_raw: Vec<f64>,
+    /// q̇ smoothed, for the regimes, the evidence and the plots
+    qd: Vec<f64>,
+    sim: Sim<'a>,
+    /// the model's own values of `cols`
+    beta0: Vec<f64>,
+    cols: Vec<Col>,
+    /// first held-out sample: the last 30 % are held out
+    hold_from: usize,
+    units: usize,
+    regimes: Regimes,
+    nreg: usize,
+    /// training samples the fits see (thinned to ≤ ~2000)
+    train_idx: Vec<usize>,
+    /// the file's model integrated over the window, its held-out score and its residual
+    m0_sim: Vec<f64>,
+    m0: Scored,
+    r0: Vec<f64>,
+    floor: f64,
+    /// training angles: lowest, and the range travelled
+    qmin: f64,
+    span: f64,
+    /// longest ripple period searched
+    ripple_max: f64,
+}
+
+/// A candidate's test against its reference.
+struct Outcome<'f> {
+    fitted: &'f Fitted,
+    t: f64,
+    p: f64,
+    gain: f64,
+    significant: bool,
+}
+
+/// What [`Window::judge`] decided.
+struct Judged<'f> {
+    alpha_each: f64,
+    /// the refit against the file's model: t, p, gain
+    refit_test: (f64, f64, f64),
+    refit_sig: bool,
+    outcomes: Vec<Outcome<'f>>,
+    /// index into `outcomes` of the verdict, if an effect is it
+    best: Option<usize>,
+}
+
+impl<'a> Window<'a> {
+    fn prepare(log: &'a JointLog, model: &'a ModelFile, m0_sim: Option<Vec<f64>>) -> Result<Window<'a>, DiagError> {
+        let n = log.len();
+        let dt = super::median_dt(&log.t);
+        let (qd_raw, qdd) = super::velocities(log, dt);
+        let qd = super::smooth(&qd_raw, ((super::VELOCITY_SMOOTHING_S / dt).round() as usize).min(25));
+        let j = model.value(ParamId::InertiaJ);
+        if !(j > 0.0) {
+            return Err(DiagError::Input(
+                "trajectory mode integrates the model: its [inertia] j must be > 0 (the log has no u/tau for torque mode)"
+                    .into(),
+            ));
+        }
+        let (sim, beta0) = model_sim(log, model, j, qd_raw[0]);
+        let cols = sim.cols.clone();
+        let hold_from = (0.7 * n as f64).round() as usize;
+        let units = 20usize.min((n - hold_from) / 5).max(3);
+        let regimes = Regimes::build(&log.t, &log.q, &qd, &qdd, log.temp.as_deref(), dt);
+        let nreg = regimes.defs.len();
+        let train_idx: Vec<usize> = (0..hold_from).step_by(hold_from.div_ceil(2000).max(1)).collect();
+        let m0_sim = match m0_sim {
+            Some(s) => s,
+            None => sim.run(TKind::Parameters, &beta0, n).ok_or_else(|| {
+                DiagError::Input("the model diverges when integrated from the log's first sample".into())
+            })?,
+        };
+        let m0 = score_traj(&m0_sim, &log.q, hold_from, units, &regimes.bits, nreg, beta0.clone());
+        let r0: Vec<f64> = log.q.iter().zip(&m0_sim).map(|(a, b)| a - b).collect();
+        let floor = super::noise_floor(&r0);
+        let qmin = log.q.iter().take(hold_from).copied().fold(f64::INFINITY, f64::min);
+        let qmax = log.q.iter().take(hold_from).copied().fold(f64::NEG_INFINITY, f64::max);
+        let span = (qmax - qmin).max(1e-3);
+        // Ripple periods searched: short (gear mesh, cogging, wave generator: ≤ 0.2 rad) and at
+        // least three periods inside the angles travelled, as in torque mode.
+        let ripple_max = (span / 3.0).min(0.2);
+        Ok(Window {
+            log,
+            model,
+            n,
+            dt,
+            qd_raw,
+            qd,
+            sim,
+            beta0,
+            cols,
+            hold_from,
+            units,
+            regimes,
+            nreg,
+            train_idx,
+            m0_sim,
+            m0,
+            r0,
+            floor,
+            qmin,
+            span,
+            ripple_max,
+        })
+    }
+
+    fn has(&self, c: Col) -> bool {
+        self.cols.contains(&c)
+    }
+
+    /// LM fit of one kind from one start; residuals on the training samples only.
+    fn lm(&self, kind: TKind, th0: &[f64], iters: usize) -> Option<(Vec<f64>, f64)> {
         let steps: Vec<f64> = th0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
         levenberg_marquardt(th0, &steps, iters, |th| {
-            let s = sim.run(kind, th, hold_from)?;
-            Some(train_idx.iter().map(|&i| s[i] - log.q[i]).collect())
+            let s = self.sim.run(kind, th, self.hold_from)?;
+            Some(self.train_idx.iter().map(|&i| s[i] - self.log.q[i]).collect())
         })
-    };
-    let fit = |kind: TKind, starts: Vec<Vec<f64>>| -> Option<Fitted> {
+    }
+
+    /// The best LM fit of one kind over its starts, scored on the held-out part. With many
+    /// starts (a searched period) each gets 4 iterations first and only the 3 best go on.
+    fn fit(&self, kind: TKind, starts: Vec<Vec<f64>>) -> Option<Fitted> {
         let starts = if starts.len() > 4 {
-            let mut pre: Vec<(Vec<f64>, f64)> = starts.iter().filter_map(|th0| lm(kind, th0, 4)).collect();
+            let mut pre: Vec<(Vec<f64>, f64)> = starts.iter().filter_map(|th0| self.lm(kind, th0, 4)).collect();
             pre.sort_by(|a, b| a.1.total_cmp(&b.1));
             pre.into_iter().take(3).map(|(th, _)| th).collect()
         } else {
@@ -443,8 +550,7 @@ fn diagnose_window(
         };
         let mut best: Option<(Vec<f64>, f64)> = None;
         for th0 in starts {
-            let r = lm(kind, &th0, 30);
-            if let Some((th, c)) = r {
+            if let Some((th, c)) = self.lm(kind, &th0, 30) {
                 if best.as_ref().map(|b| c < b.1).unwrap_or(true) {
                     best = Some((th, c));
                 }
@@ -453,107 +559,109 @@ fn diagnose_window(
         let (theta, _) = best?;
         // A period that ran off its range is no ripple (a huge period is a constant torque).
         if kind == TKind::Ripple
-            && !theta.get(cols.len() + 2).is_some_and(|lp| (0.01..=1.5 * ripple_max).contains(&lp.exp()))
+            && !theta.get(self.cols.len() + 2).is_some_and(|lp| (0.01..=1.5 * self.ripple_max).contains(&lp.exp()))
         {
             return None;
         }
-        let s = sim.run(kind, &theta, n)?;
-        let scored = score_traj(&s, &log.q, hold_from, units, &regimes.bits, nreg, theta.clone());
+        let s = self.sim.run(kind, &theta, self.n)?;
+        let scored =
+            score_traj(&s, &self.log.q, self.hold_from, self.units, &self.regimes.bits, self.nreg, theta.clone());
         Some(Fitted { kind, theta, sim: s, scored })
-    };
-    let refit = fit(TKind::Parameters, vec![beta0.clone()])
-        .ok_or_else(|| DiagError::Input("the refit of the model's own terms diverged".into()))?;
-    let bp = refit.theta.clone();
-    let with = |e: &[f64]| -> Vec<f64> {
-        let mut v = bp.clone();
-        v.extend_from_slice(e);
-        v
-    };
-    let has = |c: Col| cols.contains(&c);
-    let mut kinds: Vec<(TKind, Vec<Vec<f64>>)> = vec![
-        (TKind::InitialState, vec![with(&[log.q[0], qd_raw[0]])]),
-        (TKind::Stribeck, [0.02f64, 0.1, 0.5].iter().map(|v| with(&[0.0, v.ln()])).collect()),
-        (TKind::Asymmetric, vec![with(&[0.0])]),
-        (TKind::Thermal, [0.3f64, 3.0].iter().map(|f| with(&[0.0, (f * (log.t[n - 1] - log.t[0])).ln()])).collect()),
-        // The period is where the fit is multimodal (a start more than ~10 % off locks onto a
-        // wrong period): starts every 15 % from 0.015 rad to `ripple_max`.
-        (
-            TKind::Ripple,
-            (0..40)
-                .map(|i| 0.015 * 1.15f64.powi(i))
-                .take_while(|p| *p <= ripple_max)
-                .map(|p| with(&[0.01, 0.01, p.ln()]))
-                .collect(),
-        ),
-        (TKind::Cable, [0.3f64, 0.5, 0.7].iter().map(|f| with(&[0.0, qmin + f * span])).collect()),
-    ];
-    if has(Col::Q) {
-        kinds.push((TKind::Backlash, [0.01f64, 0.05].iter().map(|w| with(&[(w * span).ln()])).collect()));
     }
-    if !has(Col::Sgn) {
-        kinds.push((TKind::Dry, vec![with(&[0.0])]));
-    }
-    // Candidates are independent: fit them on two threads.
-    let kinds: Vec<(TKind, Vec<Vec<f64>>)> = kinds.into_iter().filter(|(_, s)| !s.is_empty()).collect();
-    let half = kinds.len().div_ceil(2);
-    let (ka, kb) = kinds.split_at(half);
-    let fit = &fit;
-    let fitted: Vec<Fitted> = std::thread::scope(|sc| {
-        let h = sc.spawn(move || kb.iter().filter_map(|(k, s)| fit(*k, s.clone())).collect::<Vec<_>>());
-        let mut v: Vec<Fitted> = ka.iter().filter_map(|(k, s)| fit(*k, s.clone())).collect();
-        v.extend(h.join().unwrap_or_default());
-        v
-    });
-    let m_tests = (fitted.len() + 1) as f64;
-    let alpha_each = ALPHA / m_tests;
-    let at_floor = m0.rmse() <= AT_FLOOR * floor;
-    let (rt, rp, rg) = compare(&m0, &refit.scored);
-    let refit_sig = !at_floor && rp < alpha_each && rg >= MIN_GAIN;
-    // initial_state is judged against the file's model (it keeps the model's values); every
-    // effect against the refit.
-    // The same sign rules as torque mode (`select::implausible`): the first effect parameter is
-    // the amplitude.
-    let implausible = |f: &Fitted| -> Option<&'static str> {
-        let amp = f.theta.get(cols.len()).copied()?;
-        match f.kind {
-            TKind::Stribeck if amp <= 0.0 => {
-                Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
-            }
-            TKind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
-            TKind::Dry if amp <= 0.0 => {
-                Some("fitted dry friction level is not positive: friction cannot drive the motion")
-            }
-            _ => None,
+
+    /// Each candidate kind with its starts: the refitted model's values `bp` plus the effect's.
+    fn candidate_starts(&self, bp: &[f64]) -> Vec<(TKind, Vec<Vec<f64>>)> {
+        let with = |e: &[f64]| -> Vec<f64> {
+            let mut v = bp.to_vec();
+            v.extend_from_slice(e);
+            v
+        };
+        let (log, n, qmin, span) = (self.log, self.n, self.qmin, self.span);
+        let mut kinds: Vec<(TKind, Vec<Vec<f64>>)> = vec![
+            (TKind::InitialState, vec![with(&[log.q[0], self.qd_raw[0]])]),
+            (TKind::Stribeck, [0.02f64, 0.1, 0.5].iter().map(|v| with(&[0.0, v.ln()])).collect()),
+            (TKind::Asymmetric, vec![with(&[0.0])]),
+            (
+                TKind::Thermal,
+                [0.3f64, 3.0].iter().map(|f| with(&[0.0, (f * (log.t[n - 1] - log.t[0])).ln()])).collect(),
+            ),
+            // The period is where the fit is multimodal (a start more than ~10 % off locks onto a
+            // wrong period): starts every 15 % from 0.015 rad to `ripple_max`.
+            (
+                TKind::Ripple,
+                (0..40)
+                    .map(|i| 0.015 * 1.15f64.powi(i))
+                    .take_while(|p| *p <= self.ripple_max)
+                    .map(|p| with(&[0.01, 0.01, p.ln()]))
+                    .collect(),
+            ),
+            (TKind::Cable, [0.3f64, 0.5, 0.7].iter().map(|f| with(&[0.0, qmin + f * span])).collect()),
+        ];
+        if self.has(Col::Q) {
+            kinds.push((TKind::Backlash, [0.01f64, 0.05].iter().map(|w| with(&[(w * span).ln()])).collect()));
         }
-    };
-    let outcomes: Vec<(&Fitted, f64, f64, f64, bool)> = fitted
-        .iter()
-        .map(|f| {
-            let reference = if f.kind == TKind::InitialState { &m0 } else { &refit.scored };
-            let (t, p, g) = compare(reference, &f.scored);
-            // and, like in torque mode, better than the file's model itself
-            let (_, p0, g0) = compare(&m0, &f.scored);
-            let ok = implausible(f).is_none();
-            (f, t, p, g, ok && !at_floor && p < alpha_each && g >= MIN_GAIN && p0 < alpha_each && g0 >= MIN_GAIN)
+        if !self.has(Col::Sgn) {
+            kinds.push((TKind::Dry, vec![with(&[0.0])]));
+        }
+        kinds.into_iter().filter(|(_, s)| !s.is_empty()).collect()
+    }
+
+    /// Every candidate fitted on top of the refit `bp`; they are independent, so two threads.
+    fn fit_candidates(&self, bp: &[f64]) -> Vec<Fitted> {
+        let kinds = self.candidate_starts(bp);
+        let half = kinds.len().div_ceil(2);
+        let (ka, kb) = kinds.split_at(half);
+        std::thread::scope(|sc| {
+            let h = sc.spawn(move || kb.iter().filter_map(|(k, s)| self.fit(*k, s.clone())).collect::<Vec<_>>());
+            let mut v: Vec<Fitted> = ka.iter().filter_map(|(k, s)| self.fit(*k, s.clone())).collect();
+            v.extend(h.join().unwrap_or_default());
+            v
         })
-        .collect();
-    let best = outcomes.iter().filter(|o| o.4).min_by(|a, b| a.0.scored.mse().total_cmp(&b.0.scored.mse()));
-    // initial_state is tested against the file's model, not the refit; but its fit refits the
-    // model's values too (it nests the refit), so when the refit is significant on its own the
-    // start must also beat the refit: otherwise the values are what is wrong, not the start.
-    let beats_refit = |f: &Fitted| {
-        let (_, p, g) = compare(&refit.scored, &f.scored);
-        p < alpha_each && g >= MIN_GAIN
-    };
-    let best = best.filter(|o| !(o.0.kind == TKind::InitialState && refit_sig && !beats_refit(o.0)));
-    let before = m0.rmse();
-    let (vname, vafter, final_fit) = match best {
-        Some(o) => (o.0.kind.name().to_string(), o.0.scored.rmse(), Some(o.0)),
-        None if refit_sig => ("parameters".to_string(), refit.scored.rmse(), Some(&refit)),
-        None => ("none".to_string(), before, None),
-    };
-    let regime_shrinks = |s: &Scored| -> Vec<RegimeShrink> {
-        regimes
+    }
+
+    /// Significance of the refit and every candidate, and the verdict among them.
+    fn judge<'f>(&self, refit: &'f Fitted, fitted: &'f [Fitted]) -> Judged<'f> {
+        let m_tests = (fitted.len() + 1) as f64;
+        let alpha_each = ALPHA / m_tests;
+        let at_floor = self.m0.rmse() <= AT_FLOOR * self.floor;
+        let refit_test = compare(&self.m0, &refit.scored);
+        let refit_sig = !at_floor && refit_test.1 < alpha_each && refit_test.2 >= MIN_GAIN;
+        // initial_state is judged against the file's model (it keeps the model's values); every
+        // effect against the refit.
+        let outcomes: Vec<Outcome> = fitted
+            .iter()
+            .map(|f| {
+                let reference = if f.kind == TKind::InitialState { &self.m0 } else { &refit.scored };
+                let (t, p, gain) = compare(reference, &f.scored);
+                // and, like in torque mode, better than the file's model itself
+                let (_, p0, g0) = compare(&self.m0, &f.scored);
+                let ok = implausible(self.cols.len(), f).is_none();
+                let significant =
+                    ok && !at_floor && p < alpha_each && gain >= MIN_GAIN && p0 < alpha_each && g0 >= MIN_GAIN;
+                Outcome { fitted: f, t, p, gain, significant }
+            })
+            .collect();
+        let best = (0..outcomes.len())
+            .filter(|&k| outcomes[k].significant)
+            .min_by(|&a, &b| outcomes[a].fitted.scored.mse().total_cmp(&outcomes[b].fitted.scored.mse()));
+        // initial_state is tested against the file's model, not the refit; but its fit refits the
+        // model's values too (it nests the refit), so when the refit is significant on its own the
+        // start must also beat the refit: otherwise the values are what is wrong, not the start.
+        let beats_refit = |f: &Fitted| {
+            let (_, p, g) = compare(&refit.scored, &f.scored);
+            p < alpha_each && g >= MIN_GAIN
+        };
+        let best = best.filter(|&k| {
+            let f = outcomes[k].fitted;
+            !(f.kind == TKind::InitialState && refit_sig && !beats_refit(f))
+        });
+        Judged { alpha_each, refit_test, refit_sig, outcomes, best }
+    }
+
+    /// Held-out RMSE per regime before (the file's model) and after `s`.
+    fn regime_shrinks(&self, s: &Scored) -> Vec<RegimeShrink> {
+        let m0 = &self.m0;
+        self.regimes
             .defs
             .iter()
             .enumerate()
@@ -564,136 +672,64 @@ fn diagnose_window(
                 holdout_rmse_after: (s.regime_sse[k] / s.regime_n[k].max(1.0)).sqrt(),
             })
             .collect()
-    };
-    let eff_params = |f: &Fitted| -> BTreeMap<String, f64> {
-        let nb = cols.len();
-        let e = &f.theta[nb..];
-        let mut p = BTreeMap::new();
-        let mut put = |k: &str, v: f64| {
-            p.insert(k.to_string(), v);
-        };
-        match f.kind {
-            TKind::Parameters => {
-                for (k, v) in refit_values(model, &cols, &f.theta) {
-                    put(&k, v);
-                }
-            }
-            TKind::InitialState => {
-                put("q", e[0]);
-                put("qd", e[1]);
-            }
-            TKind::Stribeck => {
-                put("level", e[0]);
-                put("speed", e[1].exp());
-            }
-            TKind::Asymmetric => put("delta", e[0]),
-            TKind::Dry => put("c", e[0]),
-            TKind::Thermal => {
-                put("coefficient", e[0]);
-                put("time_constant", e[1].exp());
-            }
-            TKind::Ripple => {
-                put("amplitude", e[0].hypot(e[1]));
-                put("phase", e[1].atan2(e[0]));
-                put("period", e[2].exp());
-            }
-            TKind::Cable => {
-                put("k", e[0]);
-                put("engage", e[1]);
-                put("width", 0.01);
-            }
-            TKind::Backlash => put("width", e[0].exp()),
-        }
-        p
-    };
-    let mut effects: Vec<EffectOut> = Vec::new();
-    effects.push(EffectOut {
-        effect: "parameters".into(),
-        holdout_rmse_before: before,
-        holdout_rmse_after: refit.scored.rmse(),
-        shrink: super::shrink(before, refit.scored.rmse()),
-        significant: refit_sig,
-        params: eff_params(&refit),
-        reference: "model",
-        t_stat: rt.clamp(-1e9, 1e9),
-        p_value: rp,
-        gain: rg,
-        implausible: None,
-        regimes: regime_shrinks(&refit.scored),
-    });
-    for (f, t, p, g, sig) in &outcomes {
-        effects.push(EffectOut {
-            effect: f.kind.name().into(),
+    }
+
+    /// The refit first, then every candidate, best held-out RMSE first.
+    fn effects_out(&self, refit: &Fitted, j: &Judged) -> Vec<EffectOut> {
+        let before = self.m0.rmse();
+        let (rt, rp, rg) = j.refit_test;
+        let mut effects: Vec<EffectOut> = vec![EffectOut {
+            effect: "parameters".into(),
             holdout_rmse_before: before,
-            holdout_rmse_after: f.scored.rmse(),
-            shrink: super::shrink(before, f.scored.rmse()),
-            significant: *sig,
-            params: eff_params(f),
-            reference: if f.kind == TKind::InitialState { "model" } else { "parameters" },
-            t_stat: t.clamp(-1e9, 1e9),
-            p_value: *p,
-            gain: *g,
-            implausible: implausible(f),
-            regimes: regime_shrinks(&f.scored),
-        });
-    }
-    effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
-    // Regimes of the file's model over the whole run.
-    let total: f64 = r0.iter().map(|r| r * r).sum();
-    let mut sse = vec![0.0; nreg];
-    let mut cnt = vec![0usize; nreg];
-    for (i, r) in r0.iter().enumerate() {
-        let mut b = regimes.bits[i];
-        while b != 0 {
-            let k = b.trailing_zeros() as usize;
-            sse[k] += r * r;
-            cnt[k] += 1;
-            b &= b - 1;
+            holdout_rmse_after: refit.scored.rmse(),
+            shrink: super::shrink(before, refit.scored.rmse()),
+            significant: j.refit_sig,
+            params: effect_params(self.model, &self.cols, refit),
+            reference: "model",
+            t_stat: rt.clamp(-1e9, 1e9),
+            p_value: rp,
+            gain: rg,
+            implausible: None,
+            regimes: self.regime_shrinks(&refit.scored),
+        }];
+        for o in &j.outcomes {
+            let f = o.fitted;
+            effects.push(EffectOut {
+                effect: f.kind.name().into(),
+                holdout_rmse_before: before,
+                holdout_rmse_after: f.scored.rmse(),
+                shrink: super::shrink(before, f.scored.rmse()),
+                significant: o.significant,
+                params: effect_params(self.model, &self.cols, f),
+                reference: if f.kind == TKind::InitialState { "model" } else { "parameters" },
+                t_stat: o.t.clamp(-1e9, 1e9),
+                p_value: o.p,
+                gain: o.gain,
+                implausible: implausible(self.cols.len(), f),
+                regimes: self.regime_shrinks(&f.scored),
+            });
         }
+        effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
+        effects
     }
-    let final_sim: &[f64] = final_fit.map(|f| f.sim.as_slice()).unwrap_or(&m0_sim);
-    let ra: Vec<f64> = log.q.iter().zip(final_sim).map(|(a, b)| a - b).collect();
-    let lag = ((0.1 / dt).round() as usize).clamp(10, 100);
-    let hold_r0: Vec<f64> = r0[hold_from..].to_vec();
-    let hold_ra: Vec<f64> = ra[hold_from..].to_vec();
-    let hold_qd: Vec<f64> = qd[hold_from..].to_vec();
-    let selected: Vec<Step> = match best {
-        Some(o) => vec![Step {
-            effect: o.0.kind.name().into(),
-            params: eff_params(o.0),
-            holdout_rmse_after: o.0.scored.rmse(),
-            shrink: super::shrink(before, o.0.scored.rmse()),
-            p_value: o.2,
-        }],
-        None => vec![],
-    };
-    let refit_out = match final_fit {
-        Some(f) if f.kind != TKind::InitialState => nest(refit_values(model, &cols, &f.theta)),
-        _ => nest(refit_values(model, &cols, &beta0)),
-    };
-    let warnings = super::refit_warnings(&effects);
-    let report = Report {
-        mode: "trajectory",
-        samples: n,
-        split: SplitInfo {
-            method: "blocked_last_30_percent",
-            train: hold_from,
-            holdout: n - hold_from,
-            blocks: 1,
-            held_blocks: vec![],
-            guard_samples: 0,
-            test_units: units,
-            rest_tail: None,
-        },
-        gap: Gap {
-            rmse: (total / n as f64).sqrt(),
-            holdout_rmse: before,
-            noise_floor: floor,
-            unit: "rad",
-            at_noise_floor: vafter <= AT_FLOOR * floor,
-            qdd_noise_sd: None,
-        },
-        regimes: regimes
+
+    /// Where the file's model's residual lies over the whole window, per regime.
+    fn regimes_out(&self) -> (f64, Vec<RegimeOut>) {
+        let total: f64 = self.r0.iter().map(|r| r * r).sum();
+        let nreg = self.nreg;
+        let mut sse = vec![0.0; nreg];
+        let mut cnt = vec![0usize; nreg];
+        for (i, r) in self.r0.iter().enumerate() {
+            let mut b = self.regimes.bits[i];
+            while b != 0 {
+                let k = b.trailing_zeros() as usize;
+                sse[k] += r * r;
+                cnt[k] += 1;
+                b &= b - 1;
+            }
+        }
+        let out = self
+            .regimes
             .defs
             .iter()
             .enumerate()
@@ -705,45 +741,212 @@ fn diagnose_window(
                 rmse: if cnt[k] > 0 { (sse[k] / cnt[k] as f64).sqrt() } else { 0.0 },
                 samples: cnt[k],
             })
-            .collect(),
-        effects,
-        verdict: Verdict { effect: vname.clone(), holdout_rmse_before: before, holdout_rmse_after: vafter, shrink: super::shrink(before, vafter), effects: vec![vname] },
-        selected,
-        refit: refit_out,
-        test: TestInfo {
-            method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (20 units of the last 30 %; p = 2·min), Bonferroni over candidates, a 2 % minimum gain, nothing tested once the model is within 5 % of the noise floor",
-            alpha: ALPHA,
-            alpha_each,
-            min_gain: MIN_GAIN,
-        },
-        resid: Some(super::Resid {
+            .collect();
+        (total, out)
+    }
+
+    /// MATLAB-`resid`-style evidence on the held-out part: before and after (residual `ra`).
+    fn resid(&self, ra: &[f64]) -> super::Resid {
+        let lag = ((0.1 / self.dt).round() as usize).clamp(10, 100);
+        let h = self.hold_from;
+        let (hold_r0, hold_ra, hold_qd) = (&self.r0[h..], &ra[h..], &self.qd[h..]);
+        super::Resid {
             input: vec!["qd"],
-            autocorrelation_before: super::resid::xcorr(&hold_r0, &hold_r0, lag, true),
-            autocorrelation_after: super::resid::xcorr(&hold_ra, &hold_ra, lag, true),
-            xcorr_before: vec![super::resid::xcorr(&hold_r0, &hold_qd, lag, false)],
-            xcorr_after: vec![super::resid::xcorr(&hold_ra, &hold_qd, lag, false)],
-        }),
-        unknown_columns: log.unknown.clone(),
-        not_applicable: {
-            let mut v = vec![
-                super::NotApplicable { effect: "delay", why: "a free response has no input to lag: a time shift is an initial state" },
-                super::NotApplicable { effect: "load_dependent_friction", why: "trajectory mode has no measured transmitted torque" },
-            ];
-            if !has(Col::Q) {
-                v.push(super::NotApplicable { effect: "backlash", why: "the model has no [spring] whose dead zone could be fitted" });
-            }
-            if has(Col::Sgn) {
-                v.push(super::NotApplicable { effect: "dry_friction", why: "the model has a Coulomb term, so a missing Coulomb torque is `parameters`" });
-            }
-            v
-        },
-        warnings,
+            autocorrelation_before: super::resid::xcorr(hold_r0, hold_r0, lag, true),
+            autocorrelation_after: super::resid::xcorr(hold_ra, hold_ra, lag, true),
+            xcorr_before: vec![super::resid::xcorr(hold_r0, hold_qd, lag, false)],
+            xcorr_after: vec![super::resid::xcorr(hold_ra, hold_qd, lag, false)],
+        }
+    }
+
+    fn not_applicable(&self) -> Vec<super::NotApplicable> {
+        let mut v = vec![
+            super::NotApplicable {
+                effect: "delay",
+                why: "a free response has no input to lag: a time shift is an initial state",
+            },
+            super::NotApplicable {
+                effect: "load_dependent_friction",
+                why: "trajectory mode has no measured transmitted torque",
+            },
+        ];
+        if !self.has(Col::Q) {
+            v.push(super::NotApplicable {
+                effect: "backlash",
+                why: "the model has no [spring] whose dead zone could be fitted",
+            });
+        }
+        if self.has(Col::Sgn) {
+            v.push(super::NotApplicable {
+                effect: "dry_friction",
+                why: "the model has a Coulomb term, so a missing Coulomb torque is `parameters`",
+            });
+        }
+        v
+    }
+
+    /// The report (spec §3): `final_fit` is what the verdict kept, `ra` its residual.
+    fn report(&self, refit: &Fitted, j: &Judged, final_fit: Option<&Fitted>, ra: &[f64]) -> Report {
+        let (n, hold_from) = (self.n, self.hold_from);
+        let before = self.m0.rmse();
+        let best = j.best.map(|k| &j.outcomes[k]);
+        let (vname, vafter) = match best {
+            Some(o) => (o.fitted.kind.name().to_string(), o.fitted.scored.rmse()),
+            None if j.refit_sig => ("parameters".to_string(), refit.scored.rmse()),
+            None => ("none".to_string(), before),
+        };
+        let effects = self.effects_out(refit, j);
+        let selected: Vec<Step> = match best {
+            Some(o) => vec![Step {
+                effect: o.fitted.kind.name().into(),
+                params: effect_params(self.model, &self.cols, o.fitted),
+                holdout_rmse_after: o.fitted.scored.rmse(),
+                shrink: super::shrink(before, o.fitted.scored.rmse()),
+                p_value: o.p,
+            }],
+            None => vec![],
+        };
+        let refit_out = match final_fit {
+            Some(f) if f.kind != TKind::InitialState => nest(refit_values(self.model, &self.cols, &f.theta)),
+            _ => nest(refit_values(self.model, &self.cols, &self.beta0)),
+        };
+        let warnings = super::refit_warnings(&effects);
+        let (total, regimes) = self.regimes_out();
+        Report {
+            mode: "trajectory",
+            samples: n,
+            split: SplitInfo {
+                method: "blocked_last_30_percent",
+                train: hold_from,
+                holdout: n - hold_from,
+                blocks: 1,
+                held_blocks: vec![],
+                guard_samples: 0,
+                test_units: self.units,
+                rest_tail: None,
+            },
+            gap: Gap {
+                rmse: (total / n as f64).sqrt(),
+                holdout_rmse: before,
+                noise_floor: self.floor,
+                unit: "rad",
+                at_noise_floor: vafter <= AT_FLOOR * self.floor,
+                qdd_noise_sd: None,
+            },
+            regimes,
+            effects,
+            verdict: Verdict {
+                effect: vname.clone(),
+                holdout_rmse_before: before,
+                holdout_rmse_after: vafter,
+                shrink: super::shrink(before, vafter),
+                effects: vec![vname],
+            },
+            selected,
+            refit: refit_out,
+            test: TestInfo {
+                method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (20 units of the last 30 %; p = 2·min), Bonferroni over candidates, a 2 % minimum gain, nothing tested once the model is within 5 % of the noise floor",
+                alpha: ALPHA,
+                alpha_each: j.alpha_each,
+                min_gain: MIN_GAIN,
+            },
+            resid: Some(self.resid(ra)),
+            unknown_columns: self.log.unknown.clone(),
+            not_applicable: self.not_applicable(),
+            warnings,
+        }
+    }
+
+    /// Every thinned sample for the HTML report: before (file's model) and after (`ra`).
+    fn plots(&self, ra: &[f64]) -> PlotData {
+        let (log, n) = (self.log, self.n);
+        let stride = (n / 4000).max(1);
+        let mut plots = PlotData { unit: "rad", measured_label: "q (rad)", ..PlotData::default() };
+        for i in (0..n).step_by(stride) {
+            plots.t.push(log.t[i]);
+            plots.q.push(log.q[i]);
+            plots.qd.push(self.qd[i]);
+            plots.measured.push(log.q[i]);
+            plots.before.push(self.r0[i]);
+            plots.after.push(ra[i]);
+            let b = self.regimes.bits[i];
+            plots.speed_regime.push(if b & 1 != 0 {
+                0
+            } else if b & 2 != 0 {
+                1
+            } else {
+                2
+            });
+            plots.held.push(i >= self.hold_from);
+        }
+        plots
+    }
+}
+
+/// The same sign rules as torque mode (`select::implausible`): the first effect parameter is
+/// the amplitude. `nb`: how many of the model's own terms precede it.
+fn implausible(nb: usize, f: &Fitted) -> Option<&'static str> {
+    let amp = f.theta.get(nb).copied()?;
+    match f.kind {
+        TKind::Stribeck if amp <= 0.0 => {
+            Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
+        }
+        TKind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
+        TKind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
+        _ => None,
+    }
+}
+
+/// A fit's parameters as the report names them: the model's terms for `parameters`, the
+/// effect's own for a candidate.
+fn effect_params(model: &ModelFile, cols: &[Col], f: &Fitted) -> BTreeMap<String, f64> {
+    let e = &f.theta[cols.len()..];
+    let mut p = BTreeMap::new();
+    let mut put = |k: &str, v: f64| {
+        p.insert(k.to_string(), v);
     };
-    // Emitted model: refitted values plus the winning effect's section.
+    match f.kind {
+        TKind::Parameters => {
+            for (k, v) in refit_values(model, cols, &f.theta) {
+                put(&k, v);
+            }
+        }
+        TKind::InitialState => {
+            put("q", e[0]);
+            put("qd", e[1]);
+        }
+        TKind::Stribeck => {
+            put("level", e[0]);
+            put("speed", e[1].exp());
+        }
+        TKind::Asymmetric => put("delta", e[0]),
+        TKind::Dry => put("c", e[0]),
+        TKind::Thermal => {
+            put("coefficient", e[0]);
+            put("time_constant", e[1].exp());
+        }
+        TKind::Ripple => {
+            put("amplitude", e[0].hypot(e[1]));
+            put("phase", e[1].atan2(e[0]));
+            put("period", e[2].exp());
+        }
+        TKind::Cable => {
+            put("k", e[0]);
+            put("engage", e[1]);
+            put("width", 0.01);
+        }
+        TKind::Backlash => put("width", e[0].exp()),
+    }
+    p
+}
+
+/// The emitted model: the file's model with the refitted values (clamped into the parameter
+/// table's ranges) plus the winning effect's section.
+fn emitted_model(model: &ModelFile, cols: &[Col], final_fit: Option<&Fitted>) -> String {
     let mut mf = model.clone();
     if let Some(f) = final_fit {
         if f.kind != TKind::InitialState {
-            for (k, v) in refit_values(model, &cols, &f.theta) {
+            for (k, v) in refit_values(model, cols, &f.theta) {
                 if let Some((sec, key)) = k.split_once('.') {
                     if let Some(d) = joint_core::params::PARAMS.iter().find(|p| p.section == sec && p.key == key) {
                         mf.set(d.id, v.clamp(f64::from(d.min), f64::from(d.max)), None);
@@ -755,45 +958,38 @@ fn diagnose_window(
     let mut emitted = String::from("# written by `jointctl diagnose --emit-model` (trajectory mode)\n");
     emitted.push_str(&mf.to_toml_string());
     if let Some(f) = final_fit {
-        let p = eff_params(f);
-        let g = |k: &str| p.get(k).copied().unwrap_or(0.0);
-        let sec = match f.kind {
-            TKind::Stribeck => format!("\n[stribeck]\nlevel = {:?}\nspeed = {:?}\n", g("level"), g("speed")),
-            TKind::Asymmetric => format!("\n[asymmetric_friction]\ndelta = {:?}\n", g("delta")),
-            TKind::Dry => format!("\n[dry_friction]\nc = {:?}\n", g("c").max(0.0)),
-            TKind::Thermal => format!(
-                "\n[thermal_drift]\ncoefficient = {:?}\nt_ambient = 0.0\nrise = 1.0\ntime_constant = {:?}\nt_ref = 0.0\nlog_temp = false\n",
-                g("coefficient"),
-                g("time_constant")
-            ),
-            TKind::Ripple => format!("\n[position_ripple]\namplitude = {:?}\nperiod = {:?}\nphase = {:?}\n", g("amplitude"), g("period"), g("phase")),
-            TKind::Cable => format!("\n[cable_spring]\nk = {:?}\nengage = {:?}\nwidth = 0.01\n", g("k").max(0.0), g("engage")),
-            TKind::Backlash => format!("\n[backlash]\nwidth = {:?}\n", g("width")),
-            TKind::InitialState => format!("\n# initial_state: the run starts at q = {:?} rad, qd = {:?} rad/s (not a model section)\n", g("q"), g("qd")),
-            TKind::Parameters => String::new(),
-        };
-        emitted.push_str(&sec);
+        emitted.push_str(&effect_section(&effect_params(model, cols, f), f.kind));
     }
-    let stride = (n / 4000).max(1);
-    let mut plots = PlotData { unit: "rad", measured_label: "q (rad)", ..PlotData::default() };
-    for i in (0..n).step_by(stride) {
-        plots.t.push(log.t[i]);
-        plots.q.push(log.q[i]);
-        plots.qd.push(qd[i]);
-        plots.measured.push(log.q[i]);
-        plots.before.push(r0[i]);
-        plots.after.push(ra[i]);
-        let b = regimes.bits[i];
-        plots.speed_regime.push(if b & 1 != 0 {
-            0
-        } else if b & 2 != 0 {
-            1
-        } else {
-            2
-        });
-        plots.held.push(i >= hold_from);
+    emitted
+}
+
+/// The plant/model section of a trajectory-mode effect with parameters `p`.
+fn effect_section(p: &BTreeMap<String, f64>, kind: TKind) -> String {
+    let g = |k: &str| p.get(k).copied().unwrap_or(0.0);
+    match kind {
+        TKind::Stribeck => format!("\n[stribeck]\nlevel = {:?}\nspeed = {:?}\n", g("level"), g("speed")),
+        TKind::Asymmetric => format!("\n[asymmetric_friction]\ndelta = {:?}\n", g("delta")),
+        TKind::Dry => format!("\n[dry_friction]\nc = {:?}\n", g("c").max(0.0)),
+        TKind::Thermal => format!(
+            "\n[thermal_drift]\ncoefficient = {:?}\nt_ambient = 0.0\nrise = 1.0\ntime_constant = {:?}\nt_ref = 0.0\nlog_temp = false\n",
+            g("coefficient"),
+            g("time_constant")
+        ),
+        TKind::Ripple => format!(
+            "\n[position_ripple]\namplitude = {:?}\nperiod = {:?}\nphase = {:?}\n",
+            g("amplitude"),
+            g("period"),
+            g("phase")
+        ),
+        TKind::Cable => format!("\n[cable_spring]\nk = {:?}\nengage = {:?}\nwidth = 0.01\n", g("k").max(0.0), g("engage")),
+        TKind::Backlash => format!("\n[backlash]\nwidth = {:?}\n", g("width")),
+        TKind::InitialState => format!(
+            "\n# initial_state: the run starts at q = {:?} rad, qd = {:?} rad/s (not a model section)\n",
+            g("q"),
+            g("qd")
+        ),
+        TKind::Parameters => String::new(),
     }
-    Ok(Diagnosis { report, emitted_model: emitted, plots })
 }
 
 fn nest(flat: Vec<(String, f64)>) -> BTreeMap<String, BTreeMap<String, f64>> {
