@@ -21,7 +21,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::plant::{Operator, Plant, PlantFile, State};
+use crate::plant::{Operator, Plant, PlantFile, Sensors, State};
 use crate::scenario::{RandomPath, Scenario, ScenarioCfg, ScenarioKind};
 use joint_formats::log::JointLog;
 use joint_formats::predict::{predicted, residual, rms};
@@ -114,204 +114,329 @@ pub struct RunInfo {
 
 /// Runs the scenarios back to back and returns the log.
 pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Result<(JointLog, RunInfo), SimError> {
-    let bad = |s: String| Err(SimError::Config(s));
-    let rate = cfg.rate.unwrap_or(f64::from(ctrl.get(ParamId::ControlRateHz)));
-    if !(rate.is_finite() && rate > 0.0) {
-        return bad(format!("control rate {rate} Hz must be > 0"));
-    }
-    if !(cfg.plant_rate.is_finite() && cfg.plant_rate >= 10.0 * rate - 1e-9) {
-        return bad(format!("plant rate {} Hz must be at least 10× the control rate {rate} Hz", cfg.plant_rate));
-    }
-    let sub = (cfg.plant_rate / rate).round() as usize;
-    if ((sub as f64) * rate - cfg.plant_rate).abs() > 1e-6 * cfg.plant_rate {
-        return bad(format!(
-            "plant rate {} Hz must be an integer multiple of the control rate {rate} Hz",
-            cfg.plant_rate
-        ));
-    }
-    if !(cfg.seconds.is_finite() && cfg.seconds > 0.0 && cfg.seconds * rate <= 5.0e7) {
-        return bad(format!("--seconds {} must be > 0 (and at most 5e7 samples)", cfg.seconds));
-    }
-    if cfg.scenarios.is_empty() {
-        return bad("no scenario given".into());
-    }
-    let (lo, hi) = cfg.range.or(plant_file.range.as_ref().map(|r| (r.min, r.max))).unwrap_or((0.0, 116.5 * DEG));
-    if !(lo.is_finite() && hi.is_finite() && hi > lo) {
-        return bad(format!("joint range {lo}..{hi} rad must have min < max"));
-    }
-    let dt_ctrl = 1.0 / rate;
-    let dt = dt_ctrl / sub as f64;
-    let u_max = f64::from(ctrl.get(ParamId::TorqueLimit));
-    let plant = Plant::new(plant_file, dt, u_max);
-
-    // Operator impedance: a 1.5 Hz, 0.7-damped hand on the joint's inertia, stiff enough to
-    // dominate the joint's own springs and weight.
-    let (k_h, b_h) = match &plant_file.operator {
-        Some(o) => (o.stiffness, o.damping),
-        None => {
-            let w = std::f64::consts::TAU * 1.5;
-            let k = plant.j * w * w + 3.0 * plant.stiffness_scale();
-            (k, 2.0 * 0.7 * (k * plant.j).sqrt())
-        }
-    };
+    let timing = Timing::check(plant_file, ctrl, cfg)?;
+    let (lo, hi) = timing.range;
+    let plant = Plant::new(plant_file, timing.dt_fine, f64::from(ctrl.get(ParamId::TorqueLimit)));
+    let (k_h, b_h) = operator_impedance(plant_file, &plant);
     let scfg =
         ScenarioCfg { lo, hi, k_h, b_h, free_start: cfg.free_start.unwrap_or(lo + 0.75 * (hi - lo)), sweep_accel: 3.0 };
-
-    let mut rng_scn = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let mut rng_noise = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x9E37_79B9_7F4A_7C15);
-    let s = &plant_file.sensors;
-    let (n_q, n_qd, n_qdd, n_tau, n_u, n_temp) = (
-        normal(s.q_noise),
-        normal(s.qd_noise),
-        normal(s.qdd_noise),
-        normal(s.tau_noise),
-        normal(s.u_noise),
-        normal(s.temp_noise),
-    );
-
-    // Other joints of the gravity table: random smooth paths inside their grid.
-    let other_names = plant_file.model.other_columns();
-    let mut other_paths: Vec<RandomPath> = other_names
-        .iter()
-        .map(|name| {
-            let (glo, ghi) = plant_file
-                .model
-                .table
-                .as_ref()
-                .and_then(|t| t.axes.iter().position(|a| a == name).and_then(|i| t.grid.get(i)))
-                .and_then(|g| Some((*g.first()?, *g.last()?)))
-                .unwrap_or((0.0, 1.0));
-            RandomPath::new(0.5 * (glo + ghi), glo, ghi, 1.0, 4.0, &mut rng_scn)
-        })
-        .collect();
-
-    let delay_steps = plant_file.effects.delay.as_ref().map(|d| (d.seconds / dt).round() as usize).unwrap_or(0);
-    let log_temp = plant_file.effects.thermal_drift.as_ref().map(|t| t.log_temp).unwrap_or(false);
-
-    let first_kind = cfg.scenarios.first().copied().unwrap_or(ScenarioKind::Sweep);
-    let q_init = Scenario::initial_angle(first_kind, &scfg);
-    let mut x = State { q: q_init, qd: 0.0, qm: q_init, qdm: 0.0 };
-    let ticks_per = (cfg.seconds * rate).round() as usize;
-    let n_total = ticks_per * cfg.scenarios.len();
-
-    let mut log = JointLog {
-        t: Vec::with_capacity(n_total),
-        q: Vec::with_capacity(n_total),
-        qd: Some(Vec::with_capacity(n_total)),
-        qdd: Some(Vec::with_capacity(n_total)),
-        u: cfg.torque_columns.then(|| Vec::with_capacity(n_total)),
-        tau: cfg.torque_columns.then(|| Vec::with_capacity(n_total)),
-        temp: log_temp.then(|| Vec::with_capacity(n_total)),
-        others: other_names.iter().map(|n| (n.clone(), Vec::with_capacity(n_total))).collect(),
-        unknown: Vec::new(),
-    };
-
-    let mut controller = Controller::new();
-    let mut diff = Differentiator::new();
-    let cutoff = ctrl.get(ParamId::AccelCutoff);
-    let mut hist: VecDeque<Rec> = VecDeque::with_capacity(delay_steps + sub + 2);
-    let mut others_now = vec![0.0; other_names.len()];
-    let mut others_hist: VecDeque<Vec<f64>> = VecDeque::new();
-    let mut tick = 0usize;
+    let mut run = Run::new(plant_file, &plant, ctrl, cfg, &timing, &scfg);
     for (si, kind) in cfg.scenarios.iter().enumerate() {
         let mut scenario: Option<Scenario> = None;
-        for k in 0..ticks_per {
-            let t = tick as f64 * dt_ctrl;
-            tick += 1;
-            let t_local = k as f64 * dt_ctrl;
-            // Other joints' true angles now (held over the tick).
-            for (o, p) in others_now.iter_mut().zip(other_paths.iter_mut()) {
-                *o = p.at(t, &mut rng_scn).0;
-            }
-            // 1. sensors of the delayed state (its inputs are fixed below for the current entry)
-            let lag_ticks_fine = delay_steps;
-            let past: Option<Rec> =
-                if hist.len() > lag_ticks_fine { hist.get(hist.len() - lag_ticks_fine) } else { hist.front() }.copied();
-            let (xs, past_t) = match past {
-                Some(r) if lag_ticks_fine > 0 => (r.x, r.t),
-                _ => (x, t),
-            };
-            others_hist.push_back(others_now.clone());
-            let lag_ticks = delay_steps.div_ceil(sub).min(others_hist.len().saturating_sub(1));
-            while others_hist.len() > lag_ticks + 1 {
-                others_hist.pop_front();
-            }
-            let others_seen = others_hist.front().cloned().unwrap_or_default();
-            let q_s = quantise(xs.q + n_q.sample(&mut rng_noise), s.q_resolution);
-            let qd_s = xs.qd + n_qd.sample(&mut rng_noise);
-            let others_s: Vec<f64> =
-                others_seen.iter().map(|o| quantise(o + n_q.sample(&mut rng_noise), s.q_resolution)).collect();
-
-            // 2. controller
-            let sc =
-                scenario.get_or_insert_with(|| Scenario::start(*kind, cfg.seconds, &scfg, q_s, si == 0, &mut rng_scn));
-            let cmd = sc.command(t_local, q_s, &mut rng_scn);
-            let qdd_est = diff.update(qd_s as f32, dt_ctrl as f32, cutoff);
-            let mut inp = Input { q: q_s as f32, qd: qd_s as f32, qdd: qdd_est, others: [0.0; 3], assist_cmd: 0.0 };
-            for (dst, src) in inp.others.iter_mut().zip(others_s.iter()) {
-                *dst = *src as f32;
-            }
-            let out = controller.step(ctrl, cmd.mode, &inp, dt_ctrl as f32);
-            let u = f64::from(out.tau_out);
-            hist.push_back(Rec { t, x, u, op: cmd.operator });
-
-            // 3. the log row, from the sensed instant with the inputs in force then
-            let rec = if lag_ticks_fine > 0 {
-                match past {
-                    Some(r) => r,
-                    None => Rec { t, x, u, op: cmd.operator },
-                }
-            } else {
-                Rec { t, x, u, op: cmd.operator }
-            };
-            let _ = past_t;
-            let dx = plant.deriv(rec.t, &rec.x, rec.u, &rec.op, &others_seen);
-            log.t.push(t);
-            log.q.push(q_s);
-            if let Some(c) = log.qd.as_mut() {
-                c.push(qd_s);
-            }
-            if let Some(c) = log.qdd.as_mut() {
-                c.push(dx.qd + n_qdd.sample(&mut rng_noise));
-            }
-            if let Some(c) = log.u.as_mut() {
-                c.push(u + n_u.sample(&mut rng_noise));
-            }
-            if let Some(c) = log.tau.as_mut() {
-                c.push(-rec.op.torque(rec.x.q, rec.x.qd) + n_tau.sample(&mut rng_noise));
-            }
-            if let Some(c) = log.temp.as_mut() {
-                c.push(plant.effects.temperature(t).unwrap_or(0.0) + n_temp.sample(&mut rng_noise));
-            }
-            for ((_, col), v) in log.others.iter_mut().zip(others_s.iter()) {
-                col.push(*v);
-            }
-
-            // 4. integrate
-            for i in 0..sub {
-                let tf = t + i as f64 * dt;
-                if i > 0 {
-                    hist.push_back(Rec { t: tf, x, u, op: cmd.operator });
-                }
-                x = plant.step(tf, &x, u, &cmd.operator, &others_now);
-            }
-            while hist.len() > delay_steps + 1 {
-                hist.pop_front();
-            }
-            if !(x.q.is_finite() && x.qd.is_finite()) {
-                return bad(format!("the simulation diverged at t = {t:.4} s (check the plant's parameters)"));
-            }
+        for k in 0..timing.ticks_per_scenario {
+            run.tick(*kind, si, k, &mut scenario)?;
         }
     }
     let info = RunInfo {
-        rate_hz: rate,
+        rate_hz: timing.rate,
         plant_rate_hz: cfg.plant_rate,
         range_rad: (lo, hi),
         sign_band: plant.band,
         operator_stiffness: k_h,
         operator_damping: b_h,
     };
-    Ok((log, info))
+    Ok((run.log, info))
+}
+
+/// The rates, step sizes and range of a run, checked.
+struct Timing {
+    /// control rate, Hz
+    rate: f64,
+    /// plant steps per control tick
+    sub: usize,
+    dt_ctrl: f64,
+    dt_fine: f64,
+    range: (f64, f64),
+    ticks_per_scenario: usize,
+}
+
+impl Timing {
+    fn check(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Result<Timing, SimError> {
+        let bad = |s: String| Err(SimError::Config(s));
+        let rate = cfg.rate.unwrap_or(f64::from(ctrl.get(ParamId::ControlRateHz)));
+        if !(rate.is_finite() && rate > 0.0) {
+            return bad(format!("control rate {rate} Hz must be > 0"));
+        }
+        if !(cfg.plant_rate.is_finite() && cfg.plant_rate >= 10.0 * rate - 1e-9) {
+            return bad(format!("plant rate {} Hz must be at least 10× the control rate {rate} Hz", cfg.plant_rate));
+        }
+        let sub = (cfg.plant_rate / rate).round() as usize;
+        if ((sub as f64) * rate - cfg.plant_rate).abs() > 1e-6 * cfg.plant_rate {
+            return bad(format!(
+                "plant rate {} Hz must be an integer multiple of the control rate {rate} Hz",
+                cfg.plant_rate
+            ));
+        }
+        if !(cfg.seconds.is_finite() && cfg.seconds > 0.0 && cfg.seconds * rate <= 5.0e7) {
+            return bad(format!("--seconds {} must be > 0 (and at most 5e7 samples)", cfg.seconds));
+        }
+        if cfg.scenarios.is_empty() {
+            return bad("no scenario given".into());
+        }
+        let (lo, hi) = cfg.range.or(plant_file.range.as_ref().map(|r| (r.min, r.max))).unwrap_or((0.0, 116.5 * DEG));
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            return bad(format!("joint range {lo}..{hi} rad must have min < max"));
+        }
+        let dt_ctrl = 1.0 / rate;
+        Ok(Timing {
+            rate,
+            sub,
+            dt_ctrl,
+            dt_fine: dt_ctrl / sub as f64,
+            range: (lo, hi),
+            ticks_per_scenario: (cfg.seconds * rate).round() as usize,
+        })
+    }
+}
+
+/// The operator's impedance: the plant file's, or a 1.5 Hz, 0.7-damped hand on the joint's
+/// inertia, stiff enough to dominate the joint's own springs and weight.
+fn operator_impedance(plant_file: &PlantFile, plant: &Plant) -> (f64, f64) {
+    match &plant_file.operator {
+        Some(o) => (o.stiffness, o.damping),
+        None => {
+            let w = std::f64::consts::TAU * 1.5;
+            let k = plant.j * w * w + 3.0 * plant.stiffness_scale();
+            (k, 2.0 * 0.7 * (k * plant.j).sqrt())
+        }
+    }
+}
+
+/// The sensors' noise, one generator each.
+struct SensorNoise {
+    q: Noise,
+    qd: Noise,
+    qdd: Noise,
+    tau: Noise,
+    u: Noise,
+    temp: Noise,
+    q_resolution: f64,
+}
+
+impl SensorNoise {
+    fn new(s: &Sensors) -> SensorNoise {
+        SensorNoise {
+            q: normal(s.q_noise),
+            qd: normal(s.qd_noise),
+            qdd: normal(s.qdd_noise),
+            tau: normal(s.tau_noise),
+            u: normal(s.u_noise),
+            temp: normal(s.temp_noise),
+            q_resolution: s.q_resolution,
+        }
+    }
+}
+
+/// What the sensors read in one control tick (of the delayed state when the plant has a delay).
+struct Sensed {
+    /// the fine-step record the readings come from, if the delay reaches back to one
+    past: Option<Rec>,
+    q: f64,
+    qd: f64,
+    others_true: Vec<f64>,
+    others: Vec<f64>,
+}
+
+/// The state of one simulation run between control ticks.
+struct Run<'a> {
+    plant: &'a Plant,
+    ctrl: &'a ParamSet,
+    cfg: &'a SimConfig,
+    timing: &'a Timing,
+    scfg: &'a ScenarioCfg,
+    noise: SensorNoise,
+    rng_scn: ChaCha8Rng,
+    rng_noise: ChaCha8Rng,
+    /// other joints of the gravity table: random smooth paths inside their grid
+    other_paths: Vec<RandomPath>,
+    others_now: Vec<f64>,
+    others_hist: VecDeque<Vec<f64>>,
+    /// fine steps of sensor delay (the plant's `[delay]`)
+    delay_steps: usize,
+    x: State,
+    controller: Controller,
+    diff: Differentiator,
+    hist: VecDeque<Rec>,
+    tick: usize,
+    log: JointLog,
+}
+
+impl<'a> Run<'a> {
+    fn new(
+        plant_file: &PlantFile,
+        plant: &'a Plant,
+        ctrl: &'a ParamSet,
+        cfg: &'a SimConfig,
+        timing: &'a Timing,
+        scfg: &'a ScenarioCfg,
+    ) -> Run<'a> {
+        let mut rng_scn = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let rng_noise = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x9E37_79B9_7F4A_7C15);
+        let other_names = plant_file.model.other_columns();
+        let other_paths: Vec<RandomPath> = other_names
+            .iter()
+            .map(|name| {
+                let (glo, ghi) = plant_file
+                    .model
+                    .table
+                    .as_ref()
+                    .and_then(|t| t.axes.iter().position(|a| a == name).and_then(|i| t.grid.get(i)))
+                    .and_then(|g| Some((*g.first()?, *g.last()?)))
+                    .unwrap_or((0.0, 1.0));
+                RandomPath::new(0.5 * (glo + ghi), glo, ghi, 1.0, 4.0, &mut rng_scn)
+            })
+            .collect();
+        let delay_steps =
+            plant_file.effects.delay.as_ref().map(|d| (d.seconds / timing.dt_fine).round() as usize).unwrap_or(0);
+        let log_temp = plant_file.effects.thermal_drift.as_ref().map(|t| t.log_temp).unwrap_or(false);
+        let first_kind = cfg.scenarios.first().copied().unwrap_or(ScenarioKind::Sweep);
+        let q_init = Scenario::initial_angle(first_kind, scfg);
+        let n_total = timing.ticks_per_scenario * cfg.scenarios.len();
+        let log = JointLog {
+            t: Vec::with_capacity(n_total),
+            q: Vec::with_capacity(n_total),
+            qd: Some(Vec::with_capacity(n_total)),
+            qdd: Some(Vec::with_capacity(n_total)),
+            u: cfg.torque_columns.then(|| Vec::with_capacity(n_total)),
+            tau: cfg.torque_columns.then(|| Vec::with_capacity(n_total)),
+            temp: log_temp.then(|| Vec::with_capacity(n_total)),
+            others: other_names.iter().map(|n| (n.clone(), Vec::with_capacity(n_total))).collect(),
+            unknown: Vec::new(),
+        };
+        Run {
+            plant,
+            ctrl,
+            cfg,
+            timing,
+            scfg,
+            noise: SensorNoise::new(&plant_file.sensors),
+            rng_scn,
+            rng_noise,
+            others_now: vec![0.0; other_names.len()],
+            other_paths,
+            others_hist: VecDeque::new(),
+            delay_steps,
+            x: State { q: q_init, qd: 0.0, qm: q_init, qdm: 0.0 },
+            controller: Controller::new(),
+            diff: Differentiator::new(),
+            hist: VecDeque::with_capacity(delay_steps + timing.sub + 2),
+            tick: 0,
+            log,
+        }
+    }
+
+    /// One control tick (k-th of scenario `si`): sense, control, log, integrate.
+    fn tick(
+        &mut self,
+        kind: ScenarioKind,
+        si: usize,
+        k: usize,
+        scenario: &mut Option<Scenario>,
+    ) -> Result<(), SimError> {
+        let dt_ctrl = self.timing.dt_ctrl;
+        let t = self.tick as f64 * dt_ctrl;
+        self.tick += 1;
+        // Other joints' true angles now (held over the tick).
+        for (o, p) in self.others_now.iter_mut().zip(self.other_paths.iter_mut()) {
+            *o = p.at(t, &mut self.rng_scn).0;
+        }
+        let sensed = self.sense();
+        let sc = scenario.get_or_insert_with(|| {
+            Scenario::start(kind, self.cfg.seconds, self.scfg, sensed.q, si == 0, &mut self.rng_scn)
+        });
+        let cmd = sc.command(k as f64 * dt_ctrl, sensed.q, &mut self.rng_scn);
+        let u = self.control(&sensed, cmd.mode);
+        self.hist.push_back(Rec { t, x: self.x, u, op: cmd.operator });
+        self.log_row(t, &sensed, Rec { t, x: self.x, u, op: cmd.operator });
+        self.integrate(t, u, &cmd.operator)
+    }
+
+    /// 1. The sensors, of the delayed state (its inputs are fixed when the tick's record is
+    ///    pushed), with noise and quantisation.
+    fn sense(&mut self) -> Sensed {
+        let lag = self.delay_steps;
+        let hist = &self.hist;
+        let past: Option<Rec> = if hist.len() > lag { hist.get(hist.len() - lag) } else { hist.front() }.copied();
+        let xs = match past {
+            Some(r) if lag > 0 => r.x,
+            _ => self.x,
+        };
+        self.others_hist.push_back(self.others_now.clone());
+        let lag_ticks = lag.div_ceil(self.timing.sub).min(self.others_hist.len().saturating_sub(1));
+        while self.others_hist.len() > lag_ticks + 1 {
+            self.others_hist.pop_front();
+        }
+        let others_true = self.others_hist.front().cloned().unwrap_or_default();
+        let (n, rng) = (&self.noise, &mut self.rng_noise);
+        let q = quantise(xs.q + n.q.sample(rng), n.q_resolution);
+        let qd = xs.qd + n.qd.sample(rng);
+        let others: Vec<f64> = others_true.iter().map(|o| quantise(o + n.q.sample(rng), n.q_resolution)).collect();
+        Sensed { past, q, qd, others_true, others }
+    }
+
+    /// 2. The firmware core's control step on what was sensed; returns the output torque.
+    fn control(&mut self, s: &Sensed, mode: joint_core::control::Mode) -> f64 {
+        let dt_ctrl = self.timing.dt_ctrl;
+        let qdd_est = self.diff.update(s.qd as f32, dt_ctrl as f32, self.ctrl.get(ParamId::AccelCutoff));
+        let mut inp = Input { q: s.q as f32, qd: s.qd as f32, qdd: qdd_est, others: [0.0; 3], assist_cmd: 0.0 };
+        for (dst, src) in inp.others.iter_mut().zip(s.others.iter()) {
+            *dst = *src as f32;
+        }
+        let out = self.controller.step(self.ctrl, mode, &inp, dt_ctrl as f32);
+        f64::from(out.tau_out)
+    }
+
+    /// 3. The log row, from the sensed instant with the inputs in force then (`now`: this
+    ///    tick's record, used when there is no delay).
+    fn log_row(&mut self, t: f64, s: &Sensed, now: Rec) {
+        let rec = match s.past {
+            Some(r) if self.delay_steps > 0 => r,
+            _ => now,
+        };
+        let dx = self.plant.deriv(rec.t, &rec.x, rec.u, &rec.op, &s.others_true);
+        let (n, rng, log) = (&self.noise, &mut self.rng_noise, &mut self.log);
+        log.t.push(t);
+        log.q.push(s.q);
+        if let Some(c) = log.qd.as_mut() {
+            c.push(s.qd);
+        }
+        if let Some(c) = log.qdd.as_mut() {
+            c.push(dx.qd + n.qdd.sample(rng));
+        }
+        if let Some(c) = log.u.as_mut() {
+            c.push(now.u + n.u.sample(rng));
+        }
+        if let Some(c) = log.tau.as_mut() {
+            c.push(-rec.op.torque(rec.x.q, rec.x.qd) + n.tau.sample(rng));
+        }
+        if let Some(c) = log.temp.as_mut() {
+            c.push(self.plant.effects.temperature(t).unwrap_or(0.0) + n.temp.sample(rng));
+        }
+        for ((_, col), v) in log.others.iter_mut().zip(s.others.iter()) {
+            col.push(*v);
+        }
+    }
+
+    /// 4. The plant over one control tick, `u` and the operator held.
+    fn integrate(&mut self, t: f64, u: f64, op: &Operator) -> Result<(), SimError> {
+        let dt = self.timing.dt_fine;
+        for i in 0..self.timing.sub {
+            let tf = t + i as f64 * dt;
+            if i > 0 {
+                self.hist.push_back(Rec { t: tf, x: self.x, u, op: *op });
+            }
+            self.x = self.plant.step(tf, &self.x, u, op, &self.others_now);
+        }
+        while self.hist.len() > self.delay_steps + 1 {
+            self.hist.pop_front();
+        }
+        if !(self.x.q.is_finite() && self.x.qd.is_finite()) {
+            return Err(SimError::Config(format!(
+                "the simulation diverged at t = {t:.4} s (check the plant's parameters)"
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// The residual RMS that the sensor noise alone produces: `tau_noise² + u_noise²` plus the
