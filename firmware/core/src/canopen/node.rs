@@ -993,6 +993,8 @@ impl<S: ParamStorage> Node<S> {
     }
 
     /// Every write, from SDO or RPDO. Checks come first; a refused write changes nothing.
+    /// Dispatched by what the object is: the store, communication settings, the staged
+    /// parameter set, commands, and process data.
     fn write_value(&mut self, info: &SubInfo, data: &[u8], from_sdo: bool) -> Result<(), Abort> {
         if !info.access.writable() {
             return Err(Abort::ReadOnly);
@@ -1000,152 +1002,18 @@ impl<S: ParamStorage> Node<S> {
         check_len(info, data.len())?;
         let u = le_u32(data);
         match info.key {
-            Key::StoreAll => {
-                if u != od::SAVE_SIGNATURE {
-                    return Err(Abort::CannotStore);
-                }
-                let set = self.active.current();
-                let r = self.storage.save(set);
-                if r == Err(StorageError::Failed) {
-                    self.safety.raise(Faults::STORE_WRITE);
-                }
-                r.map_err(|_| Abort::CannotStore)
-            }
-            Key::RestoreAll => {
-                if u != od::LOAD_SIGNATURE {
-                    return Err(Abort::CannotStore);
-                }
-                self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
-                self.staged = RawParams::defaults();
-                Ok(())
-            }
-            Key::ConsumerHeartbeat => {
-                let node = ((u >> 16) & 0xFF) as u8;
-                let ms = u & 0xFFFF;
-                if u >> 24 != 0 || node > 127 || node == self.cfg.node_id {
-                    return Err(Abort::InvalidValue);
-                }
-                // One source of truth for the timeout: the parameter controller_heartbeat_timeout.
-                if ms != 0 && ms != self.heartbeat_timeout_ms() {
-                    return Err(Abort::InvalidValue);
-                }
-                self.host_id = node;
-                Ok(())
-            }
-            Key::ProducerHeartbeat => {
-                self.heartbeat_ms = u as u16;
-                self.next_heartbeat_us = self.now_us;
-                Ok(())
-            }
-            Key::RpdoCobId(n) => {
-                let v = check_cob(u)?;
-                if let Some(c) = self.rpdo_cob.get_mut(n as usize) {
-                    *c = v;
-                }
-                Ok(())
-            }
-            Key::TpdoCobId(n) => {
-                let v = check_cob(u)?;
-                if let Some(t) = self.tpdo.get_mut(n as usize) {
-                    t.cob_id = v;
-                }
-                Ok(())
-            }
-            Key::TpdoType(n) => {
-                // Only event-driven (254/255) transmission: there is no SYNC consumer.
-                if u != 0xFE && u != 0xFF {
-                    return Err(Abort::InvalidValue);
-                }
-                if let Some(t) = self.tpdo.get_mut(n as usize) {
-                    t.transmission = u as u8;
-                }
-                Ok(())
-            }
-            Key::TpdoInhibit(n) => {
-                if let Some(t) = self.tpdo.get_mut(n as usize) {
-                    t.inhibit = u as u16;
-                }
-                Ok(())
-            }
-            Key::TpdoEvent(n) => {
-                let now = self.now_us;
-                if let Some(t) = self.tpdo.get_mut(n as usize) {
-                    t.event_ms = u as u16;
-                    t.next_us = now;
-                }
-                Ok(())
-            }
-            Key::Param(p) => {
-                let v = f32::from_bits(u);
-                let d = p.desc();
-                if d.safety && !self.in_preop() {
-                    return Err(Abort::DeviceState);
-                }
-                if !math::is_finite(v) {
-                    return Err(Abort::InvalidValue);
-                }
-                if v < d.min {
-                    return Err(Abort::TooLow);
-                }
-                if v > d.max {
-                    return Err(Abort::TooHigh);
-                }
-                self.staged.set(p, v);
-                Ok(())
-            }
+            Key::StoreAll | Key::RestoreAll => self.write_store(info.key, u),
+            Key::ConsumerHeartbeat
+            | Key::ProducerHeartbeat
+            | Key::RpdoCobId(_)
+            | Key::TpdoCobId(_)
+            | Key::TpdoType(_)
+            | Key::TpdoInhibit(_)
+            | Key::TpdoEvent(_) => self.write_comm(info.key, u),
+            Key::Param(p) => self.stage_param(p, u),
             Key::TableShape(s) => self.write_shape(s, u as u8),
-            Key::TableGrid => {
-                let mut grid = [[0.0f32; AXIS_POINTS_MAX]; AXES_MAX];
-                for (k, c) in data.chunks_exact(4).enumerate() {
-                    let v = f32::from_bits(le_u32(c));
-                    if !math::is_finite(v) {
-                        return Err(Abort::InvalidValue);
-                    }
-                    if let Some(x) = grid.get_mut(k / AXIS_POINTS_MAX).and_then(|r| r.get_mut(k % AXIS_POINTS_MAX)) {
-                        *x = v;
-                    }
-                }
-                self.staged.table.grid = grid;
-                Ok(())
-            }
-            Key::TableTorque | Key::TableSigma => {
-                let mut vals = [0.0f32; CELLS_MAX];
-                for (x, c) in vals.iter_mut().zip(data.chunks_exact(4)) {
-                    let v = f32::from_bits(le_u32(c));
-                    if !math::is_finite(v) {
-                        return Err(Abort::InvalidValue);
-                    }
-                    *x = v;
-                }
-                if info.key == Key::TableTorque {
-                    self.staged.table.torque = vals;
-                } else {
-                    self.staged.table.sigma = vals;
-                }
-                Ok(())
-            }
-            Key::SeriesCount => {
-                if u as usize > TERMS_MAX {
-                    return Err(Abort::TooHigh);
-                }
-                self.staged.series.n_terms = u as u8;
-                Ok(())
-            }
-            Key::SeriesTerms => {
-                // Whole terms only (check_len); NaN/∞ refused here like the table's values, the
-                // ranges of amplitude, phase and multipliers at commit (series::validate).
-                let mut series = RawSeries::EMPTY;
-                series.n_terms = self.staged.series.n_terms;
-                for (k, c) in data.chunks_exact(TERM_BYTES).enumerate() {
-                    series.set_term_bytes(k, c);
-                    let bad = |x: Option<&f32>| !x.is_some_and(|&v| math::is_finite(v));
-                    if bad(series.amplitude.get(k)) || bad(series.phase.get(k)) {
-                        return Err(Abort::InvalidValue);
-                    }
-                }
-                self.staged.series = series;
-                Ok(())
-            }
+            Key::TableGrid | Key::TableTorque | Key::TableSigma => self.stage_table(info.key, data),
+            Key::SeriesCount | Key::SeriesTerms => self.stage_series(info.key, u, data),
             Key::Commit => match u {
                 1 => self.commit(),
                 0 => {
@@ -1177,6 +1045,161 @@ impl<S: ParamStorage> Node<S> {
             }
             _ => Err(Abort::ReadOnly),
         }
+    }
+
+    /// 0x1010 save / 0x1011 restore, each behind its signature.
+    fn write_store(&mut self, key: Key, u: u32) -> Result<(), Abort> {
+        if key == Key::StoreAll {
+            if u != od::SAVE_SIGNATURE {
+                return Err(Abort::CannotStore);
+            }
+            let set = self.active.current();
+            let r = self.storage.save(set);
+            if r == Err(StorageError::Failed) {
+                self.safety.raise(Faults::STORE_WRITE);
+            }
+            return r.map_err(|_| Abort::CannotStore);
+        }
+        if u != od::LOAD_SIGNATURE {
+            return Err(Abort::CannotStore);
+        }
+        self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
+        self.staged = RawParams::defaults();
+        Ok(())
+    }
+
+    /// Heartbeat consumer/producer and the PDO communication parameters.
+    fn write_comm(&mut self, key: Key, u: u32) -> Result<(), Abort> {
+        match key {
+            Key::ConsumerHeartbeat => {
+                let node = ((u >> 16) & 0xFF) as u8;
+                let ms = u & 0xFFFF;
+                if u >> 24 != 0 || node > 127 || node == self.cfg.node_id {
+                    return Err(Abort::InvalidValue);
+                }
+                // One source of truth for the timeout: the parameter controller_heartbeat_timeout.
+                if ms != 0 && ms != self.heartbeat_timeout_ms() {
+                    return Err(Abort::InvalidValue);
+                }
+                self.host_id = node;
+            }
+            Key::ProducerHeartbeat => {
+                self.heartbeat_ms = u as u16;
+                self.next_heartbeat_us = self.now_us;
+            }
+            Key::RpdoCobId(n) => {
+                let v = check_cob(u)?;
+                if let Some(c) = self.rpdo_cob.get_mut(n as usize) {
+                    *c = v;
+                }
+            }
+            Key::TpdoCobId(n) => {
+                let v = check_cob(u)?;
+                if let Some(t) = self.tpdo.get_mut(n as usize) {
+                    t.cob_id = v;
+                }
+            }
+            Key::TpdoType(n) => {
+                // Only event-driven (254/255) transmission: there is no SYNC consumer.
+                if u != 0xFE && u != 0xFF {
+                    return Err(Abort::InvalidValue);
+                }
+                if let Some(t) = self.tpdo.get_mut(n as usize) {
+                    t.transmission = u as u8;
+                }
+            }
+            Key::TpdoInhibit(n) => {
+                if let Some(t) = self.tpdo.get_mut(n as usize) {
+                    t.inhibit = u as u16;
+                }
+            }
+            Key::TpdoEvent(n) => {
+                let now = self.now_us;
+                if let Some(t) = self.tpdo.get_mut(n as usize) {
+                    t.event_ms = u as u16;
+                    t.next_us = now;
+                }
+            }
+            _ => return Err(Abort::ReadOnly),
+        }
+        Ok(())
+    }
+
+    /// One scalar parameter into the staged set: safety-relevant ones only in pre-operational,
+    /// finite and inside the table's range.
+    fn stage_param(&mut self, p: ParamId, u: u32) -> Result<(), Abort> {
+        let v = f32::from_bits(u);
+        let d = p.desc();
+        if d.safety && !self.in_preop() {
+            return Err(Abort::DeviceState);
+        }
+        if !math::is_finite(v) {
+            return Err(Abort::InvalidValue);
+        }
+        if v < d.min {
+            return Err(Abort::TooLow);
+        }
+        if v > d.max {
+            return Err(Abort::TooHigh);
+        }
+        self.staged.set(p, v);
+        Ok(())
+    }
+
+    /// The gravity table's grid, torques or σ into the staged set, all values finite.
+    fn stage_table(&mut self, key: Key, data: &[u8]) -> Result<(), Abort> {
+        if key == Key::TableGrid {
+            let mut grid = [[0.0f32; AXIS_POINTS_MAX]; AXES_MAX];
+            for (k, c) in data.chunks_exact(4).enumerate() {
+                let v = f32::from_bits(le_u32(c));
+                if !math::is_finite(v) {
+                    return Err(Abort::InvalidValue);
+                }
+                if let Some(x) = grid.get_mut(k / AXIS_POINTS_MAX).and_then(|r| r.get_mut(k % AXIS_POINTS_MAX)) {
+                    *x = v;
+                }
+            }
+            self.staged.table.grid = grid;
+            return Ok(());
+        }
+        let mut vals = [0.0f32; CELLS_MAX];
+        for (x, c) in vals.iter_mut().zip(data.chunks_exact(4)) {
+            let v = f32::from_bits(le_u32(c));
+            if !math::is_finite(v) {
+                return Err(Abort::InvalidValue);
+            }
+            *x = v;
+        }
+        if key == Key::TableTorque {
+            self.staged.table.torque = vals;
+        } else {
+            self.staged.table.sigma = vals;
+        }
+        Ok(())
+    }
+
+    /// The gravity series' term count or terms into the staged set.
+    fn stage_series(&mut self, key: Key, u: u32, data: &[u8]) -> Result<(), Abort> {
+        if key == Key::SeriesCount {
+            if u as usize > TERMS_MAX {
+                return Err(Abort::TooHigh);
+            }
+            self.staged.series.n_terms = u as u8;
+            return Ok(());
+        }
+        // Whole terms only (check_len); NaN/∞ refused here like the table's values, the
+        // ranges of amplitude, phase and multipliers at commit (series::validate).
+        let mut series = RawSeries::EMPTY;
+        series.n_terms = self.staged.series.n_terms;
+        for (k, c) in data.chunks_exact(TERM_BYTES).enumerate() {
+            series.set_term_bytes(k, c);
+            let bad = |x: Option<&f32>| !x.is_some_and(|&v| math::is_finite(v));
+            if bad(series.amplitude.get(k)) || bad(series.phase.get(k)) {
+                return Err(Abort::InvalidValue);
+            }
+        }
+        self.staged.series = series;
+        Ok(())
     }
 
     fn write_shape(&mut self, s: u8, v: u8) -> Result<(), Abort> {
