@@ -487,57 +487,80 @@ fn subsample<T: Copy>(v: &[T], max: usize) -> Vec<T> {
 pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut plots: Vec<(&str, String)> = Vec::new();
-    if let Some(f) = &id.friction {
-        let vmax = f.points.iter().fold(0.0f64, |m, p| m.max(p.v)) * 1.05;
-        let curve: Vec<(f64, f64)> = (0..=100).map(|k| k as f64 * vmax / 100.0).map(|v| (v, f.eval(v))).collect();
-        let (kept, rej): (Vec<_>, Vec<_>) = f.points.iter().zip(&f.weights).partition(|(_, w)| **w > 0.0);
-        plots.push((
-            "friction.svg",
-            svg_plot(
-                "Friction: (d₊ − d₋)/2 on matched plateaus",
-                "speed |q̇| (rad/s)",
-                "friction torque (N·m)",
-                &[
-                    Series {
-                        name: "plateau points",
-                        points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(),
-                        line: false,
-                        color: "#1f77b4",
-                    },
-                    Series {
-                        name: "rejected (bisquare weight 0)",
-                        points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(),
-                        line: false,
-                        color: "#d62728",
-                    },
-                    Series { name: "a·v² + b·v + c", points: curve, line: true, color: "#111" },
-                ],
-            ),
-        ));
+    plots.extend(friction_plot(id));
+    plots.extend(static_plot(id));
+    plots.extend(overall_plots(id, data));
+    plots.extend(table_plot(id));
+    plots.extend(spring_plots(id, data));
+    let mut md = report_md(rep, id);
+    for (name, svg) in &plots {
+        std::fs::write(dir.join(name), svg)?;
+        let _ = writeln!(md, "![{name}]({name})\n");
     }
-    if let Some(w) = &id.weight {
-        let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
-        let curve: Vec<(f64, f64)> =
-            (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
-        plots.push((
-            "static.svg",
-            svg_plot(
-                "Static poses: weight + offset",
-                "q (rad)",
-                "torque (N·m)",
-                &[
-                    Series {
-                        name: "poses",
-                        points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
-                        line: false,
-                        color: "#1f77b4",
-                    },
-                    Series { name: "C_w0·sin(s·q + φ) + C_0", points: curve, line: true, color: "#111" },
-                ],
-            ),
-        ));
-    }
-    // Overall: measured d and the prediction of the full model over the first torque log.
+    std::fs::write(dir.join("report.md"), md)?;
+    let json = serde_json::json!({ "report": rep, "identified": id, "segments": data.segments.iter().map(|s| s.iter().filter(|s| s.kind != SegKind::Motion).count()).collect::<Vec<_>>() });
+    std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&json).unwrap_or_default())
+}
+
+/// Friction points of the matched plateaus, kept and rejected, with the fitted polynomial.
+fn friction_plot(id: &Identified) -> Option<(&'static str, String)> {
+    let f = id.friction.as_ref()?;
+    let vmax = f.points.iter().fold(0.0f64, |m, p| m.max(p.v)) * 1.05;
+    let curve: Vec<(f64, f64)> = (0..=100).map(|k| k as f64 * vmax / 100.0).map(|v| (v, f.eval(v))).collect();
+    let (kept, rej): (Vec<_>, Vec<_>) = f.points.iter().zip(&f.weights).partition(|(_, w)| **w > 0.0);
+    Some((
+        "friction.svg",
+        svg_plot(
+            "Friction: (d₊ − d₋)/2 on matched plateaus",
+            "speed |q̇| (rad/s)",
+            "friction torque (N·m)",
+            &[
+                Series {
+                    name: "plateau points",
+                    points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(),
+                    line: false,
+                    color: "#1f77b4",
+                },
+                Series {
+                    name: "rejected (bisquare weight 0)",
+                    points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(),
+                    line: false,
+                    color: "#d62728",
+                },
+                Series { name: "a·v² + b·v + c", points: curve, line: true, color: "#111" },
+            ],
+        ),
+    ))
+}
+
+/// The static poses with the fitted weight and offset.
+fn static_plot(id: &Identified) -> Option<(&'static str, String)> {
+    let w = id.weight.as_ref()?;
+    let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+    let curve: Vec<(f64, f64)> =
+        (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
+    Some((
+        "static.svg",
+        svg_plot(
+            "Static poses: weight + offset",
+            "q (rad)",
+            "torque (N·m)",
+            &[
+                Series {
+                    name: "poses",
+                    points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
+                    line: false,
+                    color: "#1f77b4",
+                },
+                Series { name: "C_w0·sin(s·q + φ) + C_0", points: curve, line: true, color: "#111" },
+            ],
+        ),
+    ))
+}
+
+/// Measured d and the full model's prediction over the first torque log, and the inertia fit.
+fn overall_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
+    let mut plots = Vec::new();
     if let Some((li, p)) = data.prepared.iter().enumerate().find(|(_, p)| p.d.is_some()) {
         if let Some(d) = &p.d {
             let fr = id.friction.clone();
@@ -591,112 +614,120 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
             }
         }
     }
-    if let Some(t) = &id.table {
-        // One line per grid value of the second axis (the first four), torque against q.
-        let colors = ["#111", "#d62728", "#2ca02c", "#9467bd"];
-        let second: Vec<f64> = t.grid.get(1).cloned().unwrap_or_else(|| vec![0.0]);
-        let pick: Vec<f64> = if second.len() <= 4 {
-            second.clone()
-        } else {
-            (0..4).map(|k| second[k * (second.len() - 1) / 3]).collect()
-        };
-        let (q0, q1) = (t.grid[0][0], t.grid[0][t.grid[0].len() - 1]);
-        let names: Vec<String> =
-            pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
-        let mut series = Vec::new();
-        for (k, v) in pick.iter().enumerate() {
-            let pts = (0..=100)
-                .map(|i| q0 + (q1 - q0) * i as f64 / 100.0)
-                .map(|q| {
-                    let mut x = vec![q, *v];
-                    x.truncate(t.axes.len());
-                    x.resize(t.axes.len(), *v);
-                    (q, t.eval(&x).0)
-                })
-                .collect();
-            series.push(Series {
-                name: if t.axes.len() > 1 { &names[k] } else { "table" },
-                points: pts,
-                line: true,
-                color: colors[k % 4],
-            });
-        }
+    plots
+}
+
+/// The gravity table: one line per grid value of the second axis (the first four).
+fn table_plot(id: &Identified) -> Option<(&'static str, String)> {
+    let t = id.table.as_ref()?;
+    let colors = ["#111", "#d62728", "#2ca02c", "#9467bd"];
+    let second: Vec<f64> = t.grid.get(1).cloned().unwrap_or_else(|| vec![0.0]);
+    let pick: Vec<f64> =
+        if second.len() <= 4 { second.clone() } else { (0..4).map(|k| second[k * (second.len() - 1) / 3]).collect() };
+    let (q0, q1) = (t.grid[0][0], t.grid[0][t.grid[0].len() - 1]);
+    let names: Vec<String> =
+        pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
+    let mut series = Vec::new();
+    for (k, v) in pick.iter().enumerate() {
+        let pts = (0..=100)
+            .map(|i| q0 + (q1 - q0) * i as f64 / 100.0)
+            .map(|q| {
+                let mut x = vec![q, *v];
+                x.truncate(t.axes.len());
+                x.resize(t.axes.len(), *v);
+                (q, t.eval(&x).0)
+            })
+            .collect();
+        series.push(Series {
+            name: if t.axes.len() > 1 { &names[k] } else { "table" },
+            points: pts,
+            line: true,
+            color: colors[k % 4],
+        });
+    }
+    Some((
+        "gravity_table.svg",
+        svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series),
+    ))
+}
+
+/// The spring's static curve over the poses and its free oscillation against the log.
+fn spring_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
+    let mut plots = Vec::new();
+    let Some(sp) = &id.spring else { return plots };
+    if let Some(st) = &sp.stat {
+        let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+        let h = 0.5 * st.dead_zone;
+        let curve: Vec<(f64, f64)> = (0..=200)
+            .map(|k| q0 + (q1 - q0) * k as f64 / 200.0)
+            .map(|q| {
+                let x = q - st.q0;
+                (
+                    q,
+                    st.k * if x > h {
+                        x - h
+                    } else if x < -h {
+                        x + h
+                    } else {
+                        0.0
+                    },
+                )
+            })
+            .collect();
         plots.push((
-            "gravity_table.svg",
-            svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series),
+            "spring_static.svg",
+            svg_plot(
+                "Spring: static torque against angle",
+                "q (rad)",
+                "torque (N·m)",
+                &[
+                    Series {
+                        name: "poses",
+                        points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
+                        line: false,
+                        color: "#1f77b4",
+                    },
+                    Series { name: "K·dz(q − q0)", points: curve, line: true, color: "#111" },
+                ],
+            ),
         ));
     }
-    if let Some(sp) = &id.spring {
-        if let Some(st) = &sp.stat {
-            let (q0, q1) =
-                id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
-            let h = 0.5 * st.dead_zone;
-            let curve: Vec<(f64, f64)> = (0..=200)
-                .map(|k| q0 + (q1 - q0) * k as f64 / 200.0)
-                .map(|q| {
-                    let x = q - st.q0;
-                    (
-                        q,
-                        st.k * if x > h {
-                            x - h
-                        } else if x < -h {
-                            x + h
-                        } else {
-                            0.0
-                        },
-                    )
-                })
-                .collect();
+    if let Some(f) = &sp.free {
+        if let Some((p, (s, e))) = free_stretch(data, &Options::default(), f) {
+            let tt: Vec<f64> = p.t[s..e].iter().map(|t| t - f.t0).collect();
+            let mut sim = vec![0.0; e - s];
+            let w = sp.stat.as_ref().map_or(0.0, |s| s.dead_zone);
+            spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
+            let idx = subsample(&(0..e - s).collect::<Vec<_>>(), 3000);
             plots.push((
-                "spring_static.svg",
+                "spring_free.svg",
                 svg_plot(
-                    "Spring: static torque against angle",
+                    "Free oscillation: logged and simulated angle",
+                    "t (s)",
                     "q (rad)",
-                    "torque (N·m)",
                     &[
                         Series {
-                            name: "poses",
-                            points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
+                            name: "logged",
+                            points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(),
                             line: false,
                             color: "#1f77b4",
                         },
-                        Series { name: "K·dz(q − q0)", points: curve, line: true, color: "#111" },
+                        Series {
+                            name: "fitted model",
+                            points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(),
+                            line: true,
+                            color: "#111",
+                        },
                     ],
                 ),
             ));
         }
-        if let Some(f) = &sp.free {
-            if let Some((p, (s, e))) = free_stretch(data, &Options::default(), f) {
-                let tt: Vec<f64> = p.t[s..e].iter().map(|t| t - f.t0).collect();
-                let mut sim = vec![0.0; e - s];
-                let w = sp.stat.as_ref().map_or(0.0, |s| s.dead_zone);
-                spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
-                let idx = subsample(&(0..e - s).collect::<Vec<_>>(), 3000);
-                plots.push((
-                    "spring_free.svg",
-                    svg_plot(
-                        "Free oscillation: logged and simulated angle",
-                        "t (s)",
-                        "q (rad)",
-                        &[
-                            Series {
-                                name: "logged",
-                                points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(),
-                                line: false,
-                                color: "#1f77b4",
-                            },
-                            Series {
-                                name: "fitted model",
-                                points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(),
-                                line: true,
-                                color: "#111",
-                            },
-                        ],
-                    ),
-                ));
-            }
-        }
     }
+    plots
+}
+
+/// report.md up to the plots: the summary and the score table.
+fn report_md(rep: &Report, id: &Identified) -> String {
     let mut md = String::from("# Identification report\n\n```\n");
     md.push_str(&summary_text(id, Some(rep)));
     md.push_str("```\n\n");
@@ -715,11 +746,5 @@ pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std:
         );
     }
     md.push('\n');
-    for (name, svg) in &plots {
-        std::fs::write(dir.join(name), svg)?;
-        let _ = writeln!(md, "![{name}]({name})\n");
-    }
-    std::fs::write(dir.join("report.md"), md)?;
-    let json = serde_json::json!({ "report": rep, "identified": id, "segments": data.segments.iter().map(|s| s.iter().filter(|s| s.kind != SegKind::Motion).count()).collect::<Vec<_>>() });
-    std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&json).unwrap_or_default())
+    md
 }
