@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Headless Chromium for the diagnosis report test (host-sim/tests/diagnose_report.rs).
+# Headless Chromium for the diagnosis report test (host-sim/jointctl/tests/diagnose_report.rs).
 # Installs Debian's `chromium` package when missing; exits 0 either way and says what it did,
 # the test itself skips with a message when no browser is there.
 set -uo pipefail

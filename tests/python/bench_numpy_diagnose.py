@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """NumPy/SciPy reference of `jointctl diagnose` (torque mode) for the speed comparison.
 
-The same analysis as host-sim/src/diagnose, written the way a NumPy user would write it: read
+The same analysis as host-sim/analysis/src/diagnose, written the way a NumPy user would write it: read
 the CSV, smooth q̇ (±5 ms), tag regimes, split into 20 interleaved blocks (6 held out, 50-sample
 guards, 10 units per held-out block), refit the model's terms by least squares, search every
 effect's shape on 20 000 thinned training rows (same grids and golden-section steps), fit each

@@ -6,7 +6,7 @@ interface drives the other end, and python-canopen loads the EDS that `jointctl 
 Nothing here knows our object layout except through that EDS.
 
 Run: JOINTCTL=path/to/jointctl .venv/bin/python -m pytest tests/python/test_interop.py
-(the cargo test host-sim/tests/can_interop.rs does exactly this).
+(the cargo test host-sim/jointctl/tests/can_interop.rs does exactly this).
 """
 
 import os

@@ -107,7 +107,7 @@ impl Terms {
 }
 
 /// The effect terms of the spec's vocabulary that a joint can compensate by feed-forward,
-/// with the same formulas as host-sim's plant (`host-sim/src/effects.rs`):
+/// with the same formulas as host-sim's plant (`host-sim/sim/src/effects.rs`):
 /// - Stribeck: `level·exp(−(q̇/speed)²)·sgn`;
 /// - asymmetric friction: `delta·|sgn|` (Coulomb c + delta forward, c − delta backward);
 /// - position ripple: `amplitude·sin(2π·q/period + phase)`;
