@@ -204,6 +204,33 @@ impl Effect {
         }
     }
 
+    /// The factors k for which `scaled(k)` stays inside the family's drawn range (c is the
+    /// joint's Coulomb level). Shapes without a hard range get a decade either way.
+    pub fn scale_bounds(&self, c: f64) -> (f64, f64) {
+        let within = |x: f64, lo: f64, hi: f64| {
+            if x > 0.0 {
+                (lo / x, hi / x)
+            } else {
+                (1.0, 1.0)
+            }
+        };
+        match self {
+            Effect::Stribeck { level, .. } => within(*level, 0.1 * c, 0.8 * c),
+            Effect::AsymmetricFriction {
+                c_plus, c_minus, ..
+            } => within(c_plus - c_minus, 0.1 * c, 0.5 * c),
+            Effect::LoadDependentFriction { mu } => within(*mu, 0.02, 0.2),
+            Effect::ThermalDrift {
+                alpha_b, alpha_c, ..
+            } => {
+                let a = alpha_b.abs().max(alpha_c.abs());
+                within(a, 0.004, 0.025)
+            }
+            Effect::PositionRipple { .. } => (0.2, 5.0),
+            _ => (0.1, 10.0),
+        }
+    }
+
     /// Multiplies the effect's size by k (used to size the second effect of a compound).
     pub fn scaled(&self, k: f64) -> Effect {
         let mut e = self.clone();

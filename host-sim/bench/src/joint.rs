@@ -200,7 +200,7 @@ fn elastic(rng: &mut Rng64, name: &str, needs: Needs) -> DrawnJoint {
 }
 
 /// Draws which file values are off for a `parameters` case: one to three of J, weight
-/// amplitude, friction b/c, offset c0, spring k, each by ±20–60 %.
+/// amplitude, friction b/c, offset c0, spring k and damping b, each by ±20–60 %.
 pub fn perturb(
     rng: &mut Rng64,
     truth: &ModelFile,
@@ -227,6 +227,7 @@ pub fn perturb(
     }
     if truth.spring.is_some() {
         keys.push("k");
+        keys.push("spring_b");
     }
     let n = crate::rngs::int(rng, 1, 3.min(keys.len()));
     let mut changes = Vec::new();
@@ -254,6 +255,7 @@ fn set_param(m: &mut ModelFile, key: &str, factor: f64) -> Option<(f64, f64)> {
         "c" => m.friction.as_mut()?.c.as_mut()?,
         "c0" => &mut m.offset.as_mut()?.c0,
         "k" => &mut m.spring.as_mut()?.k,
+        "spring_b" => &mut m.spring.as_mut()?.b,
         _ => return None,
     };
     let t = *slot;

@@ -552,7 +552,11 @@ fn size_second(
         return att;
     }
     let target = log_uniform(rng, 0.5, 5.0);
-    let k = (target * sigma / r2).clamp(0.1, 10.0);
+    let (k_lo, k_hi) = att
+        .effects
+        .get(1)
+        .map_or((1.0, 1.0), |e| e.scale_bounds(setup.joint.model.c()));
+    let k = (target * sigma / r2).clamp(k_lo, k_hi.max(k_lo));
     let mut effects = att.effects.clone();
     if let Some(e) = effects.get_mut(1) {
         *e = e.scaled(k);

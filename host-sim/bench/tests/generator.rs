@@ -492,3 +492,74 @@ fn withheld_effects_are_absent_from_the_model_file() {
     assert_eq!(c.truth.mode, Mode::Trajectory);
     assert!(c.log.get("qd").is_none());
 }
+
+#[test]
+fn integrator_result_does_not_depend_on_the_sub_step_count() {
+    // A pendulum with pure Coulomb friction, a Stribeck excess and a known input: sticks,
+    // breaks away and reverses. The truth must not be an artefact of the step size.
+    let m = ModelFile {
+        name: "p".into(),
+        friction: Some(Friction {
+            b: Some(0.8),
+            c: Some(1.5),
+            ..Friction::default()
+        }),
+        weight: Some(diag_bench::model::Weight {
+            amplitude: 12.0,
+            s: 1.0,
+            phi: 0.1,
+        }),
+        inertia: Some(Inertia { j: 0.6 }),
+        offset: None,
+        spring: None,
+    };
+    let stribeck = Effect::Stribeck {
+        level: 0.6,
+        v_s: 0.05,
+        delta: 1.0,
+    };
+    let input = Input {
+        kind: "step",
+        t_on: 1.0,
+        ramp: 0.05,
+        level: 2.5,
+        t_off: 2.5,
+        components: Vec::new(),
+    };
+    let dy = Dynamics::new(&m, &[stribeck], input, 0.0);
+    let times: Vec<f64> = (0..400).map(|i| i as f64 * 0.01).collect();
+    let y0 = State {
+        q: 0.6,
+        v: 0.0,
+        f: 0.0,
+    };
+    let a = simulate(&dy, 0.0, y0, &times, 12, 1.5);
+    let b = simulate(&dy, 0.0, y0, &times, 96, 1.5);
+    let err = max_abs(a.iter().zip(&b).map(|(x, y)| x.q - y.q));
+    assert!(err < 2e-6, "12 vs 96 sub-steps differ by {err:e} rad");
+    assert!(a.iter().filter(|y| y.v == 0.0).count() > 10, "never stuck");
+}
+
+#[test]
+fn trajectory_effect_cases_deviate_from_the_file_model() {
+    for fam in [
+        "backlash",
+        "dry_friction",
+        "cable_spring",
+        "initial_state",
+        "delay",
+    ] {
+        let c = case(23, 0, Some(fam), ModeSel::Trajectory);
+        assert!(c.truth.effect_rms > 0.0, "{fam}: no deviation");
+        assert!(
+            c.truth.columns.iter().all(|n| n != "tau"),
+            "{fam}: trajectory log with tau"
+        );
+        if fam == "delay" {
+            assert!(
+                c.log.get("u").is_some(),
+                "a delay case needs the input it delays"
+            );
+        }
+    }
+}
