@@ -98,6 +98,9 @@ pub struct Truth {
     pub trajectory_family: String,
     pub trajectory: serde_json::Value,
     pub rest_phases: bool,
+    /// Share of samples where the true q̇ is exactly 0 (dwells, pauses, stuck joint): with
+    /// pure-sign friction the file's c·sign(q̇) is then exactly 0 in the truth.
+    pub rest_share: f64,
     pub rate_hz: f64,
     pub duration_s: f64,
     pub samples: usize,
@@ -129,6 +132,14 @@ pub struct CaseData {
     pub log: Log,
     pub model: ModelFile,
     pub clean: Clean,
+}
+
+/// Share of exact zeros in a velocity series.
+pub fn zero_share(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.iter().filter(|x| **x == 0.0).count() as f64 / v.len() as f64
 }
 
 /// The label the scorer groups by: "none", one name, or names joined by '+'.

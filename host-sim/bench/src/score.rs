@@ -251,13 +251,18 @@ fn run_all(jobs: &[Job], opts: &RunOpts) -> anyhow::Result<Vec<CaseResult>> {
                 match run_one(job, opts) {
                     Ok(r) => {
                         eprintln!(
-                            "[{}/{}] {} {} -> {:?} ({:?})",
+                            "[{}/{}] {} {} -> {} ({:?}, {:.1} s)",
                             i + 1,
                             jobs.len(),
                             r.dir,
                             r.label,
-                            r.verdict,
-                            r.outcome
+                            if r.reported.is_empty() {
+                                "-".to_string()
+                            } else {
+                                r.reported.join("+")
+                            },
+                            r.outcome,
+                            r.seconds
                         );
                         if let Ok(mut v) = results.lock() {
                             v.push((i, r));

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use serde_json::json;
 
-use crate::case::{label_of, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{label_of, zero_share, CaseData, Clean, Log, Mode, Truth};
 use crate::effects::{dahl_step, draw_additive, Delayed, Effect, Scene};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
 use crate::model::ModelFile;
@@ -155,6 +155,7 @@ pub fn generate(
         trajectory_family: setup.traj.shape.family().to_string(),
         trajectory: serde_json::to_value(&setup.traj)?,
         rest_phases: setup.traj.rest_phases,
+        rest_share: zero_share(&clean.qd),
         rate_hz: setup.rate,
         duration_s: setup.duration,
         samples: n,

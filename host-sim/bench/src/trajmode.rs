@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde_json::json;
 
-use crate::case::{label_of, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{label_of, zero_share, CaseData, Clean, Log, Mode, Truth};
 use crate::effects::{draw_additive, Delayed, Effect, Scene};
 use crate::integrate::{simulate, Dynamics, Input, State};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
@@ -126,7 +126,8 @@ pub fn generate(
             "t_release": setup.t_release, "q_release": setup.y_release.q, "v_release": setup.y_release.v,
             "q_equilibrium": setup.q_eq, "input": setup.input,
         }),
-        rest_phases: false,
+        rest_phases: clean.qd.contains(&0.0),
+        rest_share: zero_share(&clean.qd),
         rate_hz: setup.rate,
         duration_s: setup.times.last().copied().unwrap_or(0.0),
         samples: n,
