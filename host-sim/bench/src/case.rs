@@ -142,6 +142,24 @@ pub fn zero_share(v: &[f64]) -> f64 {
     v.iter().filter(|x| **x == 0.0).count() as f64 / v.len() as f64
 }
 
+/// truth.json's effect list: the names, or ["none"].
+pub fn truth_names(effects: &[&str]) -> Vec<String> {
+    if effects.is_empty() {
+        vec!["none".to_string()]
+    } else {
+        effects.iter().map(|s| s.to_string()).collect()
+    }
+}
+
+/// Each effect's own RMS over the noise RMS.
+pub fn snr_map(effects: &[Effect], rms: &[f64], sigma: f64) -> BTreeMap<String, f64> {
+    effects
+        .iter()
+        .zip(rms)
+        .map(|(e, r)| (e.name().to_string(), r / sigma.max(1e-300)))
+        .collect()
+}
+
 /// The label the scorer groups by: "none", one name, or names joined by '+'.
 pub fn label_of(effects: &[&str]) -> String {
     if effects.is_empty() {

@@ -2,12 +2,10 @@
 //! disturbance d = J·q̈ + friction + weight + offset + spring + effect, u = d + tau, then
 //! the sensor chain.
 
-use std::collections::BTreeMap;
-
 use serde::Serialize;
 use serde_json::json;
 
-use crate::case::{label_of, zero_share, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{label_of, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth};
 use crate::effects::{dahl_step, draw_additive, Delayed, Effect, Scene};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
 use crate::model::ModelFile;
@@ -88,22 +86,7 @@ pub fn generate(
         att = size_second(rng, &setup, att, sigma, &mut notes);
     }
     let n = setup.times.len();
-    let f_u = uniform(rng, 0.2, 0.8);
-    let un = draw_colour(rng, sigma * f_u.sqrt());
-    let tn = draw_colour(rng, sigma * (1.0 - f_u).sqrt());
-    let u_noise = noise::coloured(rng, n, un);
-    let tau_noise = noise::coloured(rng, n, tn);
-    let u: Vec<f64> = att.u_log.iter().zip(&u_noise).map(|(a, b)| a + b).collect();
-    let tau: Vec<f64> = att
-        .tau_log
-        .iter()
-        .zip(&tau_noise)
-        .map(|(a, b)| a + b)
-        .collect();
-    let mut sensors = json!({
-        "u_noise": un, "tau_noise": tn,
-        "u_noise_lag1_estimate": noise::lag1(&u_noise), "tau_noise_lag1_estimate": noise::lag1(&tau_noise),
-    });
+    let (u, tau, mut sensors) = noisy_torques(rng, &att, sigma);
     let mut log = Log::default();
     log.columns.push((
         "t".into(),
@@ -127,10 +110,7 @@ pub fn generate(
     shuffle_columns(rng, &mut log);
     let effect_rms = rms(&att.residual);
     let snr = if sigma > 0.0 { effect_rms / sigma } else { 0.0 };
-    let mut snr_per_effect = BTreeMap::new();
-    for (e, r) in att.effects.iter().zip(&att.per_effect) {
-        snr_per_effect.insert(e.name().to_string(), r / sigma.max(1e-300));
-    }
+    let snr_per_effect = snr_map(&att.effects, &att.per_effect, sigma);
     let clean = Clean {
         t_rel: setup.times.clone(),
         q: att.series.kin.iter().map(|k| k.q).collect(),
@@ -143,11 +123,7 @@ pub fn generate(
         seed,
         case,
         mode: Mode::Torque,
-        effects: if effects.is_empty() {
-            vec!["none".into()]
-        } else {
-            effects.iter().map(|s| s.to_string()).collect()
-        },
+        effects: truth_names(effects),
         label: label_of(effects),
         joint: setup.joint.clone(),
         file_model: att.file.clone(),
@@ -179,6 +155,32 @@ pub fn generate(
         model: att.file,
         clean,
     })
+}
+
+/// Adds the u and tau noise (σ² split at random between them, each white or AR(1)).
+fn noisy_torques(
+    rng: &mut Rng64,
+    att: &Attempt,
+    sigma: f64,
+) -> (Vec<f64>, Vec<f64>, serde_json::Value) {
+    let n = att.u_log.len();
+    let f_u = uniform(rng, 0.2, 0.8);
+    let un = draw_colour(rng, sigma * f_u.sqrt());
+    let tn = draw_colour(rng, sigma * (1.0 - f_u).sqrt());
+    let u_noise = noise::coloured(rng, n, un);
+    let tau_noise = noise::coloured(rng, n, tn);
+    let u = att.u_log.iter().zip(&u_noise).map(|(a, b)| a + b).collect();
+    let tau = att
+        .tau_log
+        .iter()
+        .zip(&tau_noise)
+        .map(|(a, b)| a + b)
+        .collect();
+    let sensors = json!({
+        "u_noise": un, "tau_noise": tn,
+        "u_noise_lag1_estimate": noise::lag1(&u_noise), "tau_noise_lag1_estimate": noise::lag1(&tau_noise),
+    });
+    (u, tau, sensors)
 }
 
 fn draw_kind(rng: &mut Rng64, effects: &[&str]) -> JointKind {

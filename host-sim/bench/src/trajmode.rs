@@ -1,11 +1,9 @@
 //! Trajectory-mode cases: free (or known-input) responses of an elastic joint or a
 //! pendulum-like arm joint, integrated by `integrate`, logged as t, q and optionally qd / u.
 
-use std::collections::BTreeMap;
-
 use serde_json::json;
 
-use crate::case::{label_of, zero_share, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{label_of, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth};
 use crate::effects::{draw_additive, Delayed, Effect, Scene};
 use crate::integrate::{simulate, Dynamics, Input, State};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
@@ -94,12 +92,7 @@ pub fn generate(
     };
     let effect_rms = rms(&att.deviation);
     let snr = effect_rms / sigma;
-    let snr_per_effect: BTreeMap<String, f64> = att
-        .effects
-        .iter()
-        .zip(&att.per_effect)
-        .map(|(e, r)| (e.name().to_string(), r / sigma))
-        .collect();
+    let snr_per_effect = snr_map(&att.effects, &att.per_effect, sigma);
     let clean = Clean {
         t_rel: setup.times.clone(),
         q: att.truth.iter().map(|y| y.q).collect(),
@@ -112,11 +105,7 @@ pub fn generate(
         seed,
         case,
         mode: Mode::Trajectory,
-        effects: if effects.is_empty() {
-            vec!["none".into()]
-        } else {
-            effects.iter().map(|s| s.to_string()).collect()
-        },
+        effects: truth_names(effects),
         label: label_of(effects),
         joint: setup.joint.clone(),
         file_model: att.file.clone(),
