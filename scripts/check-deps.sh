@@ -13,7 +13,9 @@ declare -A FORBIDDEN=(
     [joint-formats]="host-sim joint-can joint-analysis jointctl clap serialport socketcan indicatif ctrlc rand"
     [host-sim]="joint-analysis joint-can jointctl clap serialport socketcan indicatif ctrlc"
     [joint-can]="host-sim joint-analysis jointctl joint-formats clap indicatif ctrlc"
-    [joint-analysis]="host-sim joint-can jointctl clap serialport socketcan embedded-can indicatif ctrlc rand"
+    [joint-analysis]="host-sim joint-can jointctl diag-bench clap serialport socketcan embedded-can indicatif ctrlc rand"
+    # the independent bench: shares no code with what it judges
+    [diag-bench]="joint-core joint-formats host-sim joint-can joint-analysis jointctl"
 )
 
 # check CRATE TREE_TEXT: prints each violation, returns 1 if any

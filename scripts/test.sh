@@ -20,7 +20,7 @@ bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
 echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
-cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl --lib --bins -- -D warnings
+cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl -p diag-bench --lib --bins -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"
 bash scripts/python-venv.sh
 echo "== headless Chromium for the diagnosis report test"
