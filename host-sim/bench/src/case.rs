@@ -24,10 +24,7 @@ pub struct Log {
 
 impl Log {
     pub fn get(&self, name: &str) -> Option<&[f64]> {
-        self.columns
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| v.as_slice())
+        self.columns.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_slice())
     }
 
     pub fn len(&self) -> usize {
@@ -153,11 +150,7 @@ pub fn truth_names(effects: &[&str]) -> Vec<String> {
 
 /// Each effect's own RMS over the noise RMS.
 pub fn snr_map(effects: &[Effect], rms: &[f64], sigma: f64) -> BTreeMap<String, f64> {
-    effects
-        .iter()
-        .zip(rms)
-        .map(|(e, r)| (e.name().to_string(), r / sigma.max(1e-300)))
-        .collect()
+    effects.iter().zip(rms).map(|(e, r)| (e.name().to_string(), r / sigma.max(1e-300))).collect()
 }
 
 /// The label the scorer groups by: "none", one name, or names joined by '+'.

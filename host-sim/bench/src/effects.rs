@@ -32,20 +32,11 @@ pub struct Ripple {
 pub enum CableShape {
     /// Taut past q_e on the `side` of it: side·k·max(0, side·(q − q_e)), softplus-smoothed
     /// over `smooth` rad when smooth > 0.
-    OneSided {
-        k: f64,
-        q_e: f64,
-        side: f64,
-        smooth: f64,
-    },
+    OneSided { k: f64, q_e: f64, side: f64, smooth: f64 },
     /// k1·x + k3·x³ with x = q − q_s.
     Progressive { k1: f64, k3: f64, q_s: f64 },
     /// amplitude·exp(−½((q − q_b)/width)²): padding pressed over a stretch of angle.
-    Bump {
-        amplitude: f64,
-        q_b: f64,
-        width: f64,
-    },
+    Bump { amplitude: f64, q_b: f64, width: f64 },
 }
 
 /// Which logged signal lags its true value.
@@ -164,15 +155,13 @@ impl Effect {
                 (cd - c) * s
             }
             Effect::LoadDependentFriction { mu } => mu * x.tau_ext.abs() * s,
-            Effect::ThermalDrift {
-                alpha_b, alpha_c, ..
-            } => {
+            Effect::ThermalDrift { alpha_b, alpha_c, .. } => {
                 let dt = self.temp_rise(x.t_rel);
                 joint.b() * alpha_b * dt * x.qd + joint.c() * alpha_c * dt * s
             }
-            Effect::PositionRipple { .. }
-            | Effect::CableSpring { .. }
-            | Effect::Backlash { .. } => self.position_delta(x.q),
+            Effect::PositionRipple { .. } | Effect::CableSpring { .. } | Effect::Backlash { .. } => {
+                self.position_delta(x.q)
+            }
             Effect::PreslidingHysteresis { c, .. } => x.dahl - c * s,
             _ => 0.0,
         }
@@ -181,10 +170,9 @@ impl Effect {
     /// The part of the effect that depends on q alone (0 for the others).
     pub fn position_delta(&self, q: f64) -> f64 {
         match self {
-            Effect::PositionRipple { harmonics } => harmonics
-                .iter()
-                .map(|h| h.amplitude * (std::f64::consts::TAU * q / h.period + h.phase).sin())
-                .sum(),
+            Effect::PositionRipple { harmonics } => {
+                harmonics.iter().map(|h| h.amplitude * (std::f64::consts::TAU * q / h.period + h.phase).sin()).sum()
+            }
             Effect::CableSpring { cable } => cable_torque(cable, q),
             Effect::Backlash { k, q0, lo, hi } => {
                 let x = q - q0;
@@ -197,9 +185,7 @@ impl Effect {
     /// Temperature rise above `temp0` at time t_rel (0 for non-thermal effects).
     pub fn temp_rise(&self, t_rel: f64) -> f64 {
         match self {
-            Effect::ThermalDrift { rise, tau_th, .. } => {
-                rise * (1.0 - (-t_rel.max(0.0) / tau_th).exp())
-            }
+            Effect::ThermalDrift { rise, tau_th, .. } => rise * (1.0 - (-t_rel.max(0.0) / tau_th).exp()),
             _ => 0.0,
         }
     }
@@ -216,13 +202,9 @@ impl Effect {
         };
         match self {
             Effect::Stribeck { level, .. } => within(*level, 0.1 * c, 0.8 * c),
-            Effect::AsymmetricFriction {
-                c_plus, c_minus, ..
-            } => within(c_plus - c_minus, 0.1 * c, 0.5 * c),
+            Effect::AsymmetricFriction { c_plus, c_minus, .. } => within(c_plus - c_minus, 0.1 * c, 0.5 * c),
             Effect::LoadDependentFriction { mu } => within(*mu, 0.02, 0.2),
-            Effect::ThermalDrift {
-                alpha_b, alpha_c, ..
-            } => {
+            Effect::ThermalDrift { alpha_b, alpha_c, .. } => {
                 let a = alpha_b.abs().max(alpha_c.abs());
                 within(a, 0.004, 0.025)
             }
@@ -241,15 +223,11 @@ impl Effect {
                 *c_minus = *c + (*c_minus - *c) * k;
             }
             Effect::LoadDependentFriction { mu } => *mu *= k,
-            Effect::ThermalDrift {
-                alpha_b, alpha_c, ..
-            } => {
+            Effect::ThermalDrift { alpha_b, alpha_c, .. } => {
                 *alpha_b *= k;
                 *alpha_c *= k;
             }
-            Effect::PositionRipple { harmonics } => {
-                harmonics.iter_mut().for_each(|h| h.amplitude *= k)
-            }
+            Effect::PositionRipple { harmonics } => harmonics.iter_mut().for_each(|h| h.amplitude *= k),
             Effect::CableSpring { cable } => match cable {
                 CableShape::OneSided { k: ks, .. } => *ks *= k,
                 CableShape::Progressive { k1, k3, .. } => {
@@ -291,29 +269,16 @@ fn softplus(x: f64) -> f64 {
 
 pub fn cable_torque(c: &CableShape, q: f64) -> f64 {
     match *c {
-        CableShape::OneSided {
-            k,
-            q_e,
-            side,
-            smooth,
-        } => {
+        CableShape::OneSided { k, q_e, side, smooth } => {
             let x = side * (q - q_e);
-            let stretch = if smooth > 0.0 {
-                smooth * softplus(x / smooth)
-            } else {
-                x.max(0.0)
-            };
+            let stretch = if smooth > 0.0 { smooth * softplus(x / smooth) } else { x.max(0.0) };
             side * k * stretch
         }
         CableShape::Progressive { k1, k3, q_s } => {
             let x = q - q_s;
             k1 * x + k3 * x * x * x
         }
-        CableShape::Bump {
-            amplitude,
-            q_b,
-            width,
-        } => {
+        CableShape::Bump { amplitude, q_b, width } => {
             let z = (q - q_b) / width;
             amplitude * (-0.5 * z * z).exp()
         }
@@ -344,12 +309,7 @@ pub struct Scene {
 
 /// Draws one additive effect of `family` (not parameters / dry_friction / delay /
 /// initial_state, which the mode modules draw because they change files or signals).
-pub fn draw_additive(
-    rng: &mut Rng64,
-    family: &str,
-    joint: &ModelFile,
-    sc: &Scene,
-) -> Option<Effect> {
+pub fn draw_additive(rng: &mut Rng64, family: &str, joint: &ModelFile, sc: &Scene) -> Option<Effect> {
     let c = joint.c();
     Some(match family {
         "stribeck" => Effect::Stribeck {
@@ -360,28 +320,16 @@ pub fn draw_additive(
         "asymmetric_friction" => {
             let d = uniform(rng, 0.1, 0.5) * c;
             let w = uniform(rng, 0.0, 1.0);
-            Effect::AsymmetricFriction {
-                c,
-                c_plus: c + w * d,
-                c_minus: c - (1.0 - w) * d,
-            }
+            Effect::AsymmetricFriction { c, c_plus: c + w * d, c_minus: c - (1.0 - w) * d }
         }
-        "load_dependent_friction" => Effect::LoadDependentFriction {
-            mu: uniform(rng, 0.02, 0.2),
-        },
+        "load_dependent_friction" => Effect::LoadDependentFriction { mu: uniform(rng, 0.02, 0.2) },
         "thermal_drift" => draw_thermal(rng, sc),
         "position_ripple" => draw_ripple(rng, sc),
-        "cable_spring" => Effect::CableSpring {
-            cable: draw_cable(rng, joint, sc),
-        },
+        "cable_spring" => Effect::CableSpring { cable: draw_cable(rng, joint, sc) },
         "backlash" => draw_backlash(rng, joint)?,
         "presliding_hysteresis" => {
             let x = log_uniform(rng, 1e-4, 5e-3);
-            Effect::PreslidingHysteresis {
-                sigma: c / x,
-                c,
-                presliding_distance: x,
-            }
+            Effect::PreslidingHysteresis { sigma: c / x, c, presliding_distance: x }
         }
         _ => return None,
     })
@@ -390,16 +338,8 @@ pub fn draw_additive(
 fn draw_thermal(rng: &mut Rng64, sc: &Scene) -> Effect {
     // Warm grease: friction falls as the joint heats; viscous, Coulomb or both.
     let which = int(rng, 0, 2);
-    let ab = if which != 1 {
-        -uniform(rng, 0.004, 0.025)
-    } else {
-        0.0
-    };
-    let ac = if which != 0 {
-        -uniform(rng, 0.004, 0.025)
-    } else {
-        0.0
-    };
+    let ab = if which != 1 { -uniform(rng, 0.004, 0.025) } else { 0.0 };
+    let ac = if which != 0 { -uniform(rng, 0.004, 0.025) } else { 0.0 };
     Effect::ThermalDrift {
         alpha_b: ab,
         alpha_c: ac,
@@ -419,11 +359,7 @@ fn draw_ripple(rng: &mut Rng64, sc: &Scene) -> Effect {
     }];
     if chance(rng, 0.5) {
         // A second line: the mesh's own harmonic or an unrelated period (two stages).
-        let p2 = if chance(rng, 0.5) {
-            0.5 * p
-        } else {
-            log_uniform(rng, 0.01, 0.3)
-        };
+        let p2 = if chance(rng, 0.5) { 0.5 * p } else { log_uniform(rng, 0.01, 0.3) };
         harmonics.push(Ripple {
             amplitude: uniform(rng, 0.02, 0.2) * sc.torque_scale,
             period: p2,
@@ -441,38 +377,17 @@ fn draw_cable(rng: &mut Rng64, joint: &ModelFile, sc: &Scene) -> CableShape {
         0 => {
             let side = sign(rng);
             let frac = uniform(rng, 0.5, 0.9);
-            let q_e = if side > 0.0 {
-                sc.q_lo + frac * span
-            } else {
-                sc.q_hi - frac * span
-            };
+            let q_e = if side > 0.0 { sc.q_lo + frac * span } else { sc.q_hi - frac * span };
             let reach = (1.0 - frac) * span;
-            let smooth = if chance(rng, 0.5) {
-                uniform(rng, 0.1, 0.5) * reach
-            } else {
-                0.0
-            };
-            CableShape::OneSided {
-                k: target / reach,
-                q_e,
-                side,
-                smooth,
-            }
+            let smooth = if chance(rng, 0.5) { uniform(rng, 0.1, 0.5) * reach } else { 0.0 };
+            CableShape::OneSided { k: target / reach, q_e, side, smooth }
         }
         1 => {
             let q_s = 0.5 * (sc.q_lo + sc.q_hi) + uniform(rng, -0.2, 0.2) * span;
             let x = span * 0.6;
             // A linear part would be a spring-parameter error on a joint that has a spring.
-            let lin = if joint.spring.is_some() {
-                0.0
-            } else {
-                uniform(rng, 0.0, 0.3)
-            };
-            CableShape::Progressive {
-                k1: lin * target / x,
-                k3: (1.0 - lin) * target / (x * x * x),
-                q_s,
-            }
+            let lin = if joint.spring.is_some() { 0.0 } else { uniform(rng, 0.0, 0.3) };
+            CableShape::Progressive { k1: lin * target / x, k3: (1.0 - lin) * target / (x * x * x), q_s }
         }
         _ => CableShape::Bump {
             amplitude: sign(rng) * target,
@@ -490,10 +405,5 @@ fn draw_backlash(rng: &mut Rng64, joint: &ModelFile) -> Option<Effect> {
         1 => (0.0, w),
         _ => (-w, 0.0),
     };
-    Some(Effect::Backlash {
-        k: s.k,
-        q0: s.q0,
-        lo,
-        hi,
-    })
+    Some(Effect::Backlash { k: s.k, q0: s.q0, lo, hi })
 }

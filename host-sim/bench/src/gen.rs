@@ -42,11 +42,8 @@ pub const TORQUE_COMPOUNDS: &[[&str; 2]] = &[
     ["asymmetric_friction", "cable_spring"],
     ["delay", "stribeck"],
 ];
-pub const TRAJECTORY_COMPOUNDS: &[[&str; 2]] = &[
-    ["backlash", "stribeck"],
-    ["cable_spring", "stribeck"],
-    ["position_ripple", "asymmetric_friction"],
-];
+pub const TRAJECTORY_COMPOUNDS: &[[&str; 2]] =
+    &[["backlash", "stribeck"], ["cable_spring", "stribeck"], ["position_ripple", "asymmetric_friction"]];
 
 /// Which modes `gen` may draw.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,11 +61,7 @@ pub struct Plan {
 }
 
 fn static_name(name: &str) -> Option<&'static str> {
-    TORQUE_FAMILIES
-        .iter()
-        .chain(TRAJECTORY_FAMILIES)
-        .copied()
-        .find(|f| *f == name)
+    TORQUE_FAMILIES.iter().chain(TRAJECTORY_FAMILIES).copied().find(|f| *f == name)
 }
 
 fn allowed(mode: Mode, name: &str) -> bool {
@@ -111,11 +104,8 @@ fn draw_effects(rng: &mut Rng64, mode: Mode) -> Vec<&'static str> {
         Mode::Torque => (TORQUE_FAMILIES, TORQUE_COMPOUNDS),
         Mode::Trajectory => (TRAJECTORY_FAMILIES, TRAJECTORY_COMPOUNDS),
     };
-    let mut items: Vec<(usize, f64)> = fams
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (i, if *f == "parameters" { 1.5 } else { 1.0 }))
-        .collect();
+    let mut items: Vec<(usize, f64)> =
+        fams.iter().enumerate().map(|(i, f)| (i, if *f == "parameters" { 1.5 } else { 1.0 })).collect();
     items.push((usize::MAX, 1.2));
     match weighted(rng, &items) {
         Some(usize::MAX) | None => compound(rng, comps),
@@ -124,9 +114,7 @@ fn draw_effects(rng: &mut Rng64, mode: Mode) -> Vec<&'static str> {
 }
 
 fn compound(rng: &mut Rng64, comps: &[[&'static str; 2]]) -> Vec<&'static str> {
-    crate::rngs::pick(rng, comps)
-        .map(|c| c.to_vec())
-        .unwrap_or_default()
+    crate::rngs::pick(rng, comps).map(|c| c.to_vec()).unwrap_or_default()
 }
 
 /// The plan of case `case` for (seed, options); deterministic per (seed, case, options).
@@ -136,11 +124,7 @@ pub fn plan(seed: u64, case: u64, family: Option<&str>, sel: ModeSel) -> anyhow:
         None => {
             let none = is_none_slot(seed, case, &mut rng);
             let mode = draw_mode(&mut rng, sel);
-            let effects = if none {
-                Vec::new()
-            } else {
-                draw_effects(&mut rng, mode)
-            };
+            let effects = if none { Vec::new() } else { draw_effects(&mut rng, mode) };
             Ok(Plan { mode, effects })
         }
         Some(f) => plan_family(&mut rng, f, sel),
@@ -149,22 +133,12 @@ pub fn plan(seed: u64, case: u64, family: Option<&str>, sel: ModeSel) -> anyhow:
 
 fn plan_family(rng: &mut Rng64, f: &str, sel: ModeSel) -> anyhow::Result<Plan> {
     if f == "none" {
-        return Ok(Plan {
-            mode: draw_mode(rng, sel),
-            effects: Vec::new(),
-        });
+        return Ok(Plan { mode: draw_mode(rng, sel), effects: Vec::new() });
     }
     if f == "compound" {
         let mode = draw_mode(rng, sel);
-        let comps = if mode == Mode::Torque {
-            TORQUE_COMPOUNDS
-        } else {
-            TRAJECTORY_COMPOUNDS
-        };
-        return Ok(Plan {
-            mode,
-            effects: compound(rng, comps),
-        });
+        let comps = if mode == Mode::Torque { TORQUE_COMPOUNDS } else { TRAJECTORY_COMPOUNDS };
+        return Ok(Plan { mode, effects: compound(rng, comps) });
     }
     let mut effects = Vec::new();
     for part in f.split('+') {
@@ -194,12 +168,7 @@ fn plan_family(rng: &mut Rng64, f: &str, sel: ModeSel) -> anyhow::Result<Plan> {
 }
 
 /// Generates one case in memory.
-pub fn generate(
-    seed: u64,
-    case: u64,
-    family: Option<&str>,
-    sel: ModeSel,
-) -> anyhow::Result<CaseData> {
+pub fn generate(seed: u64, case: u64, family: Option<&str>, sel: ModeSel) -> anyhow::Result<CaseData> {
     let p = plan(seed, case, family, sel)?;
     let mut rng = stream(seed, case, 0xCA5E);
     match p.mode {
@@ -217,21 +186,12 @@ pub fn write_case(dir: &Path, c: &CaseData) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     std::fs::write(dir.join("log.csv"), c.log.to_csv())?;
     std::fs::write(dir.join("model.toml"), c.model.to_toml()?)?;
-    std::fs::write(
-        dir.join("truth.json"),
-        serde_json::to_string_pretty(&c.truth)?,
-    )?;
+    std::fs::write(dir.join("truth.json"), serde_json::to_string_pretty(&c.truth)?)?;
     Ok(())
 }
 
 /// Generates `cases` cases into `out` (case-0000 …) and the manifest.
-pub fn run_gen(
-    seed: u64,
-    cases: u64,
-    out: &Path,
-    family: Option<&str>,
-    sel: ModeSel,
-) -> anyhow::Result<()> {
+pub fn run_gen(seed: u64, cases: u64, out: &Path, family: Option<&str>, sel: ModeSel) -> anyhow::Result<()> {
     std::fs::create_dir_all(out)?;
     let mut list = Vec::new();
     for k in 0..cases {
@@ -253,10 +213,7 @@ pub fn run_gen(
         "mode": format!("{sel:?}").to_lowercase(),
         "generator": concat!("diag-bench ", env!("CARGO_PKG_VERSION")),
     });
-    std::fs::write(
-        out.join("manifest.json"),
-        serde_json::to_string_pretty(&manifest)?,
-    )?;
+    std::fs::write(out.join("manifest.json"), serde_json::to_string_pretty(&manifest)?)?;
     Ok(())
 }
 

@@ -23,24 +23,14 @@ pub struct Input {
 
 impl Input {
     pub fn zero() -> Input {
-        Input {
-            kind: "none",
-            t_on: f64::INFINITY,
-            ramp: 1.0,
-            level: 0.0,
-            t_off: f64::INFINITY,
-            components: Vec::new(),
-        }
+        Input { kind: "none", t_on: f64::INFINITY, ramp: 1.0, level: 0.0, t_off: f64::INFINITY, components: Vec::new() }
     }
 
     pub fn at(&self, t: f64) -> f64 {
         let up = edge((t - self.t_on) / self.ramp);
         let down = edge((t - self.t_off) / self.ramp);
-        let waves: f64 = self
-            .components
-            .iter()
-            .map(|(a, f, p)| a * (std::f64::consts::TAU * f * (t - self.t_on) + p).sin())
-            .sum();
+        let waves: f64 =
+            self.components.iter().map(|(a, f, p)| a * (std::f64::consts::TAU * f * (t - self.t_on) + p).sin()).sum();
         (self.level * (up - down)) + up * waves
     }
 }
@@ -98,11 +88,7 @@ pub struct State {
 
 impl State {
     fn plus(self, d: State, h: f64) -> State {
-        State {
-            q: self.q + h * d.q,
-            v: self.v + h * d.v,
-            f: self.f + h * d.f,
-        }
+        State { q: self.q + h * d.q, v: self.v + h * d.v, f: self.f + h * d.f }
     }
 }
 
@@ -117,56 +103,35 @@ impl Dynamics {
         let mut position_effects = Vec::new();
         for e in effects {
             match e {
-                Effect::AsymmetricFriction {
-                    c_plus, c_minus, ..
-                } => {
+                Effect::AsymmetricFriction { c_plus, c_minus, .. } => {
                     cp = *c_plus;
                     cm = *c_minus;
                 }
                 Effect::Stribeck { level, v_s, delta } => stribeck_p = Some((*level, *v_s, *delta)),
                 Effect::PreslidingHysteresis { sigma, c, .. } => dahl = Some((*sigma, *c)),
-                Effect::PositionRipple { .. }
-                | Effect::CableSpring { .. }
-                | Effect::Backlash { .. } => position_effects.push(e.clone()),
+                Effect::PositionRipple { .. } | Effect::CableSpring { .. } | Effect::Backlash { .. } => {
+                    position_effects.push(e.clone())
+                }
                 _ => {}
             }
         }
         let coulomb = match (dahl, model.sign_law()) {
             (Some((sigma, c)), _) => Coulomb::Dahl { sigma, c },
             _ if cp <= 0.0 && cm <= 0.0 && stribeck_p.is_none() => Coulomb::None,
-            (None, SignLaw::Pure) => Coulomb::Pure {
-                c_plus: cp,
-                c_minus: cm,
-            },
-            (None, SignLaw::Band(vb)) => Coulomb::Band {
-                vb,
-                c_plus: cp,
-                c_minus: cm,
-            },
+            (None, SignLaw::Pure) => Coulomb::Pure { c_plus: cp, c_minus: cm },
+            (None, SignLaw::Band(vb)) => Coulomb::Band { vb, c_plus: cp, c_minus: cm },
         };
-        Dynamics {
-            model: model.clone(),
-            coulomb,
-            stribeck: stribeck_p,
-            position_effects,
-            input,
-            input_shift,
-        }
+        Dynamics { model: model.clone(), coulomb, stribeck: stribeck_p, position_effects, input, input_shift }
     }
 
     /// Net torque that does not depend on velocity: input minus position terms.
     pub fn non_friction(&self, t: f64, q: f64) -> f64 {
-        let extra: f64 = self
-            .position_effects
-            .iter()
-            .map(|e| e.position_delta(q))
-            .sum();
+        let extra: f64 = self.position_effects.iter().map(|e| e.position_delta(q)).sum();
         self.input.at(t - self.input_shift) - self.model.position_terms(q) - extra
     }
 
     fn excess(&self, v: f64) -> f64 {
-        self.stribeck
-            .map_or(0.0, |(l, vs, d)| stribeck(l, vs, d, v))
+        self.stribeck.map_or(0.0, |(l, vs, d)| stribeck(l, vs, d, v))
     }
 
     /// The Coulomb-like friction force; `dir` is the sliding direction for the pure law.
@@ -177,11 +142,7 @@ impl Dynamics {
                 let c = if dir > 0.0 { c_plus } else { c_minus };
                 (c + self.excess(v)) * dir
             }
-            Coulomb::Band {
-                vb,
-                c_plus,
-                c_minus,
-            } => {
+            Coulomb::Band { vb, c_plus, c_minus } => {
                 let c = if v > 0.0 { c_plus } else { c_minus };
                 (c + self.excess(v)) * (v / vb).clamp(-1.0, 1.0)
             }
@@ -196,11 +157,7 @@ impl Dynamics {
             Coulomb::Dahl { sigma, c } if c > 0.0 => sigma * (y.v - y.v.abs() * y.f / c),
             _ => 0.0,
         };
-        State {
-            q: y.v,
-            v: dv,
-            f: df,
-        }
+        State { q: y.v, v: dv, f: df }
     }
 
     fn rk4(&self, y: State, t: f64, h: f64, dir: f64) -> State {
@@ -267,11 +224,7 @@ impl Dynamics {
                 }
             }
             let at = self.rk4(y, t, hi, dir);
-            y = State {
-                q: at.q,
-                v: 0.0,
-                f: at.f,
-            };
+            y = State { q: at.q, v: 0.0, f: at.f };
             t += hi;
         }
         y
@@ -282,13 +235,9 @@ impl Dynamics {
     /// Dahl state's travel length at speed `v`.
     pub fn max_step(&self, v: f64, span: f64) -> f64 {
         let j = self.model.j().max(1e-12);
-        let mut stiff = self.model.spring.map_or(0.0, |s| s.k)
-            + self.model.weight.map_or(0.0, |w| (w.amplitude * w.s).abs());
-        stiff += self
-            .position_effects
-            .iter()
-            .map(|e| effect_stiffness(e, span))
-            .sum::<f64>();
+        let mut stiff =
+            self.model.spring.map_or(0.0, |s| s.k) + self.model.weight.map_or(0.0, |w| (w.amplitude * w.s).abs());
+        stiff += self.position_effects.iter().map(|e| effect_stiffness(e, span)).sum::<f64>();
         let mut h = f64::INFINITY;
         if let Coulomb::Dahl { sigma, c } = self.coulomb {
             stiff += sigma;
@@ -296,16 +245,10 @@ impl Dynamics {
         }
         h = h.min(0.03 / (stiff / j).sqrt().max(1e-9));
         let f = self.model.friction.unwrap_or_default();
-        let damp = f.b.unwrap_or(0.0)
-            + self.model.spring.map_or(0.0, |s| s.b)
-            + 2.0 * f.a.unwrap_or(0.0).abs() * v.abs();
+        let damp =
+            f.b.unwrap_or(0.0) + self.model.spring.map_or(0.0, |s| s.b) + 2.0 * f.a.unwrap_or(0.0).abs() * v.abs();
         h = h.min(0.5 * j / damp.max(1e-12));
-        if let Coulomb::Band {
-            vb,
-            c_plus,
-            c_minus,
-        } = self.coulomb
-        {
+        if let Coulomb::Band { vb, c_plus, c_minus } = self.coulomb {
             let c = c_plus.max(c_minus) + self.excess(0.0);
             h = h.min(0.5 * j * vb / c.max(1e-12));
         }
@@ -316,18 +259,13 @@ impl Dynamics {
 /// Local stiffness bound (N·m/rad) of a position effect over an angle span.
 fn effect_stiffness(e: &Effect, span: f64) -> f64 {
     match e {
-        Effect::PositionRipple { harmonics } => harmonics
-            .iter()
-            .map(|h| h.amplitude.abs() * std::f64::consts::TAU / h.period)
-            .sum(),
+        Effect::PositionRipple { harmonics } => {
+            harmonics.iter().map(|h| h.amplitude.abs() * std::f64::consts::TAU / h.period).sum()
+        }
         Effect::CableSpring { cable } => match *cable {
-            CableShape::OneSided { k, smooth, .. } => {
-                k.abs() * if smooth > 0.0 { 1.0 } else { 1.5 }
-            }
+            CableShape::OneSided { k, smooth, .. } => k.abs() * if smooth > 0.0 { 1.0 } else { 1.5 },
             CableShape::Progressive { k1, k3, .. } => k1.abs() + 3.0 * k3.abs() * span * span,
-            CableShape::Bump {
-                amplitude, width, ..
-            } => amplitude.abs() / (width * width),
+            CableShape::Bump { amplitude, width, .. } => amplitude.abs() / (width * width),
         },
         Effect::Backlash { k, .. } => k.abs(),
         _ => 0.0,
@@ -336,24 +274,14 @@ fn effect_stiffness(e: &Effect, span: f64) -> f64 {
 
 /// Integrates from (t_start, y0) and returns the state at each of `times` (≥ t_start),
 /// with at least `min_sub` sub-steps per sample interval.
-pub fn simulate(
-    dy: &Dynamics,
-    t_start: f64,
-    y0: State,
-    times: &[f64],
-    min_sub: usize,
-    span: f64,
-) -> Vec<State> {
+pub fn simulate(dy: &Dynamics, t_start: f64, y0: State, times: &[f64], min_sub: usize, span: f64) -> Vec<State> {
     let mut y = y0;
     let mut t = t_start;
     let mut out = Vec::with_capacity(times.len());
     for &ts in times {
         let gap = ts - t;
         if gap > 0.0 {
-            let accel = dy
-                .deriv(t, y, if y.v != 0.0 { sgn(y.v) } else { 1.0 })
-                .v
-                .abs();
+            let accel = dy.deriv(t, y, if y.v != 0.0 { sgn(y.v) } else { 1.0 }).v.abs();
             let v_bound = y.v.abs() + accel * gap;
             let h = dy.max_step(v_bound, span);
             let n = ((gap / h).ceil() as usize).clamp(min_sub.max(1), 200_000);

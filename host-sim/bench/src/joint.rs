@@ -63,26 +63,8 @@ pub fn draw(rng: &mut Rng64, kind: JointKind, name: &str, needs: Needs) -> Drawn
 
 fn trunk(rng: &mut Rng64, name: &str) -> DrawnJoint {
     // (a, b, c, C_w0, s, φ, I_a, C_0) of the right and left joints, SI.
-    let right = [
-        1.8941792639567765,
-        8.938141604040842,
-        2.32,
-        2.79,
-        0.8021409131831525,
-        -0.027,
-        2.37,
-        -0.59,
-    ];
-    let left = [
-        2.1403897402076573,
-        9.396507840145501,
-        2.94,
-        2.59,
-        0.7448451336700702,
-        -3.108,
-        3.21,
-        0.20,
-    ];
+    let right = [1.8941792639567765, 8.938141604040842, 2.32, 2.79, 0.8021409131831525, -0.027, 2.37, -0.59];
+    let left = [2.1403897402076573, 9.396507840145501, 2.94, 2.59, 0.7448451336700702, -3.108, 3.21, 0.20];
     let base = if chance(rng, 0.5) { right } else { left };
     let [a, b, c, cw, s, phi, j, c0] = base;
     let mut draws = BTreeMap::new();
@@ -99,72 +81,36 @@ fn trunk(rng: &mut Rng64, name: &str) -> DrawnJoint {
     let f0 = f("c0", rng);
     let model = ModelFile {
         name: name.to_string(),
-        friction: Some(Friction {
-            a: Some(a * fa),
-            b: Some(b * fb),
-            c: Some(c * fc),
-            v_band: draw_band(rng),
-        }),
+        friction: Some(Friction { a: Some(a * fa), b: Some(b * fb), c: Some(c * fc), v_band: draw_band(rng) }),
         // s and φ are geometry, not magnitudes: perturbed a little rather than by decades.
-        weight: Some(Weight {
-            amplitude: cw * fw,
-            s: s * uniform(rng, 0.8, 1.25),
-            phi: phi + uniform(rng, -0.3, 0.3),
-        }),
+        weight: Some(Weight { amplitude: cw * fw, s: s * uniform(rng, 0.8, 1.25), phi: phi + uniform(rng, -0.3, 0.3) }),
         inertia: Some(Inertia { j: j * fj }),
         offset: Some(Offset { c0: c0 * f0 }),
         spring: None,
     };
-    DrawnJoint {
-        kind: JointKind::Trunk,
-        model,
-        draws,
-    }
+    DrawnJoint { kind: JointKind::Trunk, model, draws }
 }
 
 fn arm(rng: &mut Rng64, name: &str, pendulum: bool) -> DrawnJoint {
     let mut draws = BTreeMap::new();
     let j = uniform(rng, 0.2, 1.5);
     // A free-swinging pendulum needs friction well below gravity to swing at all.
-    let fr = if pendulum {
-        log_uniform(rng, 0.05, 1.0)
-    } else {
-        1.0
-    };
+    let fr = if pendulum { log_uniform(rng, 0.05, 1.0) } else { 1.0 };
     draws.insert("friction_factor".to_string(), fr);
     let b = uniform(rng, 1.0, 10.0) * fr;
     let c = uniform(rng, 1.0, 8.0) * fr;
     let amp = uniform(rng, 5.0, 40.0);
-    let phi = if pendulum {
-        uniform(rng, -0.4, 0.4)
-    } else {
-        uniform(rng, -3.0, 3.0)
-    };
-    let offset = (!pendulum && chance(rng, 0.5)).then(|| Offset {
-        c0: uniform(rng, -1.0, 1.0),
-    });
+    let phi = if pendulum { uniform(rng, -0.4, 0.4) } else { uniform(rng, -3.0, 3.0) };
+    let offset = (!pendulum && chance(rng, 0.5)).then(|| Offset { c0: uniform(rng, -1.0, 1.0) });
     let model = ModelFile {
         name: name.to_string(),
-        friction: Some(Friction {
-            a: None,
-            b: Some(b),
-            c: Some(c),
-            v_band: draw_band(rng),
-        }),
-        weight: Some(Weight {
-            amplitude: amp,
-            s: 1.0,
-            phi,
-        }),
+        friction: Some(Friction { a: None, b: Some(b), c: Some(c), v_band: draw_band(rng) }),
+        weight: Some(Weight { amplitude: amp, s: 1.0, phi }),
         inertia: Some(Inertia { j }),
         offset,
         spring: None,
     };
-    let kind = if pendulum {
-        JointKind::Pendulum
-    } else {
-        JointKind::Arm
-    };
+    let kind = if pendulum { JointKind::Pendulum } else { JointKind::Arm };
     DrawnJoint { kind, model, draws }
 }
 
@@ -172,11 +118,7 @@ fn elastic(rng: &mut Rng64, name: &str, needs: Needs) -> DrawnJoint {
     let j = uniform(rng, 0.006, 0.012);
     let k = uniform(rng, 5.0, 10.0);
     let b = uniform(rng, 0.02, 0.06);
-    let q0 = if chance(rng, 0.5) {
-        0.0
-    } else {
-        uniform(rng, -0.05, 0.05)
-    };
+    let q0 = if chance(rng, 0.5) { 0.0 } else { uniform(rng, -0.05, 0.05) };
     // Small Coulomb friction of the bearings, when present.
     let friction = (needs.coulomb || chance(rng, 0.6)).then(|| Friction {
         a: None,
@@ -192,19 +134,12 @@ fn elastic(rng: &mut Rng64, name: &str, needs: Needs) -> DrawnJoint {
         offset: None,
         spring: Some(Spring { k, b, q0 }),
     };
-    DrawnJoint {
-        kind: JointKind::Elastic,
-        model,
-        draws: BTreeMap::new(),
-    }
+    DrawnJoint { kind: JointKind::Elastic, model, draws: BTreeMap::new() }
 }
 
 /// Draws which file values are off for a `parameters` case: one to three of J, weight
 /// amplitude, friction b/c, offset c0, spring k and damping b, each by ±20–60 %.
-pub fn perturb(
-    rng: &mut Rng64,
-    truth: &ModelFile,
-) -> (ModelFile, Vec<crate::effects::ParamChange>) {
+pub fn perturb(rng: &mut Rng64, truth: &ModelFile) -> (ModelFile, Vec<crate::effects::ParamChange>) {
     let mut file = truth.clone();
     let mut keys: Vec<&str> = Vec::new();
     if truth.inertia.is_some() {
@@ -219,10 +154,7 @@ pub fn perturb(
     if truth.c() > 0.0 {
         keys.push("c");
     }
-    if truth
-        .offset
-        .is_some_and(|o| o.c0.abs() > 0.05 * truth.c().max(0.01))
-    {
+    if truth.offset.is_some_and(|o| o.c0.abs() > 0.05 * truth.c().max(0.01)) {
         keys.push("c0");
     }
     if truth.spring.is_some() {
@@ -236,11 +168,7 @@ pub fn perturb(
         keys.retain(|k| *k != key);
         let factor = 1.0 + sign(rng) * uniform(rng, 0.2, 0.6);
         if let Some((t, f)) = set_param(&mut file, key, factor) {
-            changes.push(crate::effects::ParamChange {
-                name: key.to_string(),
-                true_value: t,
-                file_value: f,
-            });
+            changes.push(crate::effects::ParamChange { name: key.to_string(), true_value: t, file_value: f });
         }
     }
     (file, changes)
@@ -271,10 +199,7 @@ pub fn without_coulomb(truth: &ModelFile) -> ModelFile {
         f.c = None;
         f.v_band = None;
     }
-    if file
-        .friction
-        .is_some_and(|f| f.a.is_none() && f.b.is_none())
-    {
+    if file.friction.is_some_and(|f| f.a.is_none() && f.b.is_none()) {
         file.friction = None;
     }
     file

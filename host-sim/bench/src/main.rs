@@ -10,10 +10,7 @@ use diag_bench::gen::{run_gen, ModeSel};
 use diag_bench::score::{run, RunOpts};
 
 #[derive(Parser)]
-#[command(
-    name = "diag-bench",
-    about = "Independent generator and black-box scorer for jointctl diagnose"
-)]
+#[command(name = "diag-bench", about = "Independent generator and black-box scorer for jointctl diagnose")]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -62,13 +59,7 @@ enum Cmd {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().cmd {
-        Cmd::Gen {
-            seed,
-            cases,
-            out,
-            family,
-            mode,
-        } => {
+        Cmd::Gen { seed, cases, out, family, mode } => {
             let sel = match mode {
                 ModeArg::Torque => ModeSel::Torque,
                 ModeArg::Trajectory => ModeSel::Trajectory,
@@ -76,13 +67,7 @@ fn main() -> anyhow::Result<()> {
             };
             run_gen(seed, cases, &out, family.as_deref(), sel)
         }
-        Cmd::Run {
-            cases_dir,
-            jointctl,
-            json,
-            jobs,
-            timeout,
-        } => run(&RunOpts {
+        Cmd::Run { cases_dir, jointctl, json, jobs, timeout } => run(&RunOpts {
             cases_dirs: cases_dir,
             jointctl,
             json_out: json,

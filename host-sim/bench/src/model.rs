@@ -134,9 +134,7 @@ impl ModelFile {
 
     /// Position terms: weight, offset and the spring's elastic part.
     pub fn position_terms(&self, q: f64) -> f64 {
-        let w = self
-            .weight
-            .map_or(0.0, |w| w.amplitude * (w.s * q + w.phi).sin());
+        let w = self.weight.map_or(0.0, |w| w.amplitude * (w.s * q + w.phi).sin());
         let o = self.offset.map_or(0.0, |o| o.c0);
         let k = self.spring.map_or(0.0, |s| s.k * (q - s.q0));
         w + o + k

@@ -55,11 +55,7 @@ pub fn quantise(x: f64, step: f64) -> f64 {
 pub fn lag1(x: &[f64]) -> f64 {
     let n = x.len() as f64;
     let m = x.iter().sum::<f64>() / n.max(1.0);
-    let num: f64 = x
-        .iter()
-        .zip(x.iter().skip(1))
-        .map(|(a, b)| (a - m) * (b - m))
-        .sum();
+    let num: f64 = x.iter().zip(x.iter().skip(1)).map(|(a, b)| (a - m) * (b - m)).sum();
     let den: f64 = x.iter().map(|a| (a - m) * (a - m)).sum();
     if den > 0.0 {
         num / den
@@ -76,11 +72,7 @@ pub fn rms(x: &[f64]) -> f64 {
 }
 
 /// One first-order low-pass pass over (possibly uneven) samples.
-fn lowpass_pass<'a>(
-    t: impl Iterator<Item = &'a f64>,
-    x: impl Iterator<Item = &'a f64>,
-    fc: f64,
-) -> Vec<f64> {
+fn lowpass_pass<'a>(t: impl Iterator<Item = &'a f64>, x: impl Iterator<Item = &'a f64>, fc: f64) -> Vec<f64> {
     let wc = std::f64::consts::TAU * fc;
     let mut y: Option<f64> = None;
     let mut t_prev: Option<f64> = None;

@@ -76,14 +76,8 @@ fn load_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
     for c in at(&m, "cases").as_array().into_iter().flatten() {
         let name = at(c, "dir").as_str().context("manifest case without dir")?;
         let cdir = dir.join(name);
-        let truth: Value =
-            serde_json::from_str(&std::fs::read_to_string(cdir.join("truth.json"))?)?;
-        jobs.push(Job {
-            dir: cdir,
-            seed,
-            seed_class: class.clone(),
-            truth,
-        });
+        let truth: Value = serde_json::from_str(&std::fs::read_to_string(cdir.join("truth.json"))?)?;
+        jobs.push(Job { dir: cdir, seed, seed_class: class.clone(), truth });
     }
     Ok(jobs)
 }
@@ -99,11 +93,7 @@ fn names(v: &Value) -> Vec<String> {
     v.as_array()
         .into_iter()
         .flatten()
-        .filter_map(|x| {
-            x.as_str()
-                .or_else(|| at(x, "effect").as_str())
-                .map(str::to_string)
-        })
+        .filter_map(|x| x.as_str().or_else(|| at(x, "effect").as_str()).map(str::to_string))
         .collect()
 }
 
@@ -120,10 +110,7 @@ pub fn rate_band(rate: f64) -> &'static str {
 }
 
 /// Scores one verdict against the truth set.
-pub fn classify(
-    truth: &[String],
-    verdict: Option<&Value>,
-) -> (Outcome, Option<String>, Vec<String>, Vec<String>) {
+pub fn classify(truth: &[String], verdict: Option<&Value>) -> (Outcome, Option<String>, Vec<String>, Vec<String>) {
     let Some(v) = verdict else {
         return (Outcome::Refused, None, Vec::new(), Vec::new());
     };
@@ -152,12 +139,7 @@ pub fn classify(
 
 fn tail(s: &str, n: usize) -> String {
     let lines: Vec<&str> = s.lines().collect();
-    lines
-        .iter()
-        .skip(lines.len().saturating_sub(n))
-        .copied()
-        .collect::<Vec<_>>()
-        .join("\n")
+    lines.iter().skip(lines.len().saturating_sub(n)).copied().collect::<Vec<_>>().join("\n")
 }
 
 fn run_one(job: &Job, opts: &RunOpts) -> anyhow::Result<CaseResult> {
@@ -195,23 +177,14 @@ fn run_one(job: &Job, opts: &RunOpts) -> anyhow::Result<CaseResult> {
     let seconds = start.elapsed().as_secs_f64();
     let mut stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
     if status.is_none() {
-        stderr.push_str(&format!(
-            "\n[diag-bench] killed after {:.0} s timeout",
-            opts.timeout.as_secs_f64()
-        ));
+        stderr.push_str(&format!("\n[diag-bench] killed after {:.0} s timeout", opts.timeout.as_secs_f64()));
     }
     let exit_code = status.and_then(|s| s.code());
     let ok = status.is_some_and(|s| s.success());
-    let report: Option<Value> = if ok {
-        std::fs::read_to_string(&result_path)
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-    } else {
-        None
-    };
+    let report: Option<Value> =
+        if ok { std::fs::read_to_string(&result_path).ok().and_then(|t| serde_json::from_str(&t).ok()) } else { None };
     let truth_set = names(at(&job.truth, "effects"));
-    let (outcome, verdict, reported, alternatives) =
-        classify(&truth_set, report.as_ref().map(|r| at(r, "verdict")));
+    let (outcome, verdict, reported, alternatives) = classify(&truth_set, report.as_ref().map(|r| at(r, "verdict")));
     let rate = at(&job.truth, "rate_hz").as_f64().unwrap_or(0.0);
     Ok(CaseResult {
         dir: job.dir.display().to_string(),
@@ -220,10 +193,7 @@ fn run_one(job: &Job, opts: &RunOpts) -> anyhow::Result<CaseResult> {
         mode: at(&job.truth, "mode").as_str().unwrap_or("?").to_string(),
         label: at(&job.truth, "label").as_str().unwrap_or("?").to_string(),
         truth: truth_set,
-        trajectory_family: at(&job.truth, "trajectory_family")
-            .as_str()
-            .unwrap_or("?")
-            .to_string(),
+        trajectory_family: at(&job.truth, "trajectory_family").as_str().unwrap_or("?").to_string(),
         rate_hz: rate,
         rate_band: rate_band(rate).to_string(),
         snr: at(&job.truth, "snr").as_f64().unwrap_or(0.0),
@@ -256,11 +226,7 @@ fn run_all(jobs: &[Job], opts: &RunOpts) -> anyhow::Result<Vec<CaseResult>> {
                             jobs.len(),
                             r.dir,
                             r.label,
-                            if r.reported.is_empty() {
-                                "-".to_string()
-                            } else {
-                                r.reported.join("+")
-                            },
+                            if r.reported.is_empty() { "-".to_string() } else { r.reported.join("+") },
                             r.outcome,
                             r.seconds
                         );
@@ -309,11 +275,7 @@ impl Row {
             Outcome::Wrong => {}
         }
         if r.outcome != Outcome::Correct {
-            let said = if r.outcome == Outcome::Refused {
-                "(refused)".to_string()
-            } else {
-                r.reported.join("+")
-            };
+            let said = if r.outcome == Outcome::Refused { "(refused)".to_string() } else { r.reported.join("+") };
             *self.called_instead.entry(said).or_default() += 1;
         }
     }
@@ -349,11 +311,7 @@ fn print_table(title: &str, rows: &BTreeMap<String, Row>, confusion: bool) {
     );
     for (k, r) in rows {
         let conf = if confusion {
-            r.called_instead
-                .iter()
-                .map(|(k, n)| format!("{k}×{n}"))
-                .collect::<Vec<_>>()
-                .join(", ")
+            r.called_instead.iter().map(|(k, n)| format!("{k}×{n}")).collect::<Vec<_>>().join(", ")
         } else {
             String::new()
         };
@@ -373,27 +331,12 @@ fn print_table(title: &str, rows: &BTreeMap<String, Row>, confusion: bool) {
 /// Summary numbers of a set of results.
 pub fn summary(results: &[CaseResult]) -> Value {
     let none: Vec<&CaseResult> = results.iter().filter(|r| r.label == "none").collect();
-    let over = none
-        .iter()
-        .filter(|r| r.outcome == Outcome::OverClaim)
-        .count();
-    let correct = results
-        .iter()
-        .filter(|r| r.outcome == Outcome::Correct)
-        .count();
-    let refused = results
-        .iter()
-        .filter(|r| r.outcome == Outcome::Refused)
-        .count();
-    let unsure = results
-        .iter()
-        .filter(|r| r.outcome == Outcome::Unsure)
-        .count();
+    let over = none.iter().filter(|r| r.outcome == Outcome::OverClaim).count();
+    let correct = results.iter().filter(|r| r.outcome == Outcome::Correct).count();
+    let refused = results.iter().filter(|r| r.outcome == Outcome::Refused).count();
+    let unsure = results.iter().filter(|r| r.outcome == Outcome::Unsure).count();
     let effect_cases = results.iter().filter(|r| r.label != "none").count();
-    let effect_correct = results
-        .iter()
-        .filter(|r| r.label != "none" && r.outcome == Outcome::Correct)
-        .count();
+    let effect_correct = results.iter().filter(|r| r.label != "none" && r.outcome == Outcome::Correct).count();
     json!({
         "cases": results.len(), "correct": correct, "unsure": unsure, "refused": refused,
         "none_cases": none.len(), "none_over_claims": over,
@@ -406,41 +349,25 @@ pub fn summary(results: &[CaseResult]) -> Value {
 fn print_report(results: &[CaseResult]) {
     let classes: BTreeSet<&str> = results.iter().map(|r| r.seed_class.as_str()).collect();
     for class in &classes {
-        let sub: Vec<CaseResult> = results
-            .iter()
-            .filter(|r| r.seed_class == *class)
-            .cloned()
-            .collect();
+        let sub: Vec<CaseResult> = results.iter().filter(|r| r.seed_class == *class).cloned().collect();
         println!("\n######## seeds: {class} ({} cases) ########", sub.len());
-        print_table(
-            "per family (truth)",
-            &group(&sub, |r| r.label.clone()),
-            true,
-        );
+        print_table("per family (truth)", &group(&sub, |r| r.label.clone()), true);
         print_table("per mode", &group(&sub, |r| r.mode.clone()), false);
-        print_table(
-            "per trajectory family",
-            &group(&sub, |r| r.trajectory_family.clone()),
-            false,
-        );
-        print_table(
-            "per rate band",
-            &group(&sub, |r| r.rate_band.clone()),
-            false,
-        );
+        print_table("per trajectory family", &group(&sub, |r| r.trajectory_family.clone()), false);
+        print_table("per rate band", &group(&sub, |r| r.rate_band.clone()), false);
         let s = summary(&sub);
         println!(
             "\nover-claim on none: {}/{} ({:.0}%)   correct overall: {}/{}   unsure: {}   refused: {}",
-            at(&s, "none_over_claims"), at(&s, "none_cases"), 100.0 * at(&s, "none_over_claim_rate").as_f64().unwrap_or(0.0),
-            at(&s, "correct"), at(&s, "cases"), at(&s, "unsure"), at(&s, "refused")
+            at(&s, "none_over_claims"),
+            at(&s, "none_cases"),
+            100.0 * at(&s, "none_over_claim_rate").as_f64().unwrap_or(0.0),
+            at(&s, "correct"),
+            at(&s, "cases"),
+            at(&s, "unsure"),
+            at(&s, "refused")
         );
         for r in sub.iter().filter(|r| r.outcome == Outcome::Refused) {
-            println!(
-                "  refused: {} exit {:?}: {}",
-                r.dir,
-                r.exit_code,
-                r.stderr_tail.lines().last().unwrap_or("")
-            );
+            println!("  refused: {} exit {:?}: {}", r.dir, r.exit_code, r.stderr_tail.lines().last().unwrap_or(""));
         }
     }
 }
@@ -457,11 +384,7 @@ pub fn run(opts: &RunOpts) -> anyhow::Result<()> {
         let classes: BTreeSet<String> = results.iter().map(|r| r.seed_class.clone()).collect();
         let mut by_class = serde_json::Map::new();
         for c in classes {
-            let sub: Vec<CaseResult> = results
-                .iter()
-                .filter(|r| r.seed_class == c)
-                .cloned()
-                .collect();
+            let sub: Vec<CaseResult> = results.iter().filter(|r| r.seed_class == c).cloned().collect();
             by_class.insert(
                 c,
                 json!({
@@ -473,8 +396,7 @@ pub fn run(opts: &RunOpts) -> anyhow::Result<()> {
                 }),
             );
         }
-        let doc =
-            json!({"summary": summary(&results), "by_seed_class": by_class, "cases": results});
+        let doc = json!({"summary": summary(&results), "by_seed_class": by_class, "cases": results});
         std::fs::write(out, serde_json::to_string_pretty(&doc)?)?;
     }
     Ok(())

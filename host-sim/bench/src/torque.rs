@@ -28,12 +28,7 @@ pub struct Load {
 
 impl Load {
     pub fn at(&self, t: f64) -> f64 {
-        self.bias
-            + self
-                .components
-                .iter()
-                .map(|(a, f, p)| a * (std::f64::consts::TAU * f * t + p).sin())
-                .sum::<f64>()
+        self.bias + self.components.iter().map(|(a, f, p)| a * (std::f64::consts::TAU * f * t + p).sin()).sum::<f64>()
     }
 }
 
@@ -71,12 +66,7 @@ struct Attempt {
     per_effect: Vec<f64>,
 }
 
-pub fn generate(
-    rng: &mut Rng64,
-    seed: u64,
-    case: u64,
-    effects: &[&'static str],
-) -> anyhow::Result<CaseData> {
+pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
     let setup = draw_setup(rng, case, effects);
     let truth_model = &setup.joint.model;
     let first = draw_attempt(rng, &setup, effects);
@@ -88,19 +78,8 @@ pub fn generate(
     let n = setup.times.len();
     let (u, tau, mut sensors) = noisy_torques(rng, &att, sigma);
     let mut log = Log::default();
-    log.columns.push((
-        "t".into(),
-        setup.times.iter().map(|t| setup.t0 + t).collect(),
-    ));
-    let kin_cols = sensor_kinematics(
-        rng,
-        &setup,
-        &att.kin_log,
-        truth_model.j(),
-        sigma,
-        &mut sensors,
-        &mut notes,
-    );
+    log.columns.push(("t".into(), setup.times.iter().map(|t| setup.t0 + t).collect()));
+    let kin_cols = sensor_kinematics(rng, &setup, &att.kin_log, truth_model.j(), sigma, &mut sensors, &mut notes);
     log.columns.extend(kin_cols);
     log.columns.push(("u".into(), u));
     log.columns.push(("tau".into(), tau));
@@ -149,20 +128,11 @@ pub fn generate(
         detectable_hint: !effects.is_empty() && snr >= 1.0,
         notes,
     };
-    Ok(CaseData {
-        truth,
-        log,
-        model: att.file,
-        clean,
-    })
+    Ok(CaseData { truth, log, model: att.file, clean })
 }
 
 /// Adds the u and tau noise (σ² split at random between them, each white or AR(1)).
-fn noisy_torques(
-    rng: &mut Rng64,
-    att: &Attempt,
-    sigma: f64,
-) -> (Vec<f64>, Vec<f64>, serde_json::Value) {
+fn noisy_torques(rng: &mut Rng64, att: &Attempt, sigma: f64) -> (Vec<f64>, Vec<f64>, serde_json::Value) {
     let n = att.u_log.len();
     let f_u = uniform(rng, 0.2, 0.8);
     let un = draw_colour(rng, sigma * f_u.sqrt());
@@ -170,12 +140,7 @@ fn noisy_torques(
     let u_noise = noise::coloured(rng, n, un);
     let tau_noise = noise::coloured(rng, n, tn);
     let u = att.u_log.iter().zip(&u_noise).map(|(a, b)| a + b).collect();
-    let tau = att
-        .tau_log
-        .iter()
-        .zip(&tau_noise)
-        .map(|(a, b)| a + b)
-        .collect();
+    let tau = att.tau_log.iter().zip(&tau_noise).map(|(a, b)| a + b).collect();
     let sensors = json!({
         "u_noise": un, "tau_noise": tn,
         "u_noise_lag1_estimate": noise::lag1(&u_noise), "tau_noise_lag1_estimate": noise::lag1(&tau_noise),
@@ -190,15 +155,8 @@ fn draw_kind(rng: &mut Rng64, effects: &[&str]) -> JointKind {
     // Thermal drift scales the friction section's b, which the elastic joint lacks.
     let elastic_ok = !effects.contains(&"thermal_drift");
     let w = if elastic_ok { 0.16 } else { 0.0 };
-    weighted(
-        rng,
-        &[
-            (JointKind::Trunk, 0.42),
-            (JointKind::Arm, 0.42),
-            (JointKind::Elastic, w),
-        ],
-    )
-    .unwrap_or(JointKind::Trunk)
+    weighted(rng, &[(JointKind::Trunk, 0.42), (JointKind::Arm, 0.42), (JointKind::Elastic, w)])
+        .unwrap_or(JointKind::Trunk)
 }
 
 fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
@@ -215,15 +173,7 @@ fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
         )
     });
     let name = format!("bench-{}-{case:04}", kind.name());
-    let joint = joint::draw(
-        rng,
-        kind,
-        &name,
-        Needs {
-            coulomb,
-            spring: false,
-        },
-    );
+    let joint = joint::draw(rng, kind, &name, Needs { coulomb, spring: false });
     let rate = if chance(rng, 0.5) {
         pick(rng, &[100.0, 200.0, 250.0, 500.0, 1000.0, 2000.0]).unwrap_or(500.0)
     } else {
@@ -235,29 +185,12 @@ fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
     let family = traj::draw_family(rng, want_rest);
     let lim = traj::limits_for(rng, kind.name());
     let traj = traj::draw(rng, family, duration, lim, want_rest);
-    let jitter = if chance(rng, 0.25) {
-        uniform(rng, 0.01, 0.15)
-    } else {
-        0.0
-    };
+    let jitter = if chance(rng, 0.25) { uniform(rng, 0.01, 0.15) } else { 0.0 };
     let times = sample_times(rng, rate, duration, jitter);
-    let t0 = if chance(rng, 0.25) {
-        (uniform(rng, 0.0, 1000.0) * 1e3).round() / 1e3
-    } else {
-        0.0
-    };
+    let t0 = if chance(rng, 0.25) { (uniform(rng, 0.0, 1000.0) * 1e3).round() / 1e3 } else { 0.0 };
     let needs_load = effects.contains(&"load_dependent_friction");
     let load = draw_load(rng, kind, needs_load);
-    Setup {
-        joint,
-        traj,
-        load,
-        times,
-        t0,
-        rate,
-        duration,
-        jitter,
-    }
+    Setup { joint, traj, load, times, t0, rate, duration, jitter }
 }
 
 /// Sample times from 0, period 1/rate, optionally jittered; stamped to the microsecond so
@@ -267,11 +200,7 @@ fn sample_times(rng: &mut Rng64, rate: f64, duration: f64, jitter: f64) -> Vec<f
     let n = (duration * rate).floor() as usize;
     (0..n)
         .map(|k| {
-            let j = if k > 0 {
-                jitter * uniform(rng, -0.5, 0.5)
-            } else {
-                0.0
-            };
+            let j = if k > 0 { jitter * uniform(rng, -0.5, 0.5) } else { 0.0 };
             ((k as f64 + j) * dt * 1e6).round() / 1e6
         })
         .collect()
@@ -279,11 +208,7 @@ fn sample_times(rng: &mut Rng64, rate: f64, duration: f64, jitter: f64) -> Vec<f
 
 fn draw_load(rng: &mut Rng64, kind: JointKind, needed: bool) -> Load {
     if !needed && chance(rng, 0.25) {
-        return Load {
-            kind: "zero",
-            bias: 0.0,
-            components: Vec::new(),
-        };
+        return Load { kind: "zero", bias: 0.0, components: Vec::new() };
     }
     let (lo, hi) = match kind {
         JointKind::Trunk => (2.0, 30.0),
@@ -301,16 +226,8 @@ fn draw_load(rng: &mut Rng64, kind: JointKind, needed: bool) -> Load {
             )
         })
         .collect();
-    let kind_name = if kind == JointKind::Trunk {
-        "human_torque"
-    } else {
-        "payload_contact"
-    };
-    Load {
-        kind: kind_name,
-        bias: amp * uniform(rng, -0.5, 0.5),
-        components,
-    }
+    let kind_name = if kind == JointKind::Trunk { "human_torque" } else { "payload_contact" };
+    Load { kind: kind_name, bias: amp * uniform(rng, -0.5, 0.5), components }
 }
 
 /// Evaluates kinematics, load, the true joint's terms and every effect's torque at `times`.
@@ -344,13 +261,7 @@ fn sweep(setup: &Setup, effects: &[Effect], times: &[f64]) -> Series {
         }
         let k = setup.traj.eval(t);
         let tau = setup.load.at(t);
-        let x = crate::effects::Ctx {
-            t_rel: t,
-            q: k.q,
-            qd: k.qd,
-            tau_ext: tau,
-            dahl: f,
-        };
+        let x = crate::effects::Ctx { t_rel: t, q: k.q, qd: k.qd, tau_ext: tau, dahl: f };
         for (d, e) in s.deltas.iter_mut().zip(effects) {
             d.push(e.delta(&x, truth));
         }
@@ -392,17 +303,10 @@ fn draw_attempt(rng: &mut Rng64, setup: &Setup, names: &[&str]) -> Attempt {
                 let moving_load = !setup.load.components.is_empty();
                 let signal = weighted(
                     rng,
-                    &[
-                        (Delayed::U, 0.6),
-                        (Delayed::Tau, if moving_load { 0.2 } else { 0.0 }),
-                        (Delayed::Q, 0.2),
-                    ],
+                    &[(Delayed::U, 0.6), (Delayed::Tau, if moving_load { 0.2 } else { 0.0 }), (Delayed::Q, 0.2)],
                 )
                 .unwrap_or(Delayed::U);
-                effects.push(Effect::Delay {
-                    signal,
-                    seconds: uniform(rng, 0.005, 0.04),
-                });
+                effects.push(Effect::Delay { signal, seconds: uniform(rng, 0.005, 0.04) });
             }
             other => {
                 if let Some(e) = draw_additive(rng, other, truth, &scene) {
@@ -419,13 +323,7 @@ fn scene_of(plain: &Series, setup: &Setup) -> Scene {
     let q_lo = q.clone().fold(f64::INFINITY, f64::min);
     let q_hi = q.fold(f64::NEG_INFINITY, f64::max);
     let v: Vec<f64> = plain.kin.iter().map(|k| k.qd).collect();
-    Scene {
-        torque_scale: rms(&plain.base),
-        q_lo,
-        q_hi,
-        duration: setup.duration,
-        v_rms: rms(&v),
-    }
+    Scene { torque_scale: rms(&plain.base), q_lo, q_hi, duration: setup.duration, v_rms: rms(&v) }
 }
 
 /// Clean logged signals for a fixed draw of effects, the residual the file's model leaves,
@@ -442,52 +340,26 @@ fn evaluate(setup: &Setup, effects: Vec<Effect>, file: ModelFile) -> Attempt {
             match signal {
                 Delayed::U => {
                     let s2 = sweep(setup, &effects, &shifted);
-                    u_log = sum_signals(&s2)
-                        .iter()
-                        .zip(&s2.tau)
-                        .map(|(a, b)| a + b)
-                        .collect();
+                    u_log = sum_signals(&s2).iter().zip(&s2.tau).map(|(a, b)| a + b).collect();
                 }
                 Delayed::Tau => tau_log = shifted.iter().map(|t| setup.load.at(*t)).collect(),
                 Delayed::Q => kin_log = shifted.iter().map(|t| setup.traj.eval(*t)).collect(),
             }
         }
     }
-    let residual: Vec<f64> = u_log
-        .iter()
-        .zip(&tau_log)
-        .zip(&kin_log)
-        .map(|((u, t), k)| u - t - file.torque(k.q, k.qd, k.qdd))
-        .collect();
+    let residual: Vec<f64> =
+        u_log.iter().zip(&tau_log).zip(&kin_log).map(|((u, t), k)| u - t - file.torque(k.q, k.qd, k.qdd)).collect();
     let per_effect = shares(&series, &effects, &file, &residual);
-    Attempt {
-        effects,
-        file,
-        series,
-        u_log,
-        tau_log,
-        kin_log,
-        residual,
-        per_effect,
-    }
+    Attempt { effects, file, series, u_log, tau_log, kin_log, residual, per_effect }
 }
 
 /// RMS of each effect's own part of the residual.
 fn shares(s: &Series, effects: &[Effect], file: &ModelFile, residual: &[f64]) -> Vec<f64> {
-    let file_gap: Vec<f64> = s
-        .base
-        .iter()
-        .zip(&s.kin)
-        .map(|(b, k)| b - file.torque(k.q, k.qd, k.qdd))
-        .collect();
+    let file_gap: Vec<f64> = s.base.iter().zip(&s.kin).map(|(b, k)| b - file.torque(k.q, k.qd, k.qdd)).collect();
     let mut rest = residual.to_vec();
     for (e, d) in effects.iter().zip(&s.deltas) {
         if !matches!(e, Effect::Delay { .. }) {
-            let part = if matches!(e, Effect::Parameters { .. } | Effect::DryFriction { .. }) {
-                &file_gap
-            } else {
-                d
-            };
+            let part = if matches!(e, Effect::Parameters { .. } | Effect::DryFriction { .. }) { &file_gap } else { d };
             rest.iter_mut().zip(part).for_each(|(r, p)| *r -= p);
         }
     }
@@ -531,10 +403,7 @@ fn size_effects(
         if attempt == 15 {
             // Out of the band whatever the draw: keep it and say so.
             let sigma = (r / 2.0).clamp(NOISE_REL.0 * scale, NOISE_REL.1 * scale);
-            notes.push(format!(
-                "effect size outside the 0.5–5× noise band for every draw; SNR {:.3}",
-                r / sigma
-            ));
+            notes.push(format!("effect size outside the 0.5–5× noise band for every draw; SNR {:.3}", r / sigma));
             return (att, sigma, notes);
         }
         att = draw_attempt(rng, setup, names);
@@ -543,39 +412,24 @@ fn size_effects(
 }
 
 /// Scales the second effect of a compound so its own SNR is drawn in 0.5–5 too.
-fn size_second(
-    rng: &mut Rng64,
-    setup: &Setup,
-    att: Attempt,
-    sigma: f64,
-    notes: &mut Vec<String>,
-) -> Attempt {
+fn size_second(rng: &mut Rng64, setup: &Setup, att: Attempt, sigma: f64, notes: &mut Vec<String>) -> Attempt {
     let r2 = att.per_effect.get(1).copied().unwrap_or(0.0);
     if r2 <= 0.0 {
         return att;
     }
     let target = log_uniform(rng, 0.5, 5.0);
-    let (k_lo, k_hi) = att
-        .effects
-        .get(1)
-        .map_or((1.0, 1.0), |e| e.scale_bounds(setup.joint.model.c()));
+    let (k_lo, k_hi) = att.effects.get(1).map_or((1.0, 1.0), |e| e.scale_bounds(setup.joint.model.c()));
     let k = (target * sigma / r2).clamp(k_lo, k_hi.max(k_lo));
     let mut effects = att.effects.clone();
     if let Some(e) = effects.get_mut(1) {
         *e = e.scaled(k);
     }
-    notes.push(format!(
-        "second effect scaled by {k:.3} towards SNR {target:.2}"
-    ));
+    notes.push(format!("second effect scaled by {k:.3} towards SNR {target:.2}"));
     evaluate(setup, effects, att.file)
 }
 
 fn draw_colour(rng: &mut Rng64, sigma: f64) -> TorqueNoise {
-    let rho = if chance(rng, 0.5) {
-        0.0
-    } else {
-        uniform(rng, 0.3, 0.9)
-    };
+    let rho = if chance(rng, 0.5) { 0.0 } else { uniform(rng, 0.3, 0.9) };
     TorqueNoise { sigma, rho }
 }
 
@@ -590,70 +444,29 @@ fn sensor_kinematics(
     notes: &mut Vec<String>,
 ) -> Vec<(String, Vec<f64>)> {
     let tau = std::f64::consts::TAU;
-    let step = pick(
-        rng,
-        &[
-            tau / (4096.0 * 160.0),
-            tau / (4096.0 * 100.0),
-            tau / 131072.0,
-            tau / 16384.0,
-            tau / 4096.0,
-        ],
-    )
-    .unwrap_or(0.0);
-    let q_white = if chance(rng, 0.4) {
-        log_uniform(rng, 1e-6, 2e-4)
-    } else {
-        0.0
-    };
-    let q: Vec<f64> = kin
-        .iter()
-        .map(|k| noise::quantise(k.q + q_white * crate::rngs::normal(rng), step))
-        .collect();
+    let step =
+        pick(rng, &[tau / (4096.0 * 160.0), tau / (4096.0 * 100.0), tau / 131072.0, tau / 16384.0, tau / 4096.0])
+            .unwrap_or(0.0);
+    let q_white = if chance(rng, 0.4) { log_uniform(rng, 1e-6, 2e-4) } else { 0.0 };
+    let q: Vec<f64> = kin.iter().map(|k| noise::quantise(k.q + q_white * crate::rngs::normal(rng), step)).collect();
     let mut cols = vec![("q".to_string(), q.clone())];
     let v_true: Vec<f64> = kin.iter().map(|k| k.qd).collect();
     let a_true: Vec<f64> = kin.iter().map(|k| k.qdd).collect();
     let v_rms = rms(&v_true).max(1e-3);
-    let qd_mode =
-        weighted(rng, &[("absent", 0.35), ("clean", 0.2), ("white", 0.45)]).unwrap_or("absent");
-    let qd_sigma = if qd_mode == "white" {
-        v_rms * log_uniform(rng, 0.001, 0.02)
-    } else {
-        0.0
-    };
-    let qd: Vec<f64> = v_true
-        .iter()
-        .map(|v| v + qd_sigma * crate::rngs::normal(rng))
-        .collect();
+    let qd_mode = weighted(rng, &[("absent", 0.35), ("clean", 0.2), ("white", 0.45)]).unwrap_or("absent");
+    let qd_sigma = if qd_mode == "white" { v_rms * log_uniform(rng, 0.001, 0.02) } else { 0.0 };
+    let qd: Vec<f64> = v_true.iter().map(|v| v + qd_sigma * crate::rngs::normal(rng)).collect();
     if qd_mode != "absent" {
         cols.push(("qd".to_string(), qd.clone()));
     }
-    let qdd_mode =
-        weighted(rng, &[("absent", 0.6), ("white", 0.2), ("filtered", 0.2)]).unwrap_or("absent");
+    let qdd_mode = weighted(rng, &[("absent", 0.6), ("white", 0.2), ("filtered", 0.2)]).unwrap_or("absent");
     let (qdd, qdd_info) = match qdd_mode {
         "white" => {
             // J·σ_qdd at most the torque noise: a worse accelerometer would not be logged.
             let s = (rms(&a_true) * log_uniform(rng, 0.002, 0.05)).min(sigma / j.max(1e-9));
-            (
-                Some(
-                    a_true
-                        .iter()
-                        .map(|a| a + s * crate::rngs::normal(rng))
-                        .collect::<Vec<f64>>(),
-                ),
-                json!({"white": s}),
-            )
+            (Some(a_true.iter().map(|a| a + s * crate::rngs::normal(rng)).collect::<Vec<f64>>()), json!({"white": s}))
         }
-        "filtered" => filtered_qdd(
-            setup,
-            &q,
-            &qd,
-            qd_mode != "absent",
-            &a_true,
-            j,
-            sigma,
-            notes,
-        ),
+        "filtered" => filtered_qdd(setup, &q, &qd, qd_mode != "absent", &a_true, j, sigma, notes),
         _ => (None, json!("absent")),
     };
     if let Some(a) = qdd {
@@ -683,11 +496,7 @@ fn filtered_qdd(
     notes: &mut Vec<String>,
 ) -> (Option<Vec<f64>>, serde_json::Value) {
     let t = &setup.times;
-    let v = if has_qd {
-        qd.to_vec()
-    } else {
-        noise::derivative(t, q)
-    };
+    let v = if has_qd { qd.to_vec() } else { noise::derivative(t, q) };
     let raw = noise::derivative(t, &v);
     let mut fc = (10.0 * setup.traj.shape.f_max()).max(5.0);
     while fc <= 0.2 * setup.rate {
@@ -714,15 +523,9 @@ fn temp_column(
     effects: &[Effect],
     sensors: &mut serde_json::Value,
 ) -> Option<Vec<f64>> {
-    let thermal = effects
-        .iter()
-        .find(|e| matches!(e, Effect::ThermalDrift { .. }));
+    let thermal = effects.iter().find(|e| matches!(e, Effect::ThermalDrift { .. }));
     let (temp0, profile): (f64, Box<dyn Fn(f64) -> f64>) = match thermal {
-        Some(
-            e @ Effect::ThermalDrift {
-                temp0, temp_logged, ..
-            },
-        ) => {
+        Some(e @ Effect::ThermalDrift { temp0, temp_logged, .. }) => {
             if !temp_logged {
                 return None;
             }
@@ -735,10 +538,7 @@ fn temp_column(
             }
             let rise = uniform(rng, 0.0, 5.0);
             let tau_th = uniform(rng, 0.3, 2.0) * setup.duration;
-            (
-                uniform(rng, 18.0, 35.0),
-                Box::new(move |t: f64| rise * (1.0 - (-t / tau_th).exp())),
-            )
+            (uniform(rng, 18.0, 35.0), Box::new(move |t: f64| rise * (1.0 - (-t / tau_th).exp())))
         }
     };
     let res = 0.1;
@@ -748,10 +548,7 @@ fn temp_column(
         .map(|t| noise::quantise(temp0 + profile(*t) + 0.05 * crate::rngs::normal(rng), res))
         .collect();
     if let Some(obj) = sensors.as_object_mut() {
-        obj.insert(
-            "temp".into(),
-            json!({"resolution": res, "white": 0.05, "drives_effect": thermal.is_some()}),
-        );
+        obj.insert("temp".into(), json!({"resolution": res, "white": 0.05, "drives_effect": thermal.is_some()}));
     }
     Some(temp)
 }

@@ -30,34 +30,15 @@ pub struct Move {
 #[serde(tag = "family", rename_all = "snake_case")]
 pub enum Shape {
     /// Swevers-style identification excitation: Σ a_l/(ωl)·sin(ωlt) − b_l/(ωl)·cos(ωlt).
-    Fourier {
-        f_base: f64,
-        a: Vec<f64>,
-        b: Vec<f64>,
-    },
+    Fourier { f_base: f64, a: Vec<f64>, b: Vec<f64> },
     /// sin of a linearly swept phase, ramped in and out so it starts and ends at rest.
-    LinearChirp {
-        f0: f64,
-        f1: f64,
-        t_end: f64,
-        ramp: f64,
-    },
+    LinearChirp { f0: f64, f1: f64, t_end: f64, ramp: f64 },
     /// Same with an exponential sweep.
-    LogChirp {
-        f0: f64,
-        f1: f64,
-        t_end: f64,
-        ramp: f64,
-    },
+    LogChirp { f0: f64, f1: f64, t_end: f64, ramp: f64 },
     /// Min-jerk moves separated by dwells (q̇ exactly 0 while dwelling).
     PointToPoint { moves: Vec<Move> },
     /// Uniform cubic B-spline through a random walk; four equal knots make an exact pause.
-    HandMoved {
-        t_start: f64,
-        dt_knot: f64,
-        knots: Vec<f64>,
-        pauses: usize,
-    },
+    HandMoved { t_start: f64, dt_knot: f64, knots: Vec<f64>, pauses: usize },
 }
 
 /// q(t) = center + scale·(shape(t) − mid).
@@ -94,27 +75,13 @@ impl Shape {
     pub fn eval(&self, t: f64) -> Kin {
         match self {
             Shape::Fourier { f_base, a, b } => fourier(*f_base, a, b, t),
-            Shape::LinearChirp {
-                f0,
-                f1,
-                t_end,
-                ramp,
-            } => {
+            Shape::LinearChirp { f0, f1, t_end, ramp } => {
                 let k = (f1 - f0) / t_end;
                 let tau = std::f64::consts::TAU;
-                let ph = (
-                    tau * (f0 * t + 0.5 * k * t * t),
-                    tau * (f0 + k * t),
-                    tau * k,
-                );
+                let ph = (tau * (f0 * t + 0.5 * k * t * t), tau * (f0 + k * t), tau * k);
                 chirp(ph, ramp_window(t, *t_end, *ramp))
             }
-            Shape::LogChirp {
-                f0,
-                f1,
-                t_end,
-                ramp,
-            } => {
+            Shape::LogChirp { f0, f1, t_end, ramp } => {
                 let lk = (f1 / f0).ln();
                 let tau = std::f64::consts::TAU;
                 let g = (lk * t / t_end).exp();
@@ -123,12 +90,7 @@ impl Shape {
                 chirp(ph, ramp_window(t, *t_end, *ramp))
             }
             Shape::PointToPoint { moves } => point_to_point(moves, t),
-            Shape::HandMoved {
-                t_start,
-                dt_knot,
-                knots,
-                ..
-            } => bspline(*t_start, *dt_knot, knots, t),
+            Shape::HandMoved { t_start, dt_knot, knots, .. } => bspline(*t_start, *dt_knot, knots, t),
         }
     }
 
@@ -137,10 +99,7 @@ impl Shape {
         match self {
             Shape::Fourier { f_base, a, .. } => f_base * a.len() as f64,
             Shape::LinearChirp { f0, f1, .. } | Shape::LogChirp { f0, f1, .. } => f0.max(*f1),
-            Shape::PointToPoint { moves } => moves
-                .iter()
-                .map(|m| 1.0 / (m.t1 - m.t0).max(1e-3))
-                .fold(0.2, f64::max),
+            Shape::PointToPoint { moves } => moves.iter().map(|m| 1.0 / (m.t1 - m.t0).max(1e-3)).fold(0.2, f64::max),
             Shape::HandMoved { dt_knot, .. } => 1.0 / dt_knot,
         }
     }
@@ -149,11 +108,7 @@ impl Shape {
 impl Trajectory {
     pub fn eval(&self, t: f64) -> Kin {
         let k = self.shape.eval(t);
-        Kin {
-            q: self.center + self.scale * (k.q - self.mid),
-            qd: self.scale * k.qd,
-            qdd: self.scale * k.qdd,
-        }
+        Kin { q: self.center + self.scale * (k.q - self.mid), qd: self.scale * k.qd, qdd: self.scale * k.qdd }
     }
 }
 
@@ -174,11 +129,7 @@ fn fourier(f_base: f64, a: &[f64], b: &[f64], t: f64) -> Kin {
 fn smoothstep5(x: f64) -> (f64, f64, f64) {
     let x = x.clamp(0.0, 1.0);
     let x2 = x * x;
-    (
-        x2 * x * (10.0 - 15.0 * x + 6.0 * x2),
-        30.0 * x2 * (1.0 - 2.0 * x + x2),
-        60.0 * x * (1.0 - 3.0 * x + 2.0 * x2),
-    )
+    (x2 * x * (10.0 - 15.0 * x + 6.0 * x2), 30.0 * x2 * (1.0 - 2.0 * x + x2), 60.0 * x * (1.0 - 3.0 * x + 2.0 * x2))
 }
 
 /// Window w(t) that rises over `ramp`, holds 1 and falls over the last `ramp` before t_end.
@@ -209,26 +160,16 @@ fn chirp(ph: (f64, f64, f64), w: (f64, f64, f64)) -> Kin {
 fn point_to_point(moves: &[Move], t: f64) -> Kin {
     let i = moves.partition_point(|m| m.t1 <= t);
     let Some(m) = moves.get(i) else {
-        return Kin {
-            q: moves.last().map_or(0.0, |m| m.q1),
-            ..Kin::default()
-        };
+        return Kin { q: moves.last().map_or(0.0, |m| m.q1), ..Kin::default() };
     };
     if t <= m.t0 {
         // Dwelling before this move: exactly at rest.
-        return Kin {
-            q: m.q0,
-            ..Kin::default()
-        };
+        return Kin { q: m.q0, ..Kin::default() };
     }
     let d = m.t1 - m.t0;
     let (s, s1, s2) = smoothstep5((t - m.t0) / d);
     let dq = m.q1 - m.q0;
-    Kin {
-        q: m.q0 + dq * s,
-        qd: dq * s1 / d,
-        qdd: dq * s2 / (d * d),
-    }
+    Kin { q: m.q0 + dq * s, qd: dq * s1 / d, qdd: dq * s2 / (d * d) }
 }
 
 /// Uniform cubic B-spline; derivatives from the control-point differences so that four
@@ -257,13 +198,7 @@ fn bspline(t_start: f64, dt: f64, p: &[f64], t: f64) -> Kin {
 }
 
 /// Draws a trajectory of the given family over [0, duration] and shrinks it into `lim`.
-pub fn draw(
-    rng: &mut Rng64,
-    family: &str,
-    duration: f64,
-    lim: Limits,
-    want_rest: bool,
-) -> Trajectory {
+pub fn draw(rng: &mut Rng64, family: &str, duration: f64, lim: Limits, want_rest: bool) -> Trajectory {
     let shape = match family {
         "linear_chirp" | "log_chirp" => draw_chirp(rng, family, duration, lim),
         "point_to_point" => draw_p2p(rng, duration, lim, want_rest),
@@ -301,19 +236,9 @@ fn draw_chirp(rng: &mut Rng64, family: &str, duration: f64, lim: Limits) -> Shap
     let f1 = uniform(rng, 0.5, 3.0).min(f_top.max(0.3));
     let ramp = uniform(rng, 0.5, 2.0).min(0.2 * duration);
     if family == "log_chirp" {
-        Shape::LogChirp {
-            f0,
-            f1,
-            t_end: duration,
-            ramp,
-        }
+        Shape::LogChirp { f0, f1, t_end: duration, ramp }
     } else {
-        Shape::LinearChirp {
-            f0,
-            f1,
-            t_end: duration,
-            ramp,
-        }
+        Shape::LinearChirp { f0, f1, t_end: duration, ramp }
     }
 }
 
@@ -331,18 +256,9 @@ fn draw_p2p(rng: &mut Rng64, duration: f64, lim: Limits, want_rest: bool) -> Sha
         if t + d > duration {
             break;
         }
-        moves.push(Move {
-            t0: t,
-            t1: t + d,
-            q0: q,
-            q1: target,
-        });
+        moves.push(Move { t0: t, t1: t + d, q0: q, q1: target });
         q = target;
-        t += d + if no_dwell {
-            0.0
-        } else {
-            uniform(rng, 0.2, 3.0)
-        };
+        t += d + if no_dwell { 0.0 } else { uniform(rng, 0.2, 3.0) };
     }
     Shape::PointToPoint { moves }
 }
@@ -351,11 +267,7 @@ fn draw_hand(rng: &mut Rng64, duration: f64, want_rest: bool) -> Shape {
     let dt_knot = uniform(rng, 0.25, 1.0);
     let t_start = -3.0 * dt_knot;
     let n = ((duration + 6.0 * dt_knot) / dt_knot).ceil() as usize + 3;
-    let pause_p = if want_rest || chance(rng, 0.4) {
-        uniform(rng, 0.05, 0.15)
-    } else {
-        0.0
-    };
+    let pause_p = if want_rest || chance(rng, 0.4) { uniform(rng, 0.05, 0.15) } else { 0.0 };
     let mut knots = Vec::with_capacity(n + 8);
     let mut x = 0.0;
     let mut pauses = 0;
@@ -378,12 +290,7 @@ fn draw_hand(rng: &mut Rng64, duration: f64, want_rest: bool) -> Shape {
             knots.push(x.clamp(-1.0, 1.0));
         }
     }
-    Shape::HandMoved {
-        t_start,
-        dt_knot,
-        knots,
-        pauses,
-    }
+    Shape::HandMoved { t_start, dt_knot, knots, pauses }
 }
 
 /// Scales the shape about its mid-range so it respects range, speed and acceleration.
@@ -399,38 +306,17 @@ fn fit(shape: Shape, duration: f64, lim: Limits, rest_phases: bool) -> Trajector
         am = am.max(k.qdd.abs());
     }
     let half = (0.5 * (hi - lo)).max(1e-9);
-    let scale = (lim.half_range / half)
-        .min(lim.v_max / vm.max(1e-12))
-        .min(lim.a_max / am.max(1e-12));
-    Trajectory {
-        shape,
-        center: lim.center,
-        scale,
-        mid: 0.5 * (hi + lo),
-        rest_phases,
-    }
+    let scale = (lim.half_range / half).min(lim.v_max / vm.max(1e-12)).min(lim.a_max / am.max(1e-12));
+    Trajectory { shape, center: lim.center, scale, mid: 0.5 * (hi + lo), rest_phases }
 }
 
 /// Picks a family name with equal odds (the brief's four families, chirps split in two).
 pub fn draw_family(rng: &mut Rng64, want_rest: bool) -> &'static str {
     if want_rest {
-        return if chance(rng, 0.6) {
-            "point_to_point"
-        } else {
-            "hand_moved"
-        };
+        return if chance(rng, 0.6) { "point_to_point" } else { "hand_moved" };
     }
-    crate::rngs::pick(
-        rng,
-        &[
-            "fourier",
-            "linear_chirp",
-            "log_chirp",
-            "point_to_point",
-            "hand_moved",
-        ],
-    )
-    .unwrap_or("fourier")
+    crate::rngs::pick(rng, &["fourier", "linear_chirp", "log_chirp", "point_to_point", "hand_moved"])
+        .unwrap_or("fourier")
 }
 
 /// Limits for a joint kind: range within ±1.5 rad, speeds and accelerations of its use.
@@ -442,10 +328,5 @@ pub fn limits_for(rng: &mut Rng64, kind: &str) -> Limits {
     };
     let half_range = uniform(rng, 0.3, 1.0) * r;
     let center = uniform(rng, -1.0, 1.0) * (1.5 - half_range).min(0.5);
-    Limits {
-        v_max: v * uniform(rng, 0.3, 1.0),
-        a_max: a * log_uniform(rng, 0.2, 1.0),
-        half_range,
-        center,
-    }
+    Limits { v_max: v * uniform(rng, 0.3, 1.0), a_max: a * log_uniform(rng, 0.2, 1.0), half_range, center }
 }

@@ -38,12 +38,7 @@ struct Attempt {
     shift: f64,
 }
 
-pub fn generate(
-    rng: &mut Rng64,
-    seed: u64,
-    case: u64,
-    effects: &[&'static str],
-) -> anyhow::Result<CaseData> {
+pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
     let mut notes = Vec::new();
     let mut setup = draw_setup(rng, case, effects);
     // A joint that never leaves its release angle (stuck pendulum) says nothing: redraw.
@@ -58,34 +53,16 @@ pub fn generate(
     let (att, sigma) = size(rng, &setup, effects, scale, &mut notes);
     let n = setup.times.len();
     let (step, white) = encoder_for(rng, sigma);
-    let q: Vec<f64> = att
-        .truth
-        .iter()
-        .map(|y| noise::quantise(y.q + white * normal(rng), step))
-        .collect();
+    let q: Vec<f64> = att.truth.iter().map(|y| noise::quantise(y.q + white * normal(rng), step)).collect();
     let mut log = Log::default();
-    log.columns.push((
-        "t".into(),
-        setup.times.iter().map(|t| setup.t0 + t).collect(),
-    ));
+    log.columns.push(("t".into(), setup.times.iter().map(|t| setup.t0 + t).collect()));
     log.columns.push(("q".into(), q));
     let qd_info = qd_column(rng, &setup, effects, &att, &mut log);
     let u_true: Vec<f64> = setup.times.iter().map(|t| setup.input.at(*t)).collect();
-    let u_logged: Vec<f64> = setup
-        .times
-        .iter()
-        .map(|t| setup.input.at(t - att.shift))
-        .collect();
+    let u_logged: Vec<f64> = setup.times.iter().map(|t| setup.input.at(t - att.shift)).collect();
     let u_info = if setup.input.kind != "none" {
-        let su = if chance(rng, 0.5) {
-            0.0
-        } else {
-            rms(&u_true) * log_uniform(rng, 1e-4, 3e-3)
-        };
-        log.columns.push((
-            "u".into(),
-            u_logged.iter().map(|u| u + su * normal(rng)).collect(),
-        ));
+        let su = if chance(rng, 0.5) { 0.0 } else { rms(&u_true) * log_uniform(rng, 1e-4, 3e-3) };
+        log.columns.push(("u".into(), u_logged.iter().map(|u| u + su * normal(rng)).collect()));
         json!({"white": su})
     } else {
         json!("absent")
@@ -134,12 +111,7 @@ pub fn generate(
         detectable_hint: !effects.is_empty() && snr >= 1.0,
         notes,
     };
-    Ok(CaseData {
-        truth,
-        log,
-        model: att.file,
-        clean,
-    })
+    Ok(CaseData { truth, log, model: att.file, clean })
 }
 
 fn response_family(s: &Setup) -> String {
@@ -158,27 +130,13 @@ fn response_family(s: &Setup) -> String {
 }
 
 fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
-    let kind = if effects.contains(&"backlash") || chance(rng, 0.55) {
-        JointKind::Elastic
-    } else {
-        JointKind::Pendulum
-    };
-    let coulomb = effects.iter().any(|e| {
-        matches!(
-            *e,
-            "stribeck" | "asymmetric_friction" | "dry_friction" | "presliding_hysteresis"
-        )
-    });
+    let kind =
+        if effects.contains(&"backlash") || chance(rng, 0.55) { JointKind::Elastic } else { JointKind::Pendulum };
+    let coulomb = effects
+        .iter()
+        .any(|e| matches!(*e, "stribeck" | "asymmetric_friction" | "dry_friction" | "presliding_hysteresis"));
     let name = format!("bench-{}-{case:04}", kind.name());
-    let joint = joint::draw(
-        rng,
-        kind,
-        &name,
-        Needs {
-            coulomb,
-            spring: kind == JointKind::Elastic,
-        },
-    );
+    let joint = joint::draw(rng, kind, &name, Needs { coulomb, spring: kind == JointKind::Elastic });
     let m = &joint.model;
     let q_eq = match (m.spring, m.weight) {
         (Some(s), _) => s.q0,
@@ -199,70 +157,38 @@ fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
         let periods = uniform(rng, 3.0, 25.0);
         ((periods * period * rate) as usize).clamp(61, 5000)
     };
-    let jitter = if chance(rng, 0.15) {
-        uniform(rng, 0.01, 0.1)
-    } else {
-        0.0
-    };
+    let jitter = if chance(rng, 0.15) { uniform(rng, 0.01, 0.1) } else { 0.0 };
     let times: Vec<f64> = (0..n)
         .map(|k| {
-            let j = if k > 0 {
-                jitter * uniform(rng, -0.5, 0.5)
-            } else {
-                0.0
-            };
+            let j = if k > 0 { jitter * uniform(rng, -0.5, 0.5) } else { 0.0 };
             ((k as f64 + j) / rate * 1e6).round() / 1e6
         })
         .collect();
-    let amp = if kind == JointKind::Elastic {
-        uniform(rng, 0.05, 0.5)
-    } else {
-        uniform(rng, 0.2, 1.2)
-    };
+    let amp = if kind == JointKind::Elastic { uniform(rng, 0.05, 0.5) } else { uniform(rng, 0.2, 1.2) };
     let q_rel = (q_eq + sign(rng) * amp).clamp(-1.5, 1.5);
     let pushed = effects.is_empty() && chance(rng, 0.2);
-    let v0 = if pushed {
-        sign(rng) * uniform(rng, 0.2, 1.0) * amp * omega
-    } else {
-        0.0
-    };
+    let v0 = if pushed { sign(rng) * uniform(rng, 0.2, 1.0) * amp * omega } else { 0.0 };
     let (t_release, v_release, input) = if effects.contains(&"initial_state") {
         if chance(rng, 0.6) {
             (-uniform(rng, 0.1, 0.6) * period, 0.0, Input::zero())
         } else {
-            (
-                0.0,
-                sign(rng) * uniform(rng, 0.2, 1.0) * amp * omega,
-                Input::zero(),
-            )
+            (0.0, sign(rng) * uniform(rng, 0.2, 1.0) * amp * omega, Input::zero())
         }
     } else {
         let want_input = effects.contains(&"delay") || chance(rng, 0.35);
         (
             0.0,
             v0,
-            if want_input {
-                draw_input(rng, m, stiff, times.last().copied().unwrap_or(1.0))
-            } else {
-                Input::zero()
-            },
+            if want_input { draw_input(rng, m, stiff, times.last().copied().unwrap_or(1.0)) } else { Input::zero() },
         )
     };
-    let t0 = if chance(rng, 0.2) {
-        (uniform(rng, 0.0, 500.0) * 1e3).round() / 1e3
-    } else {
-        0.0
-    };
+    let t0 = if chance(rng, 0.2) { (uniform(rng, 0.0, 500.0) * 1e3).round() / 1e3 } else { 0.0 };
     Setup {
         joint,
         times,
         rate,
         t_release,
-        y_release: State {
-            q: q_rel,
-            v: v_release,
-            f: 0.0,
-        },
+        y_release: State { q: q_rel, v: v_release, f: 0.0 },
         input,
         q_eq,
         t0,
@@ -277,14 +203,7 @@ fn draw_input(rng: &mut Rng64, m: &ModelFile, stiff: f64, t_end: f64) -> Input {
     let t_on = uniform(rng, 0.05, 0.3) * t_end;
     let ramp = uniform(rng, 0.01, 0.08);
     match pick(rng, &[0u8, 1, 2]).unwrap_or(0) {
-        0 => Input {
-            kind: "step",
-            t_on,
-            ramp,
-            level,
-            t_off: f64::INFINITY,
-            components: Vec::new(),
-        },
+        0 => Input { kind: "step", t_on, ramp, level, t_off: f64::INFINITY, components: Vec::new() },
         1 => Input {
             kind: "pulse",
             t_on,
@@ -303,14 +222,7 @@ fn draw_input(rng: &mut Rng64, m: &ModelFile, stiff: f64, t_end: f64) -> Input {
                     )
                 })
                 .collect();
-            Input {
-                kind: "smooth_random",
-                t_on,
-                ramp,
-                level: 0.0,
-                t_off: f64::INFINITY,
-                components: comps,
-            }
+            Input { kind: "smooth_random", t_on, ramp, level: 0.0, t_off: f64::INFINITY, components: comps }
         }
     }
 }
@@ -335,15 +247,8 @@ fn draw_attempt(rng: &mut Rng64, s: &Setup, names: &[&str], plain: &[State]) -> 
     let truth_m = &s.joint.model;
     let q_lo = plain.iter().map(|y| y.q).fold(f64::INFINITY, f64::min);
     let q_hi = plain.iter().map(|y| y.q).fold(f64::NEG_INFINITY, f64::max);
-    let stiff =
-        truth_m.spring.map_or(0.0, |sp| sp.k) + truth_m.weight.map_or(0.0, |w| w.amplitude * w.s);
-    let scene = Scene {
-        torque_scale: stiff * (q_hi - q_lo).max(1e-3) / 2.0,
-        q_lo,
-        q_hi,
-        duration: 1.0,
-        v_rms: 0.0,
-    };
+    let stiff = truth_m.spring.map_or(0.0, |sp| sp.k) + truth_m.weight.map_or(0.0, |w| w.amplitude * w.s);
+    let scene = Scene { torque_scale: stiff * (q_hi - q_lo).max(1e-3) / 2.0, q_lo, q_hi, duration: 1.0, v_rms: 0.0 };
     let mut file = truth_m.clone();
     let mut effects = Vec::new();
     let mut shift = 0.0;
@@ -360,26 +265,12 @@ fn draw_attempt(rng: &mut Rng64, s: &Setup, names: &[&str], plain: &[State]) -> 
             }
             "delay" => {
                 shift = uniform(rng, 0.005, 0.04);
-                effects.push(Effect::Delay {
-                    signal: Delayed::U,
-                    seconds: shift,
-                });
+                effects.push(Effect::Delay { signal: Delayed::U, seconds: shift });
             }
             "initial_state" => {
-                let variant = if s.t_release < 0.0 {
-                    "cut_mid_swing"
-                } else {
-                    "pushed"
-                };
-                let detail = if s.t_release < 0.0 {
-                    -s.t_release
-                } else {
-                    s.y_release.v
-                };
-                effects.push(Effect::InitialState {
-                    variant: variant.into(),
-                    detail,
-                });
+                let variant = if s.t_release < 0.0 { "cut_mid_swing" } else { "pushed" };
+                let detail = if s.t_release < 0.0 { -s.t_release } else { s.y_release.v };
+                effects.push(Effect::InitialState { variant: variant.into(), detail });
             }
             other => {
                 if let Some(e) = draw_additive(rng, other, truth_m, &scene) {
@@ -396,20 +287,10 @@ fn draw_attempt(rng: &mut Rng64, s: &Setup, names: &[&str], plain: &[State]) -> 
 fn evaluate(s: &Setup, effects: Vec<Effect>, file: ModelFile, shift: f64) -> Attempt {
     let truth = simulate_truth(s, &effects);
     let first = truth.first().copied().unwrap_or_default();
-    let initial = effects
-        .iter()
-        .any(|e| matches!(e, Effect::InitialState { .. }));
+    let initial = effects.iter().any(|e| matches!(e, Effect::InitialState { .. }));
     // The file's model starts where the log starts; with initial_state the tool can only
     // assume rest at the first logged angle.
-    let y0 = if initial {
-        State {
-            q: first.q,
-            v: 0.0,
-            f: 0.0,
-        }
-    } else {
-        State { f: 0.0, ..first }
-    };
+    let y0 = if initial { State { q: first.q, v: 0.0, f: 0.0 } } else { State { f: 0.0, ..first } };
     let t_first = s.times.first().copied().unwrap_or(0.0);
     let dy = Dynamics::new(&file, &[], s.input.clone(), shift);
     let model = simulate(&dy, t_first, y0, &s.times, MIN_SUB, span_of(s));
@@ -422,21 +303,10 @@ fn evaluate(s: &Setup, effects: Vec<Effect>, file: ModelFile, shift: f64) -> Att
             }
             // In a compound, an effect's share is the deviation it causes on its own.
             let alone = simulate_truth(s, std::slice::from_ref(e));
-            rms(&alone
-                .iter()
-                .zip(&model)
-                .map(|(a, b)| a.q - b.q)
-                .collect::<Vec<f64>>())
+            rms(&alone.iter().zip(&model).map(|(a, b)| a.q - b.q).collect::<Vec<f64>>())
         })
         .collect();
-    Attempt {
-        effects,
-        file,
-        truth,
-        deviation,
-        per_effect,
-        shift,
-    }
+    Attempt { effects, file, truth, deviation, per_effect, shift }
 }
 
 /// Angle noise band relative to the swing, with the finest encoder's floor.
@@ -445,13 +315,7 @@ fn noise_band(scale: f64) -> (f64, f64) {
     ((1e-4 * scale).max(floor), (0.03 * scale).max(2.0 * floor))
 }
 
-fn size(
-    rng: &mut Rng64,
-    s: &Setup,
-    names: &[&str],
-    scale: f64,
-    notes: &mut Vec<String>,
-) -> (Attempt, f64) {
+fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64, notes: &mut Vec<String>) -> (Attempt, f64) {
     let plain = simulate_truth(s, &[]);
     let (lo_n, hi_n) = noise_band(scale);
     let mut att = draw_attempt(rng, s, names, &plain);
@@ -469,10 +333,7 @@ fn size(
         }
         if attempt == 11 {
             let sigma = (r / 2.0).clamp(lo_n, hi_n);
-            notes.push(format!(
-                "effect size outside the 0.5–5× noise band for every draw; SNR {:.3}",
-                r / sigma
-            ));
+            notes.push(format!("effect size outside the 0.5–5× noise band for every draw; SNR {:.3}", r / sigma));
             return (att, sigma);
         }
         att = draw_attempt(rng, s, names, &plain);
@@ -485,17 +346,8 @@ fn size(
 fn encoder_for(rng: &mut Rng64, sigma: f64) -> (f64, f64) {
     let tau = std::f64::consts::TAU;
     let steps = [tau / 4096.0, tau / 16384.0, tau / 131072.0];
-    let fits: Vec<f64> = steps
-        .iter()
-        .copied()
-        .filter(|s| s / 12f64.sqrt() <= sigma)
-        .collect();
-    let step = if chance(rng, 0.5) {
-        fits.first().copied()
-    } else {
-        pick(rng, &fits)
-    }
-    .unwrap_or(0.0);
+    let fits: Vec<f64> = steps.iter().copied().filter(|s| s / 12f64.sqrt() <= sigma).collect();
+    let step = if chance(rng, 0.5) { fits.first().copied() } else { pick(rng, &fits) }.unwrap_or(0.0);
     let white = (sigma * sigma - step * step / 12.0).max(0.0).sqrt();
     (step, white)
 }
@@ -503,13 +355,7 @@ fn encoder_for(rng: &mut Rng64, sigma: f64) -> (f64, f64) {
 /// qd: absent when the tool must assume rest (initial_state) or sometimes for releases
 /// from rest; present (clean or noisy) whenever the true start moves, so a `none` case
 /// never hides its initial velocity.
-fn qd_column(
-    rng: &mut Rng64,
-    s: &Setup,
-    names: &[&str],
-    att: &Attempt,
-    log: &mut Log,
-) -> serde_json::Value {
+fn qd_column(rng: &mut Rng64, s: &Setup, names: &[&str], att: &Attempt, log: &mut Log) -> serde_json::Value {
     if names.contains(&"initial_state") {
         return json!({"mode": "absent"});
     }
@@ -520,14 +366,7 @@ fn qd_column(
         return json!({"mode": "absent"});
     }
     let v: Vec<f64> = att.truth.iter().map(|y| y.v).collect();
-    let sd = if mode == "white" {
-        rms(&v).max(1e-3) * log_uniform(rng, 1e-3, 2e-2)
-    } else {
-        0.0
-    };
-    log.columns.push((
-        "qd".into(),
-        v.iter().map(|x| x + sd * normal(rng)).collect(),
-    ));
+    let sd = if mode == "white" { rms(&v).max(1e-3) * log_uniform(rng, 1e-3, 2e-2) } else { 0.0 };
+    log.columns.push(("qd".into(), v.iter().map(|x| x + sd * normal(rng)).collect()));
     json!({"mode": mode, "sigma": sd})
 }

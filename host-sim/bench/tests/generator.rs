@@ -28,46 +28,26 @@ fn none_torque_cases_match_the_model_file_to_float_precision() {
         // Read the model back from its TOML text: the check uses what the tool is given.
         let m: ModelFile = toml::from_str(&c.model.to_toml().unwrap()).unwrap();
         let cl = &c.clean;
-        let err = max_abs(
-            (0..cl.q.len()).map(|i| cl.u[i] - cl.tau[i] - m.torque(cl.q[i], cl.qd[i], cl.qdd[i])),
-        );
+        let err = max_abs((0..cl.q.len()).map(|i| cl.u[i] - cl.tau[i] - m.torque(cl.q[i], cl.qd[i], cl.qdd[i])));
         let scale = max_abs(cl.u.iter().copied()).max(1.0);
-        assert!(
-            err <= 1e-12 * scale,
-            "case {k}: u − tau − model = {err:e} (scale {scale})"
-        );
+        assert!(err <= 1e-12 * scale, "case {k}: u − tau − model = {err:e} (scale {scale})");
         assert_eq!(c.truth.effects, vec!["none".to_string()]);
-        assert!(
-            c.truth.effect_rms <= 1e-12 * scale,
-            "recorded effect RMS {}",
-            c.truth.effect_rms
-        );
+        assert!(c.truth.effect_rms <= 1e-12 * scale, "recorded effect RMS {}", c.truth.effect_rms);
     }
 }
 
 #[test]
 fn effect_cases_leave_the_recorded_residual() {
-    for fam in [
-        "stribeck",
-        "position_ripple",
-        "cable_spring",
-        "parameters",
-        "dry_friction",
-        "load_dependent_friction",
-    ] {
+    for fam in ["stribeck", "position_ripple", "cable_spring", "parameters", "dry_friction", "load_dependent_friction"]
+    {
         for k in 0..3 {
             let c = case(5, k, Some(fam), ModeSel::Torque);
             let cl = &c.clean;
-            let r: Vec<f64> = (0..cl.q.len())
-                .map(|i| cl.u[i] - cl.tau[i] - c.model.torque(cl.q[i], cl.qd[i], cl.qdd[i]))
-                .collect();
+            let r: Vec<f64> =
+                (0..cl.q.len()).map(|i| cl.u[i] - cl.tau[i] - c.model.torque(cl.q[i], cl.qd[i], cl.qdd[i])).collect();
             let rms = noise::rms(&r);
             assert!(rms > 0.0, "{fam} case {k}: no residual at all");
-            assert!(
-                (rms - c.truth.effect_rms).abs() <= 1e-9 * rms,
-                "{fam}: {rms} vs {}",
-                c.truth.effect_rms
-            );
+            assert!((rms - c.truth.effect_rms).abs() <= 1e-9 * rms, "{fam}: {rms} vs {}", c.truth.effect_rms);
             assert!(c.truth.label == fam);
         }
     }
@@ -84,22 +64,14 @@ fn effect_sizes_are_mostly_half_to_five_times_the_noise() {
             if c.truth.label == "none" {
                 continue;
             }
-            let first = c
-                .truth
-                .snr_per_effect
-                .get(&c.truth.effects[0])
-                .copied()
-                .unwrap();
+            let first = c.truth.snr_per_effect.get(&c.truth.effects[0]).copied().unwrap();
             total += 1;
             if (0.45..=5.5).contains(&first) {
                 inside += 1;
             }
         }
     }
-    assert!(
-        inside * 10 >= total * 8,
-        "{inside}/{total} effects within 0.5–5× noise"
-    );
+    assert!(inside * 10 >= total * 8, "{inside}/{total} effects within 0.5–5× noise");
 }
 
 #[test]
@@ -119,10 +91,7 @@ fn dahl_state_stays_bounded_and_converges_to_coulomb() {
     for _ in 0..2000 {
         f = dahl_step(f, -1e-5, sigma, c);
     }
-    assert!(
-        (f + c).abs() < 1e-6 * c,
-        "F = {f}, want −c after travel ≫ c/σ"
-    );
+    assert!((f + c).abs() < 1e-6 * c, "F = {f}, want −c after travel ≫ c/σ");
     // One big monotone step gives the same as many small ones (exact law).
     let big = dahl_step(0.3, 5e-3, sigma, c);
     let mut small = 0.3;
@@ -136,18 +105,11 @@ fn dahl_state_stays_bounded_and_converges_to_coulomb() {
 fn elastic(c: Option<f64>, b: f64) -> ModelFile {
     ModelFile {
         name: "t".into(),
-        friction: c.map(|c| Friction {
-            c: Some(c),
-            ..Friction::default()
-        }),
+        friction: c.map(|c| Friction { c: Some(c), ..Friction::default() }),
         weight: None,
         inertia: Some(Inertia { j: 0.0085 }),
         offset: None,
-        spring: Some(Spring {
-            k: 7.3035,
-            b,
-            q0: 0.0,
-        }),
+        spring: Some(Spring { k: 7.3035, b, q0: 0.0 }),
     }
 }
 
@@ -156,25 +118,11 @@ fn integrator_conserves_energy_without_friction() {
     let m = elastic(None, 0.0);
     let dy = Dynamics::new(&m, &[], Input::zero(), 0.0);
     let times: Vec<f64> = (0..2000).map(|i| i as f64 * 0.002).collect();
-    let ys = simulate(
-        &dy,
-        0.0,
-        State {
-            q: 0.3,
-            v: 0.0,
-            f: 0.0,
-        },
-        &times,
-        12,
-        1.0,
-    );
+    let ys = simulate(&dy, 0.0, State { q: 0.3, v: 0.0, f: 0.0 }, &times, 12, 1.0);
     let energy = |y: &State| 0.5 * 0.0085 * y.v * y.v + 0.5 * 7.3035 * y.q * y.q;
     let e0 = energy(&ys[0]);
     let drift = max_abs(ys.iter().map(|y| energy(y) / e0 - 1.0));
-    assert!(
-        drift < 1e-6,
-        "relative energy drift {drift:e} over 4 s (~19 periods)"
-    );
+    assert!(drift < 1e-6, "relative energy drift {drift:e} over 4 s (~19 periods)");
     // And it does oscillate at ω = √(K/J).
     let w = (7.3035f64 / 0.0085).sqrt();
     let t = 1.0;
@@ -189,46 +137,17 @@ fn integrator_sticks_inside_the_coulomb_band_and_slips_outside() {
     let dy = Dynamics::new(&m, &[], Input::zero(), 0.0);
     let times: Vec<f64> = (0..3000).map(|i| i as f64 * 0.001).collect();
     // |k·q| = 0.037 < c: never moves.
-    let ys = simulate(
-        &dy,
-        0.0,
-        State {
-            q: 0.005,
-            v: 0.0,
-            f: 0.0,
-        },
-        &times,
-        12,
-        1.0,
-    );
+    let ys = simulate(&dy, 0.0, State { q: 0.005, v: 0.0, f: 0.0 }, &times, 12, 1.0);
     assert!(ys.iter().all(|y| y.q == 0.005 && y.v == 0.0));
     // Released far out: swings, then stops for good inside |k·q| ≤ c.
-    let ys = simulate(
-        &dy,
-        0.0,
-        State {
-            q: 0.2,
-            v: 0.0,
-            f: 0.0,
-        },
-        &times,
-        12,
-        1.0,
-    );
+    let ys = simulate(&dy, 0.0, State { q: 0.2, v: 0.0, f: 0.0 }, &times, 12, 1.0);
     let last = ys.last().unwrap();
     assert_eq!(last.v, 0.0, "still moving after 3 s");
-    assert!(
-        7.3035 * last.q.abs() <= c * (1.0 + 1e-9),
-        "stuck outside the band at {}",
-        last.q
-    );
+    assert!(7.3035 * last.q.abs() <= c * (1.0 + 1e-9), "stuck outside the band at {}", last.q);
     assert!(ys.iter().any(|y| y.q < 0.0), "never swung through");
     // Each half-swing loses 2c/k of amplitude (Coulomb decay), viscous adds a little more.
     let first_min = ys.iter().map(|y| y.q).fold(f64::INFINITY, f64::min);
-    assert!(
-        first_min > -(0.2 - 2.0 * c / 7.3035) + 1e-4,
-        "first swing {first_min}"
-    );
+    assert!(first_min > -(0.2 - 2.0 * c / 7.3035) + 1e-4, "first swing {first_min}");
 }
 
 #[test]
@@ -236,10 +155,7 @@ fn generation_is_deterministic_and_independent_of_case_count() {
     let a = case(7, 4, None, ModeSel::Any);
     let b = case(7, 4, None, ModeSel::Any);
     assert_eq!(a.log.to_csv(), b.log.to_csv());
-    assert_eq!(
-        serde_json::to_string(&a.truth).unwrap(),
-        serde_json::to_string(&b.truth).unwrap()
-    );
+    assert_eq!(serde_json::to_string(&a.truth).unwrap(), serde_json::to_string(&b.truth).unwrap());
     let d1 = std::env::temp_dir().join(format!("diag-bench-det-{}-a", std::process::id()));
     let d2 = std::env::temp_dir().join(format!("diag-bench-det-{}-b", std::process::id()));
     gen::run_gen(7, 3, &d1, None, ModeSel::Any).unwrap();
@@ -250,11 +166,7 @@ fn generation_is_deterministic_and_independent_of_case_count() {
         assert!(x == y, "{f} of case 2 depends on the number of cases");
     }
     let c = case(8, 4, None, ModeSel::Any);
-    assert_ne!(
-        a.log.to_csv(),
-        c.log.to_csv(),
-        "another seed gave the same case"
-    );
+    assert_ne!(a.log.to_csv(), c.log.to_csv(), "another seed gave the same case");
     let _ = std::fs::remove_dir_all(d1);
     let _ = std::fs::remove_dir_all(d2);
 }
@@ -267,56 +179,28 @@ fn ar1_noise_has_the_requested_rho_and_sigma() {
         let est = noise::lag1(&x);
         assert!((est - rho).abs() < 0.01, "rho {rho}: estimated {est}");
         let s = noise::rms(&x);
-        assert!(
-            (s - 0.5).abs() < 0.5 * 0.03 / (1.0 - rho).sqrt(),
-            "sigma {s}"
-        );
+        assert!((s - 0.5).abs() < 0.5 * 0.03 / (1.0 - rho).sqrt(), "sigma {s}");
     }
 }
 
 fn check_derivatives(tr: &traj::Trajectory, duration: f64) {
     let h = 1e-5;
-    let scale_v = (0..2000)
-        .map(|i| tr.eval(i as f64 * duration / 2000.0).qd.abs())
-        .fold(1e-3, f64::max);
-    let scale_a = (0..2000)
-        .map(|i| tr.eval(i as f64 * duration / 2000.0).qdd.abs())
-        .fold(1e-3, f64::max);
+    let scale_v = (0..2000).map(|i| tr.eval(i as f64 * duration / 2000.0).qd.abs()).fold(1e-3, f64::max);
+    let scale_a = (0..2000).map(|i| tr.eval(i as f64 * duration / 2000.0).qdd.abs()).fold(1e-3, f64::max);
     for i in 1..400 {
         let t = i as f64 * duration / 400.0 + 0.0123;
         let (km, k, kp) = (tr.eval(t - h), tr.eval(t), tr.eval(t + h));
         let v_fd = (kp.q - km.q) / (2.0 * h);
         let a_fd = (kp.qd - km.qd) / (2.0 * h);
-        assert!(
-            (v_fd - k.qd).abs() < 1e-5 * scale_v,
-            "{} t={t}: qd {} vs fd {v_fd}",
-            tr.shape.family(),
-            k.qd
-        );
-        assert!(
-            (a_fd - k.qdd).abs() < 1e-4 * scale_a,
-            "{} t={t}: qdd {} vs fd {a_fd}",
-            tr.shape.family(),
-            k.qdd
-        );
+        assert!((v_fd - k.qd).abs() < 1e-5 * scale_v, "{} t={t}: qd {} vs fd {v_fd}", tr.shape.family(), k.qd);
+        assert!((a_fd - k.qdd).abs() < 1e-4 * scale_a, "{} t={t}: qdd {} vs fd {a_fd}", tr.shape.family(), k.qdd);
     }
 }
 
 #[test]
 fn trajectory_derivatives_match_finite_differences() {
-    let lim = Limits {
-        v_max: 2.0,
-        a_max: 10.0,
-        half_range: 0.8,
-        center: 0.1,
-    };
-    for fam in [
-        "fourier",
-        "linear_chirp",
-        "log_chirp",
-        "point_to_point",
-        "hand_moved",
-    ] {
+    let lim = Limits { v_max: 2.0, a_max: 10.0, half_range: 0.8, center: 0.1 };
+    for fam in ["fourier", "linear_chirp", "log_chirp", "point_to_point", "hand_moved"] {
         for s in 0..3 {
             let mut rng = stream(s, 0, 3);
             let tr = traj::draw(&mut rng, fam, 30.0, lim, s == 1);
@@ -324,11 +208,7 @@ fn trajectory_derivatives_match_finite_differences() {
             // Within the limits it was fitted to (range checked on a fine grid).
             for i in 0..3000 {
                 let k = tr.eval(i as f64 * 0.01);
-                assert!(
-                    (k.q - 0.1).abs() <= 0.8 + 1e-9
-                        && k.qd.abs() <= 2.0 + 1e-6
-                        && k.qdd.abs() <= 10.0 + 1e-3
-                );
+                assert!((k.q - 0.1).abs() <= 0.8 + 1e-9 && k.qd.abs() <= 2.0 + 1e-6 && k.qdd.abs() <= 10.0 + 1e-3);
             }
         }
     }
@@ -336,27 +216,15 @@ fn trajectory_derivatives_match_finite_differences() {
 
 #[test]
 fn rest_phases_are_exactly_at_rest() {
-    let lim = Limits {
-        v_max: 2.0,
-        a_max: 10.0,
-        half_range: 0.8,
-        center: 0.0,
-    };
+    let lim = Limits { v_max: 2.0, a_max: 10.0, half_range: 0.8, center: 0.0 };
     for s in 0..5 {
         let mut rng = stream(s, 1, 3);
         let tr = traj::draw(&mut rng, "hand_moved", 60.0, lim, true);
         assert!(tr.rest_phases);
-        let zeros = (0..60_000)
-            .filter(|i| tr.eval(*i as f64 * 1e-3).qd == 0.0)
-            .count();
-        assert!(
-            zeros > 100,
-            "hand-moved with pauses has {zeros} samples exactly at rest"
-        );
+        let zeros = (0..60_000).filter(|i| tr.eval(*i as f64 * 1e-3).qd == 0.0).count();
+        assert!(zeros > 100, "hand-moved with pauses has {zeros} samples exactly at rest");
         let tr = traj::draw(&mut rng, "point_to_point", 60.0, lim, true);
-        let zeros = (0..60_000)
-            .filter(|i| tr.eval(*i as f64 * 1e-3).qd == 0.0)
-            .count();
+        let zeros = (0..60_000).filter(|i| tr.eval(*i as f64 * 1e-3).qd == 0.0).count();
         assert!(zeros > 100);
     }
 }
@@ -375,16 +243,9 @@ fn written_files_follow_the_spec() {
         let csv = std::fs::read_to_string(cd.join("log.csv")).unwrap();
         let mut lines = csv.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        assert!(
-            header.iter().all(|h| SPEC_COLUMNS.contains(h)),
-            "{header:?}"
-        );
+        assert!(header.iter().all(|h| SPEC_COLUMNS.contains(h)), "{header:?}");
         assert!(header.contains(&"t") && header.contains(&"q"));
-        assert_eq!(
-            header.contains(&"u") && header.contains(&"tau"),
-            header.contains(&"tau"),
-            "tau without u"
-        );
+        assert_eq!(header.contains(&"u") && header.contains(&"tau"), header.contains(&"tau"), "tau without u");
         let ti = header.iter().position(|h| *h == "t").unwrap();
         let mut prev = f64::NEG_INFINITY;
         let mut n = 0;
@@ -392,10 +253,7 @@ fn written_files_follow_the_spec() {
             let cells: Vec<f64> = l.split(',').map(|c| c.parse::<f64>().unwrap()).collect();
             assert_eq!(cells.len(), header.len());
             assert!(cells.iter().all(|x| x.is_finite()));
-            assert!(
-                cells[ti] > prev,
-                "case {k}: t not strictly increasing at row {n}"
-            );
+            assert!(cells[ti] > prev, "case {k}: t not strictly increasing at row {n}");
             prev = cells[ti];
             n += 1;
         }
@@ -417,10 +275,7 @@ fn written_files_follow_the_spec() {
             };
             for (kk, vv) in v.as_table().unwrap() {
                 assert!(allowed.contains(&kk.as_str()), "[{key}] {kk}");
-                assert!(
-                    vv.as_float().is_some_and(f64::is_finite),
-                    "[{key}] {kk} = {vv}"
-                );
+                assert!(vv.as_float().is_some_and(f64::is_finite), "[{key}] {kk} = {vv}");
             }
         }
         let _: ModelFile = toml::from_str(&text).unwrap();
@@ -435,23 +290,11 @@ fn written_files_follow_the_spec() {
 #[test]
 fn default_mix_is_at_least_30_percent_none() {
     for seed in [1, 2, 9001] {
-        let none = (0..100)
-            .filter(|k| {
-                gen::plan(seed, *k, None, ModeSel::Any)
-                    .unwrap()
-                    .effects
-                    .is_empty()
-            })
-            .count();
+        let none = (0..100).filter(|k| gen::plan(seed, *k, None, ModeSel::Any).unwrap().effects.is_empty()).count();
         assert!((30..=40).contains(&none), "seed {seed}: {none}% none");
         for block in 0..10 {
             let n = (block * 10..block * 10 + 10)
-                .filter(|k| {
-                    gen::plan(seed, *k, None, ModeSel::Any)
-                        .unwrap()
-                        .effects
-                        .is_empty()
-                })
+                .filter(|k| gen::plan(seed, *k, None, ModeSel::Any).unwrap().effects.is_empty())
                 .count();
             assert!(n >= 3, "seed {seed} block {block}: {n} none");
         }
@@ -480,14 +323,8 @@ fn withheld_effects_are_absent_from_the_model_file() {
     let c = case(21, 1, Some("parameters"), ModeSel::Torque);
     assert_ne!(c.model, c.truth.joint.model);
     let c = case(21, 2, Some("presliding_hysteresis"), ModeSel::Torque);
-    assert_eq!(
-        c.model, c.truth.joint.model,
-        "presliding keeps c·sign in the file"
-    );
-    assert!(matches!(
-        c.truth.effect_details[0],
-        Effect::PreslidingHysteresis { .. }
-    ));
+    assert_eq!(c.model, c.truth.joint.model, "presliding keeps c·sign in the file");
+    assert!(matches!(c.truth.effect_details[0], Effect::PreslidingHysteresis { .. }));
     let c = case(21, 3, Some("initial_state"), ModeSel::Any);
     assert_eq!(c.truth.mode, Mode::Trajectory);
     assert!(c.log.get("qd").is_none());
@@ -499,40 +336,17 @@ fn integrator_result_does_not_depend_on_the_sub_step_count() {
     // breaks away and reverses. The truth must not be an artefact of the step size.
     let m = ModelFile {
         name: "p".into(),
-        friction: Some(Friction {
-            b: Some(0.8),
-            c: Some(1.5),
-            ..Friction::default()
-        }),
-        weight: Some(diag_bench::model::Weight {
-            amplitude: 12.0,
-            s: 1.0,
-            phi: 0.1,
-        }),
+        friction: Some(Friction { b: Some(0.8), c: Some(1.5), ..Friction::default() }),
+        weight: Some(diag_bench::model::Weight { amplitude: 12.0, s: 1.0, phi: 0.1 }),
         inertia: Some(Inertia { j: 0.6 }),
         offset: None,
         spring: None,
     };
-    let stribeck = Effect::Stribeck {
-        level: 0.6,
-        v_s: 0.05,
-        delta: 1.0,
-    };
-    let input = Input {
-        kind: "step",
-        t_on: 1.0,
-        ramp: 0.05,
-        level: 2.5,
-        t_off: 2.5,
-        components: Vec::new(),
-    };
+    let stribeck = Effect::Stribeck { level: 0.6, v_s: 0.05, delta: 1.0 };
+    let input = Input { kind: "step", t_on: 1.0, ramp: 0.05, level: 2.5, t_off: 2.5, components: Vec::new() };
     let dy = Dynamics::new(&m, &[stribeck], input, 0.0);
     let times: Vec<f64> = (0..400).map(|i| i as f64 * 0.01).collect();
-    let y0 = State {
-        q: 0.6,
-        v: 0.0,
-        f: 0.0,
-    };
+    let y0 = State { q: 0.6, v: 0.0, f: 0.0 };
     let a = simulate(&dy, 0.0, y0, &times, 12, 1.5);
     let b = simulate(&dy, 0.0, y0, &times, 96, 1.5);
     let err = max_abs(a.iter().zip(&b).map(|(x, y)| x.q - y.q));
@@ -542,24 +356,12 @@ fn integrator_result_does_not_depend_on_the_sub_step_count() {
 
 #[test]
 fn trajectory_effect_cases_deviate_from_the_file_model() {
-    for fam in [
-        "backlash",
-        "dry_friction",
-        "cable_spring",
-        "initial_state",
-        "delay",
-    ] {
+    for fam in ["backlash", "dry_friction", "cable_spring", "initial_state", "delay"] {
         let c = case(23, 0, Some(fam), ModeSel::Trajectory);
         assert!(c.truth.effect_rms > 0.0, "{fam}: no deviation");
-        assert!(
-            c.truth.columns.iter().all(|n| n != "tau"),
-            "{fam}: trajectory log with tau"
-        );
+        assert!(c.truth.columns.iter().all(|n| n != "tau"), "{fam}: trajectory log with tau");
         if fam == "delay" {
-            assert!(
-                c.log.get("u").is_some(),
-                "a delay case needs the input it delays"
-            );
+            assert!(c.log.get("u").is_some(), "a delay case needs the input it delays");
         }
     }
 }

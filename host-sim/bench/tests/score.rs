@@ -23,18 +23,9 @@ fn verdicts_are_scored_by_sets() {
     assert_eq!(classify(&s(&["stribeck"]), Some(&v)).0, Outcome::Unsure);
     // A compound is correct only when both are reported, in any order.
     let v = json!({"effect": "position_ripple", "effects": [{"effect": "position_ripple"}, {"effect": "stribeck"}]});
-    assert_eq!(
-        classify(&s(&["stribeck", "position_ripple"]), Some(&v)).0,
-        Outcome::Correct
-    );
+    assert_eq!(classify(&s(&["stribeck", "position_ripple"]), Some(&v)).0, Outcome::Correct);
     let v = json!({"effect": "stribeck"});
-    assert_eq!(
-        classify(&s(&["stribeck", "position_ripple"]), Some(&v)).0,
-        Outcome::Wrong
-    );
+    assert_eq!(classify(&s(&["stribeck", "position_ripple"]), Some(&v)).0, Outcome::Wrong);
     assert_eq!(classify(&s(&["none"]), None).0, Outcome::Refused);
-    assert_eq!(
-        classify(&s(&["none"]), Some(&json!({}))).0,
-        Outcome::Refused
-    );
+    assert_eq!(classify(&s(&["none"]), Some(&json!({}))).0, Outcome::Refused);
 }
