@@ -181,23 +181,54 @@ pub fn case_dir_name(case: u64) -> String {
     format!("case-{case:04}")
 }
 
-/// Writes log.csv, model.toml and truth.json of one case into `dir`.
-pub fn write_case(dir: &Path, c: &CaseData) -> anyhow::Result<()> {
+/// Writes log.csv, model.toml and truth.json of one case into `dir`, and with `clean` also
+/// clean.csv: the noise-free signals at the sample times (t, q, qd, qdd, u, tau), for checks
+/// of a tool's signal preparation against the truth. The tool under test must never read it.
+pub fn write_case(dir: &Path, c: &CaseData, clean: bool) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     std::fs::write(dir.join("log.csv"), c.log.to_csv())?;
     std::fs::write(dir.join("model.toml"), c.model.to_toml()?)?;
     std::fs::write(dir.join("truth.json"), serde_json::to_string_pretty(&c.truth)?)?;
+    if clean {
+        std::fs::write(dir.join("clean.csv"), clean_csv(c))?;
+    }
     Ok(())
 }
 
+fn clean_csv(c: &CaseData) -> String {
+    let k = &c.clean;
+    let t0 = c.truth.t0;
+    let mut s = String::from("t,q,qd,qdd,u,tau\n");
+    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
+    for i in 0..k.t_rel.len() {
+        s.push_str(&format!(
+            "{:.6},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e}\n",
+            t0 + at(&k.t_rel, i),
+            at(&k.q, i),
+            at(&k.qd, i),
+            at(&k.qdd, i),
+            at(&k.u, i),
+            at(&k.tau, i)
+        ));
+    }
+    s
+}
+
 /// Generates `cases` cases into `out` (case-0000 …) and the manifest.
-pub fn run_gen(seed: u64, cases: u64, out: &Path, family: Option<&str>, sel: ModeSel) -> anyhow::Result<()> {
+pub fn run_gen(
+    seed: u64,
+    cases: u64,
+    out: &Path,
+    family: Option<&str>,
+    sel: ModeSel,
+    clean: bool,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(out)?;
     let mut list = Vec::new();
     for k in 0..cases {
         let c = generate(seed, k, family, sel).with_context(|| format!("case {k}"))?;
         let name = case_dir_name(k);
-        write_case(&out.join(&name), &c)?;
+        write_case(&out.join(&name), &c, clean)?;
         let t = &c.truth;
         list.push(json!({
             "case": k, "dir": name, "mode": t.mode, "effects": t.effects, "label": t.label,

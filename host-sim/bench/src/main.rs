@@ -39,6 +39,10 @@ enum Cmd {
         family: Option<String>,
         #[arg(long, value_enum, default_value = "any")]
         mode: ModeArg,
+        /// Also write clean.csv (noise-free t, q, qd, qdd, u, tau) per case, for checks of
+        /// signal preparation; never give it to the tool under test.
+        #[arg(long)]
+        clean: bool,
     },
     /// Run `JOINTCTL diagnose` on every case and score the verdicts.
     Run {
@@ -59,13 +63,13 @@ enum Cmd {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().cmd {
-        Cmd::Gen { seed, cases, out, family, mode } => {
+        Cmd::Gen { seed, cases, out, family, mode, clean } => {
             let sel = match mode {
                 ModeArg::Torque => ModeSel::Torque,
                 ModeArg::Trajectory => ModeSel::Trajectory,
                 ModeArg::Any => ModeSel::Any,
             };
-            run_gen(seed, cases, &out, family.as_deref(), sel)
+            run_gen(seed, cases, &out, family.as_deref(), sel, clean)
         }
         Cmd::Run { cases_dir, jointctl, json, jobs, timeout } => run(&RunOpts {
             cases_dirs: cases_dir,

@@ -158,8 +158,8 @@ fn generation_is_deterministic_and_independent_of_case_count() {
     assert_eq!(serde_json::to_string(&a.truth).unwrap(), serde_json::to_string(&b.truth).unwrap());
     let d1 = std::env::temp_dir().join(format!("diag-bench-det-{}-a", std::process::id()));
     let d2 = std::env::temp_dir().join(format!("diag-bench-det-{}-b", std::process::id()));
-    gen::run_gen(7, 3, &d1, None, ModeSel::Any).unwrap();
-    gen::run_gen(7, 5, &d2, None, ModeSel::Any).unwrap();
+    gen::run_gen(7, 3, &d1, None, ModeSel::Any, false).unwrap();
+    gen::run_gen(7, 5, &d2, None, ModeSel::Any, false).unwrap();
     for f in ["log.csv", "model.toml", "truth.json"] {
         let x = std::fs::read(d1.join("case-0002").join(f)).unwrap();
         let y = std::fs::read(d2.join("case-0002").join(f)).unwrap();
@@ -234,7 +234,7 @@ const SPEC_COLUMNS: &[&str] = &["t", "q", "qd", "qdd", "u", "tau", "temp"];
 #[test]
 fn written_files_follow_the_spec() {
     let dir = std::env::temp_dir().join(format!("diag-bench-files-{}", std::process::id()));
-    gen::run_gen(13, 24, &dir, None, ModeSel::Any).unwrap();
+    gen::run_gen(13, 24, &dir, None, ModeSel::Any, false).unwrap();
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap()).unwrap();
     assert_eq!(manifest["cases"].as_array().unwrap().len(), 24);
