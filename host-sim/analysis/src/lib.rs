@@ -25,5 +25,6 @@
 
 pub mod diagnose;
 pub mod identify;
+pub mod prep;
 
 pub use joint_formats::{import, log, model_file, predict};

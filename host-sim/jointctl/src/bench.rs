@@ -127,7 +127,9 @@ fn rigid(rng: &mut ChaCha8Rng, coulomb: bool) -> Joint {
     let phi = rng.random_range(-0.1..0.1);
     let j = rng.random_range(0.3..0.6);
     let c0 = rng.random_range(-0.5..0.5);
-    let mut m = format!("[friction]\na = {a}\nb = {b}\n");
+    // The simulated plant smooths its friction sign over 0.01 rad/s (its default band): a model
+    // that is exact says so (spec §2: without `v_band` a file means the pure sign).
+    let mut m = format!("[friction]\na = {a}\nb = {b}\nv_band = 0.01\n");
     if coulomb {
         m += &format!("c = {c}\n");
     }
@@ -144,7 +146,7 @@ fn elastic(rng: &mut ChaCha8Rng) -> Joint {
     let b = rng.random_range(0.3..0.8);
     let c = rng.random_range(0.2..0.5);
     let m = format!(
-        "[friction]\nb = {b}\nc = {c}\n\n[inertia]\nj = {j}\n\n[spring]\nk = {k}\nb = {kb}\nq0 = 0.0\n\n[offset]\nc0 = 0.1\n"
+        "[friction]\nb = {b}\nc = {c}\nv_band = 0.01\n\n[inertia]\nj = {j}\n\n[spring]\nk = {k}\nb = {kb}\nq0 = 0.0\n\n[offset]\nc0 = 0.1\n"
     );
     Joint { name: "elastic", model: m, plant_model: None, range: (-0.5, 0.5) }
 }
@@ -227,8 +229,11 @@ fn free_joint(rng: &mut ChaCha8Rng, coulomb: bool) -> (Joint, f64) {
     let j = rng.random_range(0.006..0.012);
     let c = rng.random_range(0.005..0.015);
     let mut m = format!("[inertia]\nj = {j}\n\n[spring]\nk = {k}\nb = {kb}\nq0 = 0.0\n");
+    // the plant's sign band, stated (see `rigid`)
     if coulomb {
-        m += &format!("\n[friction]\nc = {c}\n");
+        m += &format!("\n[friction]\nc = {c}\nv_band = 0.01\n");
+    } else {
+        m += "\n[friction]\nv_band = 0.01\n";
     }
     (
         Joint {

@@ -16,7 +16,7 @@ fn jointctl(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_jointctl")).args(args).output().unwrap()
 }
 
-const MODEL: &str = "name = \"t\"\n[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
+const MODEL: &str = "name = \"t\"\n[friction]\na = 0.5\nb = 2.0\nc = 1.0\nv_band = 0.01\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 const SENSORS: &str = "[sensors]\nq_noise = 0.0001\nqd_noise = 0.002\nqdd_noise = 0.3\ntau_noise = 0.08\n[joint_range]\nmin = 0.0\nmax = 2.0\n";
 
 /// Writes a torque-mode log of the model plus `effect` and the model; returns their paths.
@@ -141,7 +141,7 @@ fn an_exact_model_gives_none_and_harmless_csv_variants_change_nothing() {
 #[test]
 fn trajectory_mode_finds_stribeck_in_a_free_oscillation() {
     let dir = tempfile::tempdir().unwrap();
-    let model = "[friction]\nb = 0.05\nc = 0.05\n[inertia]\nj = 0.2\n[spring]\nk = 8.0\nb = 0.02\nq0 = 0.0\n[offset]\nc0 = 0.0\n";
+    let model = "[friction]\nb = 0.05\nc = 0.05\nv_band = 0.01\n[inertia]\nj = 0.2\n[spring]\nk = 8.0\nb = 0.02\nq0 = 0.0\n[offset]\nc0 = 0.0\n";
     let plant = PlantFile::parse(
         &format!("{model}[stribeck]\nlevel = 0.15\nspeed = 0.05\n[sensors]\nq_noise = 0.0005\n[joint_range]\nmin = -0.5\nmax = 0.5\n"),
         "p",
@@ -176,7 +176,8 @@ fn trajectory_mode_finds_stribeck_in_a_free_oscillation() {
 #[test]
 fn trajectory_mode_leaves_out_a_trailing_rest_and_finds_backlash() {
     let dir = tempfile::tempdir().unwrap();
-    let model = "[spring]\nk = 7.3035\nb = 0.0416\nq0 = 0.0\n[inertia]\nj = 0.0085\n[friction]\nc = 0.01\n";
+    let model =
+        "[spring]\nk = 7.3035\nb = 0.0416\nq0 = 0.0\n[inertia]\nj = 0.0085\n[friction]\nc = 0.01\nv_band = 0.01\n";
     let sensors = "[joint_range]\nmin = -0.5236\nmax = 0.5236\n[sensors]\nq_resolution = 0.001534\n";
     let mf = ModelFile::parse(model, "m").unwrap();
     let m = dir.path().join("m.toml");

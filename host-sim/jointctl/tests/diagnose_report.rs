@@ -11,7 +11,7 @@ use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
 use joint_formats::model_file::ModelFile;
 
-const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
+const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\nv_band = 0.01\n[weight]\namplitude = 2.5\ns = 0.802\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 
 fn chromium() -> Option<String> {
     for c in ["chromium", "chromium-browser"] {

@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | `[stribeck]` | `level` N·m, `speed` rad/s | `level·exp(−(q̇/speed)²)·sgn(q̇)` |
 //! | `[asymmetric_friction]` | `delta` N·m | Coulomb level `c+delta` for q̇>0 and `c−delta` for q̇<0, i.e. `+delta·|sgn(q̇)|` |
-//! | `[load_dependent_friction]` | `mu` (1) | `mu·|u|·sgn(q̇)` |
+//! | `[load_dependent_friction]` | `mu` (1) | `mu·|τ_ext|·sgn(q̇)`: the external load the joint transmits (what its load cell logs as `tau`) |
 //! | `[thermal_drift]` | `coefficient` 1/°C, `t_ambient` °C, `rise` °C, `time_constant` s, `t_ref` °C, `log_temp` (bool, default true) | the plant's own friction `a·q̇|q̇| + b·q̇ + c·sgn(q̇)` is multiplied by `1 + coefficient·(T − t_ref)` with `T(t) = t_ambient + rise·(1 − e^(−t/time_constant))`; the log gets a `temp` column unless `log_temp = false` |
 //! | `[position_ripple]` | `amplitude` N·m, `period` rad, `phase` rad (default 0) | `amplitude·sin(2π·q/period + phase)` |
 //! | `[cable_spring]` | `k` N·m/rad, `engage` rad, `width` rad (default 0.01) | with `x = q − engage`: 0 for x ≤ 0, `k·x²/(2·width)` for 0 < x < width, `k·(x − width/2)` above: exactly zero below `engage`, slope exactly `k` above `engage + width`, C¹ in between |
@@ -194,7 +194,7 @@ impl Effects {
 
     /// Sum of the additive effect torques (everything except thermal scaling, backlash and
     /// delay, which change the plant's structure). `sgn` is the plant's smoothed sign of q̇.
-    pub fn torque(&self, q: f64, qd: f64, u: f64, sgn: f64) -> f64 {
+    pub fn torque(&self, q: f64, qd: f64, load: f64, sgn: f64) -> f64 {
         let mut tau = 0.0;
         if let Some(e) = &self.stribeck {
             let r = qd / e.speed;
@@ -204,7 +204,7 @@ impl Effects {
             tau += e.delta * sgn.abs();
         }
         if let Some(e) = &self.load_dependent_friction {
-            tau += e.mu * u.abs() * sgn;
+            tau += e.mu * load.abs() * sgn;
         }
         if let Some(e) = &self.position_ripple {
             tau += e.amplitude * (std::f64::consts::TAU * q / e.period + e.phase).sin();

@@ -378,7 +378,9 @@ impl Plant {
     }
 
     /// The disturbance D at plant time `t` (everything the output side's mechanics take).
-    pub fn disturbance(&self, t: f64, q: f64, qd: f64, u: f64, others: &[f64]) -> f64 {
+    /// `load`: the external torque the joint transmits (what its load cell measures), which a
+    /// load-dependent friction grows with.
+    pub fn disturbance(&self, t: f64, q: f64, qd: f64, load: f64, others: &[f64]) -> f64 {
         let sg = self.sgn(qd);
         let friction = self.a * qd * qd.abs() + self.b * qd + self.c * sg;
         let spring_x = match self.spring_backlash {
@@ -390,13 +392,13 @@ impl Plant {
             + self.c0
             + self.k * spring_x
             + self.kb * qd
-            + self.effects.torque(q, qd, u, sg)
+            + self.effects.torque(q, qd, load, sg)
     }
 
     /// Time derivative of the state.
     pub fn deriv(&self, t: f64, x: &State, u: f64, op: &Operator, others: &[f64]) -> State {
-        let d = self.disturbance(t, x.q, x.qd, u, others);
         let ext = op.torque(x.q, x.qd);
+        let d = self.disturbance(t, x.q, x.qd, ext, others);
         match &self.two_mass {
             None => State { q: x.qd, qd: (u + ext - d) / self.j, qm: x.qd, qdm: (u + ext - d) / self.j },
             Some(tm) => {

@@ -62,14 +62,15 @@ fn asymmetric_friction_differs_by_direction() {
 }
 
 #[test]
-fn load_dependent_friction_grows_with_u() {
+fn load_dependent_friction_grows_with_the_external_load() {
+    // μ·|τ_ext|·sgn(q̇): the load the joint transmits, which the log has as `tau` (= −τ_ext)
     let r = trunk("[load_dependent_friction]\nmu = 0.1\n", &[Hand], 10.0);
-    let (qd, u) = (r.log.qd.as_ref().unwrap(), r.log.u.as_ref().unwrap());
+    let (qd, tau) = (r.log.qd.as_ref().unwrap(), r.log.tau.as_ref().unwrap());
     let (mut sxy, mut sxx) = (0.0, 0.0);
     for i in 0..qd.len() {
         if qd[i].abs() > 0.05 {
-            sxy += r.resid[i] * sign(qd[i]) * u[i].abs();
-            sxx += u[i] * u[i];
+            sxy += r.resid[i] * sign(qd[i]) * tau[i].abs();
+            sxx += tau[i] * tau[i];
         }
     }
     let mu = sxy / sxx;

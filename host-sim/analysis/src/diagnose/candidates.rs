@@ -38,6 +38,10 @@ pub struct Data {
     pub ws: f64,
     pub wsin: Vec<f64>,
     pub wcos: Vec<f64>,
+    /// the transmitted load a load-dependent friction grows with: `|tau|`, or when the log's
+    /// `tau` is absent or zero the model's own non-friction torque (never `u`: it holds the
+    /// friction being explained, and its noise would explain itself)
+    pub load: Vec<f64>,
     /// variance of the white noise on the log's own `qdd` column (0 when q̈ was derived here):
     /// the final fits remove its share from the q̈ column's Gram diagonal, so the inertia is not
     /// shrunk by the noise in its regressor (errors in variables)
@@ -90,6 +94,11 @@ pub enum Col {
 }
 
 impl Col {
+    /// A friction column (velocity-dependent dissipation of the model's own terms).
+    pub fn is_friction(&self) -> bool {
+        matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn)
+    }
+
     #[inline]
     pub fn eval(&self, d: &Data, i: usize) -> f64 {
         let qd = d.qd[i];
@@ -110,7 +119,7 @@ impl Col {
                 (-r * r).exp() * d.sgn[i]
             }
             Col::AbsSgn => d.sgn[i].abs(),
-            Col::LoadSgn => d.u[i].abs() * d.sgn[i],
+            Col::LoadSgn => d.load[i] * d.sgn[i],
             Col::Thermal { a, b, c, src } => {
                 let f = a * qd * qd.abs() + b * qd + c * d.sgn[i];
                 let temp = match src {
@@ -660,79 +669,71 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
         }
         Kind::Delay => {
-            // Integer lags up to 100 ms (at most 200 samples), then a parabola through the best
-            // three for the fractional part.
+            // Whole-sample lags from one sample up to 100 ms (at most 200 samples). No fractional
+            // lag: interpolating u between two samples averages its noise away, which scores as
+            // a "delay" of half a sample on any log whose u is noisy.
             let max_lag = ((0.1 / d.dt).round() as usize).clamp(3, 200);
             let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
             let b = vals.iter().enumerate().skip(1).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(1);
-            let lag = if b < max_lag {
-                let (y0, y1, y2) = (vals[b - 1], vals[b], vals[b + 1]);
-                let den = y0 - 2.0 * y1 + y2;
-                let off = if den > 0.0 { (0.5 * (y0 - y2) / den).clamp(-0.5, 0.5) } else { 0.0 };
-                b as f64 + off
-            } else {
-                b as f64
-            };
-            Some(Effect::Delay { lag })
+            Some(Effect::Delay { lag: b as f64 })
         }
     }
 }
 
-/// The model's refittable terms from its parameter values.
+/// The model's refittable terms from its parameter values. A term is the model's when the file
+/// states it (spec §2: a term written as 0 is a term with value 0, a missing key is absent).
 pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
     use joint_core::params::ParamId as P;
     let v = |id| m.value(id);
+    let has = |id| m.explicit(id).is_some();
     let mut cols = Vec::new();
     let mut beta0 = Vec::new();
     let mut push = |c: Col, b: f64| {
         cols.push(c);
         beta0.push(b);
     };
-    if v(P::InertiaJ) != 0.0 {
+    if has(P::InertiaJ) {
         push(Col::Qdd, v(P::InertiaJ));
     }
-    if v(P::FrictionA) != 0.0 {
+    if has(P::FrictionA) {
         push(Col::QdAbsQd, v(P::FrictionA));
     }
-    let bt = v(P::FrictionB) + v(P::SpringB);
-    if bt != 0.0 {
-        push(Col::Qd, bt);
+    if has(P::FrictionB) || has(P::SpringB) {
+        push(Col::Qd, v(P::FrictionB) + v(P::SpringB));
     }
-    if v(P::FrictionC) != 0.0 {
+    if has(P::FrictionC) {
         push(Col::Sgn, v(P::FrictionC));
     }
-    let amp = v(P::WeightAmplitude);
-    if amp != 0.0 {
-        let (s, phi) = (v(P::WeightS), v(P::WeightPhi));
+    if has(P::WeightAmplitude) {
+        let (amp, s, phi) = (v(P::WeightAmplitude), v(P::WeightS), v(P::WeightPhi));
         // A·sin(s·q + φ) = A·cos φ·sin(s·q) + A·sin φ·cos(s·q)
         push(Col::SinSq(s), amp * phi.cos());
         push(Col::CosSq(s), amp * phi.sin());
     }
     let k = v(P::SpringK);
-    if k != 0.0 {
+    if has(P::SpringK) {
         push(Col::Q, k);
     }
-    if v(P::OffsetC0) != 0.0 || k != 0.0 {
+    if has(P::OffsetC0) || has(P::SpringK) {
         push(Col::Const, v(P::OffsetC0) - k * v(P::SpringQ0));
     }
     // Effect terms the model already carries (the core compensates them) are its own terms too:
     // refitted with the rest, shapes kept.
-    if v(P::StribeckLevel) != 0.0 {
+    if has(P::StribeckLevel) {
         push(Col::Stribeck(v(P::StribeckSpeed)), v(P::StribeckLevel));
     }
-    if v(P::AsymmetricDelta) != 0.0 {
+    if has(P::AsymmetricDelta) {
         push(Col::AbsSgn, v(P::AsymmetricDelta));
     }
-    let ra = v(P::RippleAmplitude);
-    if ra != 0.0 {
-        let ph = v(P::RipplePhase);
+    if has(P::RippleAmplitude) {
+        let (ra, ph) = (v(P::RippleAmplitude), v(P::RipplePhase));
         push(Col::RipSin(v(P::RipplePeriod)), ra * ph.cos());
         push(Col::RipCos(v(P::RipplePeriod)), ra * ph.sin());
     }
-    if v(P::CableK) != 0.0 {
+    if has(P::CableK) {
         push(Col::Cable { engage: v(P::CableEngage), width: v(P::CableWidth) }, v(P::CableK));
     }
-    if v(P::DryFrictionC) != 0.0 && v(P::FrictionC) == 0.0 {
+    if has(P::DryFrictionC) && !has(P::FrictionC) {
         push(Col::Sgn, v(P::DryFrictionC));
     }
     Base { cols, beta0 }

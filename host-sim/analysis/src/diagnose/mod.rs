@@ -17,6 +17,7 @@
 
 pub mod candidates;
 pub mod fit;
+pub mod floor;
 pub mod regimes;
 pub mod report_html;
 pub mod resid;
@@ -189,6 +190,10 @@ pub struct Report {
     /// naming the parameter (the log does not determine it; the verdict is read with care)
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// optional: what the shared preparation stage did to the log (stale samples, gaps,
+    /// how q̇ and q̈ were obtained and how good they are)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prep: Option<crate::prep::PrepReport>,
 }
 
 /// Warnings for refit values no joint can have: negative inertia, friction that feeds energy
@@ -269,7 +274,8 @@ pub struct Diagnosis {
     pub plots: PlotData,
 }
 
-/// Runs the diagnosis in the mode the log's columns give.
+/// Runs the diagnosis in the mode the log's columns give, on the log as the shared
+/// preparation stage ([`crate::prep`]) leaves it.
 pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Diagnosis, DiagError> {
     let params = model.param_set().map_err(|e| DiagError::Input(e.to_string()))?;
     let others = model.other_columns();
@@ -284,10 +290,13 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
     if log.len() < 100 {
         return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least 100", log.len())));
     }
-    match log.mode() {
-        LogMode::Torque => torque_mode(log, model, &params, &others, opts),
-        LogMode::Trajectory => trajectory::diagnose(log, model, &params, opts),
-    }
+    let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
+    let mut d = match log.mode() {
+        LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
+        LogMode::Trajectory => trajectory::diagnose(&prep.log, model, &params, opts)?,
+    };
+    d.report.prep = Some(prep.report);
+    Ok(d)
 }
 
 pub(crate) fn median_dt(t: &[f64]) -> f64 {
@@ -382,12 +391,13 @@ pub fn noise_floor(r: &[f64]) -> f64 {
 }
 
 fn torque_mode(
-    log: &JointLog,
+    prep: &crate::prep::Prepared,
     model: &ModelFile,
     params: &joint_core::params::ParamSet,
     others: &[String],
     opts: &Options,
 ) -> Result<Diagnosis, DiagError> {
+    let log = &prep.log;
     let n = log.len();
     let clock = std::time::Instant::now();
     let timing = std::env::var_os("DIAG_TIMING").is_some();
@@ -397,29 +407,43 @@ fn torque_mode(
         }
     };
     let dt = median_dt(&log.t);
-    let (qd, qdd) = velocities(log, dt);
-    // Friction terms are steep inside the sign band, so velocity noise there turns into large
-    // torque noise: every model (the file's too) sees q̇ through a zero-phase ±5 ms average.
-    let qd = smooth(&qd, ((VELOCITY_SMOOTHING_S / dt).round() as usize).min(25));
-    let mut full = JointLog { t: log.t.clone(), q: log.q.clone(), qd: Some(qd), qdd: Some(qdd), ..JointLog::default() };
-    full.others = others.iter().filter_map(|o| log.other(o).map(|v| (o.clone(), v.to_vec()))).collect();
-    let pred0 = joint_formats::predict::predicted(&full, params, others)
+    let (qd, qdd) = (prep.qd().to_vec(), prep.qdd().to_vec());
+    let pred0 = joint_formats::predict::predicted(log, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
     let (u, tau) = match (&log.u, &log.tau) {
         (Some(u), Some(t)) => (u.clone(), t),
         _ => return Err(DiagError::Input("torque mode needs `u` and `tau`".into())),
     };
     let base = base_from_model(model);
-    let band = model.value(ParamId::FrictionVBand);
-    let qd = full.qd.take().unwrap_or_default();
-    let qdd = full.qdd.take().unwrap_or_default();
-    let sgn: Vec<f64> = qd.iter().map(|&v| sgn_band(v, band)).collect();
-    // only a logged q̈ is white-noise-like enough to estimate (a derived one is filtered)
-    let qdd_noise_var = if log.qdd.is_some() { candidates::white_noise_var(&qdd) } else { 0.0 };
+    // The file's friction law (spec §2): its `v_band` when it states one, else the pure sign.
+    let band = model.explicit(ParamId::FrictionVBand).unwrap_or(0.0);
+    // The core evaluates the sign with the band it runs (its default when the file has none):
+    // that is what `pred0` holds and what the fixed rest must take off again.
+    let core_band = f64::from(params.get(ParamId::FrictionVBand));
+    let core_sgn: Vec<f64> = qd.iter().map(|&v| sgn_band(v, core_band)).collect();
+    // What the model predicts given the estimated q̇ (its error from the preparation stage):
+    // the sign's expectation, so rest and reversals are not a random ±c from velocity noise.
+    let sgn: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = qd[i];
+            match (prep.rest[i], prep.direction[i]) {
+                (true, _) => 0.0,
+                // next to a rest the way q goes says the direction the estimate cannot
+                (false, d) if d != 0 => {
+                    if band > 0.0 {
+                        crate::prep::expected_sign(f64::from(d) * v.abs(), band, prep.qd_err[i])
+                    } else {
+                        f64::from(d)
+                    }
+                }
+                _ => crate::prep::expected_sign(v, band, prep.qd_err[i]),
+            }
+        })
+        .collect();
     let mut data = Data {
         n,
-        t: full.t,
-        q: full.q,
+        t: log.t.clone(),
+        q: log.q.clone(),
         qd,
         qdd,
         u,
@@ -427,38 +451,58 @@ fn torque_mode(
         temp: log.temp.clone(),
         dt,
         band,
-        sgn,
+        sgn: core_sgn,
         q0: model.value(ParamId::SpringQ0),
         ws: model.value(ParamId::WeightS),
         wsin: Vec::new(),
         wcos: Vec::new(),
-        qdd_noise_var,
+        load: Vec::new(),
+        qdd_noise_var: prep.qdd_noise_var(),
     };
-    if model.value(ParamId::WeightAmplitude) != 0.0 {
+    if model.explicit(ParamId::WeightAmplitude).is_some() {
         let (ws, wc): (Vec<f64>, Vec<f64>) = data.q.iter().map(|&q| (data.ws * q).sin_cos()).unzip();
         data.wsin = ws;
         data.wcos = wc;
     }
-    // y = d − (prediction − linear part at the model's values): the rest the fits keep fixed.
+    // y = d − rest: the rest is what the model predicts outside its linear terms (gravity table,
+    // the core's f32 rounding), the prediction less the linear part at the core's own sign.
     let des0 = candidates::Design::new(&base, &[]);
     let mut x = vec![0.0; des0.cols.len()];
     let mut y = Vec::with_capacity(n);
-    let mut r0 = Vec::with_capacity(n);
     data.y = vec![0.0; n];
     for i in 0..n {
         des0.row(&data, i, &mut x);
         let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-        let d = data.u[i] - tau[i];
-        y.push(d - (pred0[i] - lin));
-        r0.push(d - pred0[i]);
+        y.push(data.u[i] - tau[i] - (pred0[i] - lin));
     }
     data.y = y;
+    // From here on every model sees the expected sign; the file's residual r0 too.
+    data.sgn = sgn;
+    let mut r0 = Vec::with_capacity(n);
+    let mut non_friction = Vec::with_capacity(n);
+    for i in 0..n {
+        des0.row(&data, i, &mut x);
+        let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
+        r0.push(data.y[i] - lin);
+        let fric: f64 =
+            x.iter().zip(&base.beta0).zip(&des0.cols).filter(|(_, c)| c.is_friction()).map(|((a, b), _)| a * b).sum();
+        // the model's torque less its friction: inertia, weight, springs, offset, table
+        // (d − y is the fixed rest: gravity table, the core's rounding)
+        non_friction.push(data.u[i] - tau[i] - data.y[i] + lin - fric);
+    }
+    data.load = transmitted_load(tau, &data.u, &non_friction);
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
-    let split = select::make_split(n);
+    let mut split = select::make_split(n);
+    split.leave_out(&prep.ambiguous);
+    // With a pure Coulomb sign (no band in the file) a sample whose direction the data cannot
+    // tell predicts ±c by a coin toss: it says nothing about the model and is left out too.
+    if band == 0.0 && base.cols.contains(&Col::Sgn) {
+        split.leave_out(&prep.sign_unknown);
+    }
     if split.train.len() < 30 || split.holdout.len() < 30 {
         return Err(DiagError::Input("too few samples for a training/held-out split".into()));
     }
-    let floor = noise_floor(&r0);
+    let floor = torque_floor(&r0, &data, &base, prep);
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
     lap("candidates and forward selection");
@@ -469,6 +513,49 @@ fn torque_mode(
     let emitted_model = emit_model(model, &base, final_s, &data);
     let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     Ok(Diagnosis { report, emitted_model, plots })
+}
+
+/// The torque-mode noise floor ([`floor`]): the measurement noise in the file's residual (any
+/// colour) and, in variance, what the error of the estimated q̇/q̈ makes of the model's own
+/// inertia, viscous and Coulomb terms (a logged column's white noise is already in the
+/// residual's noise and is not counted twice).
+fn torque_floor(r0: &[f64], d: &Data, base: &Base, prep: &crate::prep::Prepared) -> f64 {
+    let (noise, _) = floor::variogram_noise(r0);
+    let coef = |c: Col| base.cols.iter().position(|x| *x == c).map_or(0.0, |k| base.beta0[k]);
+    let (j, a, b, c) = (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
+    let derived = |i: &crate::prep::DerivInfo| i.source != "logged";
+    let (dv, da) = (derived(&prep.report.qd), derived(&prep.report.qdd));
+    let n = d.n.max(1) as f64;
+    let pure_sign = d.band == 0.0;
+    let prop2: f64 = (0..d.n)
+        .filter(|&i| !prep.ambiguous[i] && !(pure_sign && prep.sign_unknown[i]))
+        .map(|i| {
+            let slope = b + 2.0 * a * d.qd[i].abs();
+            let sv = if dv { prep.qd_err[i] } else { 0.0 };
+            let sa = if da { prep.qdd_err[i] } else { 0.0 };
+            let sgn_var = if prep.rest[i] || prep.direction[i] != 0 {
+                0.0
+            } else {
+                crate::prep::sign_variance(d.qd[i], d.band, prep.qd_err[i])
+            };
+            j * j * sa * sa + slope * slope * sv * sv + c * c * sgn_var
+        })
+        .sum::<f64>()
+        / n;
+    (noise * noise + prop2).sqrt()
+}
+
+/// What a load-dependent friction grows with: the measured load `|tau|`; when the log's `tau`
+/// is zero (a joint without a load cell logs 0) the magnitude of the model's non-friction
+/// torque, which the joint transmits too. Never `u`: in such a log `u` is the very friction
+/// to be explained, and a column built from it fits its noise as well.
+fn transmitted_load(tau: &[f64], u: &[f64], non_friction: &[f64]) -> Vec<f64> {
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    if rms(tau) > 0.01 * rms(u) {
+        tau.iter().map(|t| t.abs()).collect()
+    } else {
+        non_friction.iter().map(|t| t.abs()).collect()
+    }
 }
 
 /// Half-width of the zero-phase moving average applied to q̇ before any model sees it, s.
@@ -815,6 +902,7 @@ fn build_report(
         unknown_columns: log.unknown.clone(),
         not_applicable: torque_not_applicable(base, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
         warnings,
+        prep: None,
     }
 }
 

@@ -90,6 +90,23 @@ pub fn make_split(n: usize) -> Split {
     Split { train, holdout, unit, n_units, blocks, guard }
 }
 
+impl Split {
+    /// Leaves the samples marked in `out` out of training and held-out scoring alike.
+    pub fn leave_out(&mut self, out: &[bool]) {
+        let keep = |i: &u32| !out.get(*i as usize).copied().unwrap_or(false);
+        self.train.retain(keep);
+        let (mut h, mut u) = (Vec::with_capacity(self.holdout.len()), Vec::with_capacity(self.unit.len()));
+        for (i, unit) in self.holdout.iter().zip(&self.unit) {
+            if keep(i) {
+                h.push(*i);
+                u.push(*unit);
+            }
+        }
+        self.holdout = h;
+        self.unit = u;
+    }
+}
+
 /// A model scored on the held-out samples.
 #[derive(Clone, Debug)]
 pub struct Scored {
@@ -653,6 +670,7 @@ mod tests {
             sgn,
             q0: 0.9,
             ws,
+            load: (0..n).map(|i| 1.0 + (i % 7) as f64).collect(),
             qdd_noise_var: 0.01,
         };
         let cols = vec![Col::Qdd, Col::QdAbsQd, Col::Qd, Col::Sgn, Col::SinSq(ws), Col::CosSq(ws), Col::Q, Col::Const];

@@ -854,6 +854,7 @@ impl<'a> Window<'a> {
             unknown_columns: self.log.unknown.clone(),
             not_applicable: self.not_applicable(),
             warnings,
+            prep: None,
         }
     }
 

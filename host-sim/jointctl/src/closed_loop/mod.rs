@@ -707,15 +707,17 @@ pub fn run(s: &Setup, cfg: &LoopConfig, progress: &mut dyn FnMut(usize, usize)) 
     })
 }
 
-/// Trials back to back in one log: each trial's time continues after the previous one's last
-/// sample plus one period, so `t` stays strictly increasing.
+/// Trials back to back in one log: each trial starts one second after the previous one's last
+/// sample. The trials are separate runs (the joint restarts from another pose), so the log
+/// has a gap between them and no analysis differentiates or integrates across a restart.
 fn append_log(acc: &mut Option<JointLog>, l: JointLog) {
+    const TRIAL_GAP_S: f64 = 1.0;
     let Some(a) = acc.as_mut() else {
         *acc = Some(l);
         return;
     };
     let (Some(&last), Some(&first)) = (a.t.last(), l.t.first()) else { return };
-    let shift = last + 1.0e-3 - first;
+    let shift = last + TRIAL_GAP_S - first;
     a.t.extend(l.t.iter().map(|t| t + shift));
     a.q.extend(l.q);
     for (dst, src) in [(&mut a.qd, l.qd), (&mut a.qdd, l.qdd), (&mut a.u, l.u), (&mut a.tau, l.tau)] {

@@ -1,0 +1,909 @@
+//! One preparation stage for identification and diagnosis: the log's samples made fit to be
+//! compared with a model, and a record of everything done to them.
+//!
+//! In order:
+//! 1. **Stale samples**: a row whose every measured value repeats the row before it (a logger
+//!    that wrote its last sample again, as the Panda's ~6 %) is dropped and counted.
+//! 2. **Gaps**: a time step longer than [`GAP_FACTOR`] median steps splits the log into
+//!    segments; nothing is differentiated (or, in trajectory mode, integrated) across a gap.
+//! 3. **Rate and units**: a median rate below [`MIN_RATE_HZ`] is refused (a joint log in
+//!    milliseconds reads as 1 Hz); a logged `qd` (or `qdd`) that is the derivative of `q` (or
+//!    `qd`) times a unit factor (180/π, 1000, 2π, and their inverses, or −1) is refused naming
+//!    the factor.
+//! 4. **Derivatives**: `qd` and `qdd` are estimated from `q` by local cubic fits whose window
+//!    follows from the data ([`lpr`], [`spectrum`]): the noise on `q` and the size of the
+//!    motion's higher derivatives, read from the spectrum, fix the window that minimises the
+//!    estimate's error. A logged `qd`/`qdd` is checked against that estimate; its own noise is
+//!    measured from the difference, and the one with the smaller error is used (`qdd` may then
+//!    also come from the logged `qd`).
+//! 5. **Uncertainty**: the error (noise and bias) of the `qd` and `qdd` used is kept, so a
+//!    model can be evaluated as what it predicts *given* these estimates (e.g. the expected
+//!    friction sign near rest, [`expected_sign`]) and the errors-in-variables share of `qdd`
+//!    removed from fits.
+//!
+//! The report ([`PrepReport`]) names every choice; `identify` and `diagnose` print it.
+
+pub mod lpr;
+pub mod spectrum;
+
+use joint_formats::log::JointLog;
+use serde::Serialize;
+
+/// A step longer than this many median steps is a gap.
+pub const GAP_FACTOR: f64 = 10.0;
+/// Below this median rate a log cannot resolve a joint's dynamics (and is most likely in ms).
+pub const MIN_RATE_HZ: f64 = 5.0;
+/// The longest window half-width a derivative may use, seconds.
+pub const MAX_HALF_WINDOW_S: f64 = 0.25;
+
+/// Why a log cannot be prepared.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PrepError {
+    #[error("{0}")]
+    Refused(String),
+}
+
+/// One stretch of the log without a gap (indices into the prepared arrays).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SegmentInfo {
+    pub from_t: f64,
+    pub to_t: f64,
+    pub samples: usize,
+}
+
+/// How one derivative was obtained.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DerivInfo {
+    /// "logged", "derived from q", "derived from the logged qd"
+    pub source: &'static str,
+    /// the local cubic's half-window, seconds (0 when logged)
+    pub half_window_s: f64,
+    /// the estimate's error, 1σ: noise and bias of the estimator, or the logged column's noise
+    pub error_sd: f64,
+    /// the noise part of `error_sd` (what errors-in-variables corrections remove)
+    pub noise_sd: f64,
+    /// the logged column's measured noise, when it was logged
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub logged_noise_sd: Option<f64>,
+    /// the logged column against the derivative of the signal below it (1 = consistent)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub logged_scale: Option<f64>,
+}
+
+/// What the preparation did, for the reports (optional fields of identification and
+/// diagnosis output).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PrepReport {
+    pub samples_in: usize,
+    pub samples: usize,
+    /// share of the samples found at rest (q̇ and q̈ set to 0)
+    pub rest_share: f64,
+    /// share of the samples left out as undecided next to a rest
+    pub ambiguous_share: f64,
+    pub stale_dropped: usize,
+    pub segments: Vec<SegmentInfo>,
+    pub median_rate_hz: f64,
+    /// noise on q (white part, including quantisation), rad
+    pub q_noise_sd: f64,
+    /// highest frequency where q's motion stands above its noise, Hz
+    pub motion_bandwidth_hz: f64,
+    pub qd: DerivInfo,
+    pub qdd: DerivInfo,
+    pub smoother: &'static str,
+    pub notes: Vec<String>,
+}
+
+/// A log ready for the analysis: stale rows gone, `qd` and `qdd` filled in, segments known.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    pub log: JointLog,
+    /// half-open index ranges of the segments, in order
+    pub segments: Vec<std::ops::Range<usize>>,
+    /// samples found at rest (their q̇ and q̈ are 0)
+    pub rest: Vec<bool>,
+    /// the direction of motion where the q̇ estimate cannot tell it but the way q goes can
+    /// (next to a rest): ±1, else 0
+    pub direction: Vec<i8>,
+    /// samples where whether the joint moves is undecided (where a move leaves or reaches a
+    /// rest, before q leaves its noise band): fits and scores leave them out
+    pub ambiguous: Vec<bool>,
+    /// samples where the sign of q̇ is not known: within 3σ of zero, not at rest, no direction
+    /// from the way q goes (a reversal, or a near stop the data cannot resolve)
+    pub sign_unknown: Vec<bool>,
+    /// per sample: the 1σ error (noise and bias) of the q̇ and q̈ used
+    pub qd_err: Vec<f64>,
+    pub qdd_err: Vec<f64>,
+    /// per sample: the noise part of the q̈ error
+    pub qdd_noise: Vec<f64>,
+    pub report: PrepReport,
+}
+
+impl Prepared {
+    pub fn qd(&self) -> &[f64] {
+        self.log.qd.as_deref().unwrap_or(&[])
+    }
+    pub fn qdd(&self) -> &[f64] {
+        self.log.qdd.as_deref().unwrap_or(&[])
+    }
+    /// Variance of the noise part of the q̈ used, averaged over the log (errors in variables).
+    pub fn qdd_noise_var(&self) -> f64 {
+        let n = self.qdd_noise.len().max(1) as f64;
+        self.qdd_noise.iter().map(|s| s * s).sum::<f64>() / n
+    }
+}
+
+pub const SMOOTHER: &str =
+    "local cubic least-squares fits over a window chosen per log to minimise noise variance + bias² \
+(noise on q and the motion's 4th/5th derivative sizes from its spectrum); never across a gap, and never across the \
+start or end of a rest";
+
+/// One derivative as the analysis uses it: values, per-sample noise (1σ) and the estimator's
+/// bias (1σ, one figure for the log).
+struct Deriv {
+    values: Vec<f64>,
+    noise: Vec<f64>,
+    bias: f64,
+    info: DerivInfo,
+}
+
+impl Deriv {
+    fn error(&self) -> Vec<f64> {
+        self.noise.iter().map(|s| s.hypot(self.bias)).collect()
+    }
+}
+
+/// How a derivative is estimated: from which signal, which derivative of it, with what window.
+#[derive(Clone, Copy)]
+struct Recipe {
+    from_q: bool,
+    second: bool,
+    h: usize,
+    sigma: f64,
+}
+
+/// Derivative estimates of `x` per segment (rest boundaries count as segment ends when given).
+fn estimate_deriv(
+    t: &[f64],
+    x: &[f64],
+    pieces: &[std::ops::Range<usize>],
+    r: Recipe,
+    values: &mut [f64],
+    noise: &mut [f64],
+) {
+    for piece in pieces {
+        let e = lpr::estimate(&t[piece.clone()], &x[piece.clone()], r.h);
+        let (v, g) = if r.second { (&e.d2, &e.gain2) } else { (&e.d1, &e.gain1) };
+        for (k, i) in piece.clone().enumerate() {
+            values[i] = v[k];
+            noise[i] = r.sigma * g[k].max(0.0).sqrt();
+        }
+    }
+}
+
+/// Prepares `log` (already parsed and checked by the reader).
+pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
+    let samples_in = log.len();
+    let (log, stale) = drop_stale(log);
+    let n = log.len();
+    if n < 2 {
+        return Err(PrepError::Refused(format!("the log has {n} usable samples")));
+    }
+    let dt = median_step(&log.t);
+    let rate = 1.0 / dt;
+    if !(rate >= MIN_RATE_HZ) {
+        return Err(PrepError::Refused(format!(
+            "the median time step is {dt} s ({rate:.3} Hz): too slow to resolve a joint's dynamics; \
+             if `t` is in milliseconds, divide it by 1000 (spec §1: seconds)"
+        )));
+    }
+    let mut segments = split_at_gaps(&log.t, dt);
+    let jumps = split_at_jumps(&log.q, &mut segments);
+    let mut notes = Vec::new();
+    if stale > 0 {
+        notes.push(format!("{stale} stale samples (a row repeating the one before it) dropped"));
+    }
+    if jumps > 0 {
+        notes.push(format!(
+            "{jumps} jumps of q (a step no motion makes in one sample: a restart, an encoder reset) split the log too"
+        ));
+    }
+    if segments.len() > 1 {
+        notes.push(format!(
+            "{} gaps longer than {GAP_FACTOR}× the median step split the log into {} segments; nothing is differentiated across them",
+            segments.len() - 1,
+            segments.len()
+        ));
+    }
+    let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
+    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(resolution_sd(&log.q));
+    let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
+    let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
+    let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
+
+    // q̇ and q̈ from q.
+    let pick = |order| lpr::choose_half_width(dt, order, q_noise, d(4), d(5), h_max);
+    let (h1, _, bias1) = pick(lpr::Order::First).unwrap_or((2, 0.0, 0.0));
+    let (h2, _, bias2) = pick(lpr::Order::Second).unwrap_or((2, 0.0, 0.0));
+    let derive = |r: Recipe, x: &[f64], pieces: &[std::ops::Range<usize>]| {
+        let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
+        estimate_deriv(&log.t, x, pieces, r, &mut v, &mut s);
+        (v, s)
+    };
+    let r1 = Recipe { from_q: true, second: false, h: h1, sigma: q_noise };
+    let r2 = Recipe { from_q: true, second: true, h: h2, sigma: q_noise };
+    let (v1, s1) = derive(r1, &log.q, &segments);
+    let qd_q = Deriv { info: derived_info("derived from q", h1, dt, &s1, bias1), values: v1, noise: s1, bias: bias1 };
+    let (v2, s2) = derive(r2, &log.q, &segments);
+    let qdd_q = Deriv { info: derived_info("derived from q", h2, dt, &s2, bias2), values: v2, noise: s2, bias: bias2 };
+
+    // A logged q̇: checked against q, kept when its error is the smaller.
+    let (qd, qd_recipe) = match &log.qd {
+        Some(v) => {
+            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
+            let noise = diff.max(own_noise(v, &segments, dt));
+            if noise <= typical(&qd_q.error()) && consistent(scale) {
+                let info = logged_info(noise, scale);
+                (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
+            } else {
+                notes.push(format!(
+                    "the logged qd is noisier than the derivative of q ({noise:.3e} vs {:.3e} rad/s): q's is used",
+                    typical(&qd_q.error())
+                ));
+                let mut d = qd_q;
+                d.info.logged_noise_sd = Some(noise);
+                d.info.logged_scale = Some(scale);
+                (d, Some(r1))
+            }
+        }
+        None => (qd_q, Some(r1)),
+    };
+    // q̈ from the logged q̇ when that is the q̇ used (a derivative less to take).
+    let (qdd_best, qdd_recipe) = match qd_recipe {
+        None => {
+            let qd_spec = longest(&segments).and_then(|r| spectrum::analyse(&qd.values[r.clone()], dt));
+            let dv = |k: usize| qd_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
+            let sigma = qd.info.noise_sd;
+            match lpr::choose_half_width(dt, lpr::Order::First, sigma, dv(4), dv(5), h_max) {
+                Some((h, var, bias)) if (var + bias * bias).sqrt() < typical(&qdd_q.error()) => {
+                    let r = Recipe { from_q: false, second: false, h, sigma };
+                    let (v, s) = derive(r, &qd.values, &segments);
+                    let info = derived_info("derived from the logged qd", h, dt, &s, bias);
+                    (Deriv { values: v, noise: s, bias, info }, Some(r))
+                }
+                _ => (qdd_q, Some(r2)),
+            }
+        }
+        Some(_) => (qdd_q, Some(r2)),
+    };
+    let (qdd, qdd_recipe) = match &log.qdd {
+        Some(a) => {
+            let best_err = typical(&qdd_best.error());
+            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
+            let noise = diff.max(own_noise(a, &segments, dt));
+            if noise <= best_err && consistent(scale) {
+                (Deriv { values: a.clone(), noise: vec![noise; n], bias: 0.0, info: logged_info(noise, scale) }, None)
+            } else {
+                notes.push(format!(
+                    "the logged qdd is noisier than the estimate ({noise:.3e} vs {best_err:.3e} rad/s²): the estimate is used"
+                ));
+                let mut d = qdd_best;
+                d.info.logged_noise_sd = Some(noise);
+                d.info.logged_scale = Some(scale);
+                (d, qdd_recipe)
+            }
+        }
+        None => (qdd_best, qdd_recipe),
+    };
+    let (mut qd, mut qdd) = (qd, qdd);
+
+    // Rest: where q̇ and q̈ both stay within their noise for longer than a derivative window
+    // (a reversal passes through q̇ = 0 with q̈ ≠ 0, a dwell holds both). There the joint is
+    // still: q̇ = q̈ = 0 exactly, so a Coulomb term is sign(0) = 0 rather than the sign of
+    // the estimate's noise.
+    let min_run = ((2.0 * qd.info.half_window_s.max(qdd.info.half_window_s).max(0.01) / dt).round() as usize).max(3);
+    let rest = detect_rest(&qd.values, &qdd.values, &qd.noise, &qdd.noise, min_run, &segments);
+    // Motion next to a rest is re-estimated from the motion's side only: a window across the
+    // start or end of a move mixes the still joint into the moving one (q̈ jumps there), and
+    // its smeared q̇ would put the Coulomb sign wrong for a whole window.
+    if rest.iter().any(|r| *r) {
+        let mut runs = Vec::new();
+        for seg in &segments {
+            for run in motion_runs(&rest, seg.clone()) {
+                // the rest samples on either side anchor the move's ends
+                let lo = if run.start > seg.start { run.start - 1 } else { run.start };
+                let hi = if run.end < seg.end { run.end + 1 } else { run.end };
+                runs.push((lo..hi, run));
+            }
+        }
+        let redo = |d: &mut Deriv, r: Recipe, src: &[f64]| {
+            for (window, run) in &runs {
+                let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
+                estimate_deriv(&log.t, src, std::slice::from_ref(window), r, &mut v, &mut s);
+                d.values[run.clone()].copy_from_slice(&v[run.clone()]);
+                d.noise[run.clone()].copy_from_slice(&s[run.clone()]);
+            }
+        };
+        let qd_logged = qd.values.clone();
+        if let Some(r) = qd_recipe {
+            redo(&mut qd, r, &log.q);
+        }
+        if let Some(r) = qdd_recipe {
+            redo(&mut qdd, r, if r.from_q { &log.q } else { &qd_logged });
+        }
+        for (i, &still) in rest.iter().enumerate() {
+            if still {
+                qd.values[i] = 0.0;
+                qdd.values[i] = 0.0;
+            }
+        }
+    }
+    // Where a move leaves or reaches a rest, the joint's direction is known before its speed
+    // is: from the way it goes. Until q has left the rest's noise band the sign is unknown
+    // (the joint may have started, the data cannot say): those samples are marked ambiguous.
+    // (at least 20 ms: a move that creeps in or out below the q̇ noise looks like rest)
+    let hold = ((qd.info.half_window_s.max(0.02) / dt).round() as usize).max(1);
+    let (mut direction, ambiguous) = transitions(&log.q, &qd.values, &qd.noise, &rest, &segments, 4.0 * q_noise, hold);
+    // Elsewhere where the q̇ estimate is too small to sign, q may still be going one way on
+    // both sides (a move that slows to a near stop and goes on): then that is its direction.
+    through_direction(&log.q, &qd.values, &qd.error(), &rest, &segments, 4.0 * q_noise, hold, &mut direction);
+    let ambiguous_share = share(&ambiguous);
+    if ambiguous_share > 0.0 {
+        notes.push(format!(
+            "{:.1} % of the samples lie where a move leaves or reaches a rest before q has left its noise band: \
+             whether the joint moves there is unknown, they are left out of fits and scores",
+            100.0 * ambiguous_share
+        ));
+    }
+    let rest_share = share(&rest);
+    if rest_share > 0.0 {
+        notes.push(format!("{:.1} % of the samples are at rest (q̇ = q̈ = 0 there)", 100.0 * rest_share));
+    }
+    let (qd_err, qdd_err) = (qd.error(), qdd.error());
+    // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
+    // from q, not at rest): a pure Coulomb sign there is a coin toss.
+    let sign_unknown: Vec<bool> =
+        (0..n).map(|i| !rest[i] && direction[i] == 0 && qd.values[i].abs() < 3.0 * qd_err[i]).collect();
+    let mut out = log;
+    out.qd = Some(qd.values);
+    out.qdd = Some(qdd.values);
+    let report = PrepReport {
+        samples_in,
+        samples: n,
+        rest_share,
+        ambiguous_share,
+        stale_dropped: stale,
+        segments: segments
+            .iter()
+            .map(|r| SegmentInfo { from_t: out.t[r.start], to_t: out.t[r.end - 1], samples: r.len() })
+            .collect(),
+        median_rate_hz: rate,
+        q_noise_sd: q_noise,
+        motion_bandwidth_hz: bandwidth,
+        qd: qd.info,
+        qdd: qdd.info,
+        smoother: SMOOTHER,
+        notes,
+    };
+    Ok(Prepared {
+        log: out,
+        segments,
+        rest,
+        direction,
+        ambiguous,
+        sign_unknown,
+        qd_err,
+        qdd_err,
+        qdd_noise: qdd.noise,
+        report,
+    })
+}
+
+/// A logged derivative whose scale against the estimate is off by more than 20 % is not the
+/// derivative (a filtered or lagged estimate, another sensor) and is never used.
+fn consistent(scale: f64) -> bool {
+    (scale - 1.0).abs() <= 0.2
+}
+
+fn share(v: &[bool]) -> f64 {
+    v.iter().filter(|x| **x).count() as f64 / v.len().max(1) as f64
+}
+
+/// The median of per-sample errors (a log's typical figure, robust to the larger errors at a
+/// segment's ends).
+fn typical(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut w = v.to_vec();
+    let k = w.len() / 2;
+    let (_, m, _) = w.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m
+}
+
+fn derived_info(source: &'static str, h: usize, dt: f64, noise: &[f64], bias: f64) -> DerivInfo {
+    let nsd = typical(noise);
+    DerivInfo {
+        source,
+        half_window_s: h as f64 * dt,
+        error_sd: nsd.hypot(bias),
+        noise_sd: nsd,
+        logged_noise_sd: None,
+        logged_scale: None,
+    }
+}
+
+fn logged_info(noise: f64, scale: f64) -> DerivInfo {
+    DerivInfo {
+        source: "logged",
+        half_window_s: 0.0,
+        error_sd: noise,
+        noise_sd: noise,
+        logged_noise_sd: Some(noise),
+        logged_scale: Some(scale),
+    }
+}
+
+/// The expected value of `clamp(v/band, −1, 1)` (`sign(v)` when `band` is 0) when the true
+/// velocity is `v̂ + e` with `e ~ N(0, sd²)`: the friction sign a model predicts given an
+/// estimated velocity. Far from rest it is the plain sign; at rest (v̂ ≈ 0 within its error)
+/// it is ≈ 0, as the spec's `sign(0) = 0`, instead of a random ±1 from the estimate's noise.
+pub fn expected_sign(v: f64, band: f64, sd: f64) -> f64 {
+    if !(sd > 0.0) {
+        return crate::diagnose::sgn_band(v, band);
+    }
+    if !(band > 0.0) {
+        return libm::erf(v / (sd * std::f64::consts::SQRT_2));
+    }
+    // E[clip(V, −b, b)]/b for V ~ N(μ, σ²).
+    let (mu, b) = (v, band);
+    let cdf = |x: f64| 0.5 * (1.0 + libm::erf(x / std::f64::consts::SQRT_2));
+    let pdf = |x: f64| (-0.5 * x * x).exp() / (std::f64::consts::TAU).sqrt();
+    let (al, be) = ((-b - mu) / sd, (b - mu) / sd);
+    let e = -b * cdf(al) + b * (1.0 - cdf(be)) + mu * (cdf(be) - cdf(al)) - sd * (pdf(be) - pdf(al));
+    (e / b).clamp(-1.0, 1.0)
+}
+
+/// The variance of `clamp(V/band, −1, 1)` (`sign(V)` when `band` is 0) for `V ~ N(v, sd²)`:
+/// how uncertain the friction sign is given an estimated velocity. 0 far from rest.
+pub fn sign_variance(v: f64, band: f64, sd: f64) -> f64 {
+    if !(sd > 0.0) || v.abs() > band.max(0.0) + 6.0 * sd {
+        return 0.0;
+    }
+    let m = expected_sign(v, band, sd);
+    if !(band > 0.0) {
+        return (1.0 - m * m).max(0.0);
+    }
+    // E[g²] by Gauss–Hermite quadrature (20 points, exact enough for a floor).
+    let g = |x: f64| crate::diagnose::sgn_band(x, band);
+    let e2: f64 = GAUSS_HERMITE_20
+        .iter()
+        .map(|&(x, w)| {
+            let y = g(v + std::f64::consts::SQRT_2 * sd * x);
+            w * y * y
+        })
+        .sum::<f64>()
+        / std::f64::consts::PI.sqrt();
+    (e2 - m * m).max(0.0)
+}
+
+/// Nodes and weights of 20-point Gauss–Hermite quadrature (∫ e^(−x²) f(x) dx).
+const GAUSS_HERMITE_20: [(f64, f64); 20] = [
+    (-5.387480890011233, 2.229393645534151e-13),
+    (-4.603682449550744, 4.399340992273181e-10),
+    (-3.944764040115625, 1.086069370769282e-7),
+    (-3.347854567383216, 7.802556478532064e-6),
+    (-2.788806058428131, 2.283386360163540e-4),
+    (-2.254974002089276, 3.243773342237862e-3),
+    (-1.738537712116586, 2.481052088746361e-2),
+    (-1.234076215395323, 1.090172060200233e-1),
+    (-0.737473728545394, 2.866755053628341e-1),
+    (-0.245340708300901, 4.622436696006101e-1),
+    (0.245340708300901, 4.622436696006101e-1),
+    (0.737473728545394, 2.866755053628341e-1),
+    (1.234076215395323, 1.090172060200233e-1),
+    (1.738537712116586, 2.481052088746361e-2),
+    (2.254974002089276, 3.243773342237862e-3),
+    (2.788806058428131, 2.283386360163540e-4),
+    (3.347854567383216, 7.802556478532064e-6),
+    (3.944764040115625, 1.086069370769282e-7),
+    (4.603682449550744, 4.399340992273181e-10),
+    (5.387480890011233, 2.229393645534151e-13),
+];
+
+/// The runs of samples not at rest inside `seg`.
+fn motion_runs(rest: &[bool], seg: std::ops::Range<usize>) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut i = seg.start;
+    while i < seg.end {
+        if rest[i] {
+            i += 1;
+            continue;
+        }
+        let j = (i..seg.end).find(|&k| rest[k]).unwrap_or(seg.end);
+        out.push(i..j);
+        i = j;
+    }
+    out
+}
+
+/// Samples inside runs of at least `min_run` where |q̇| ≤ 4σ and |q̈| ≤ 4σ of their noise
+/// (per sample; a floor of 1e-9 relative to the signal's scale for clean columns).
+fn detect_rest(
+    qd: &[f64],
+    qdd: &[f64],
+    qd_sd: &[f64],
+    qdd_sd: &[f64],
+    min_run: usize,
+    segments: &[std::ops::Range<usize>],
+) -> Vec<bool> {
+    let scale = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (fv, fa) = (1e-9 * scale(qd), 1e-9 * scale(qdd));
+    let still: Vec<bool> = (0..qd.len())
+        .map(|i| qd[i].abs() <= (4.0 * qd_sd[i]).max(fv) && qdd[i].abs() <= (4.0 * qdd_sd[i]).max(fa))
+        .collect();
+    let mut rest = vec![false; qd.len()];
+    for r in segments {
+        let mut i = r.start;
+        while i < r.end {
+            if !still[i] {
+                i += 1;
+                continue;
+            }
+            let j = (i..r.end).find(|&k| !still[k]).unwrap_or(r.end);
+            if j - i >= min_run {
+                rest[i..j].iter_mut().for_each(|x| *x = true);
+            }
+            i = j;
+        }
+    }
+    rest
+}
+
+/// Where the q̇ estimate is within 3σ of zero and the joint is not at rest: if q leaves its
+/// noise band (`band`) on both sides within `reach` samples, going the same way, the joint moves
+/// through that way (no reversal), and `dir` gets that sign. Opposite ways are a reversal: the
+/// sign stays the estimate's.
+#[allow(clippy::too_many_arguments)]
+fn through_direction(
+    q: &[f64],
+    qd: &[f64],
+    qd_err: &[f64],
+    rest: &[bool],
+    segments: &[std::ops::Range<usize>],
+    band: f64,
+    reach: usize,
+    dir: &mut [i8],
+) {
+    for seg in segments {
+        for i in seg.clone() {
+            if rest[i] || dir[i] != 0 || qd[i].abs() > 3.0 * qd_err[i] {
+                continue;
+            }
+            let ahead = (i + 1..(i + 1 + reach).min(seg.end)).find(|&k| (q[k] - q[i]).abs() > band);
+            let behind = (seg.start.max(i.saturating_sub(reach))..i).rev().find(|&k| (q[i] - q[k]).abs() > band);
+            if let (Some(a), Some(b)) = (ahead, behind) {
+                let (fa, fb) = (q[a] - q[i], q[i] - q[b]);
+                if fa * fb > 0.0 {
+                    dir[i] = if fa > 0.0 { 1 } else { -1 };
+                }
+            }
+        }
+    }
+}
+
+/// The median angle of the rest run that contains sample `at`.
+fn rest_angle(q: &[f64], rest: &[bool], at: usize, seg: std::ops::Range<usize>) -> f64 {
+    let lo = (seg.start..=at).rev().take_while(|&k| rest[k]).last().unwrap_or(at);
+    let hi = (at..seg.end).take_while(|&k| rest[k]).last().map_or(at + 1, |k| k + 1);
+    let mut w: Vec<f64> = q[lo..hi].to_vec();
+    let k = w.len() / 2;
+    let (_, m, _) = w.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m
+}
+
+/// At every rest/motion transition: the direction of the move next to it (from where q goes,
+/// until the q̇ estimate itself is clearly signed: beyond 3σ of its noise), and the samples
+/// whose motion is undecided (the last `hold` samples of the rest and the move's samples
+/// before q leaves `band`).
+#[allow(clippy::too_many_arguments)]
+fn transitions(
+    q: &[f64],
+    qd: &[f64],
+    qd_noise: &[f64],
+    rest: &[bool],
+    segments: &[std::ops::Range<usize>],
+    band: f64,
+    hold: usize,
+) -> (Vec<i8>, Vec<bool>) {
+    let n = q.len();
+    let mut dir = vec![0i8; n];
+    let mut amb = vec![false; n];
+    let sgn = |x: f64| if x > 0.0 { 1i8 } else { -1i8 };
+    let sure = |i: usize, d: i8| sgn(qd[i]) == d && qd[i].abs() > 3.0 * qd_noise[i];
+    for seg in segments {
+        for run in motion_runs(rest, seg.clone()) {
+            // leaving a rest at run.start
+            if run.start > seg.start {
+                let q_rest = rest_angle(q, rest, run.start - 1, seg.clone());
+                let out = (run.start..run.end).find(|&k| (q[k] - q_rest).abs() > band);
+                let lo = run.start.saturating_sub(hold).max(seg.start);
+                amb[lo..out.unwrap_or(run.end)].iter_mut().for_each(|a| *a = true);
+                if let Some(k) = out {
+                    let d = sgn(q[k] - q_rest);
+                    for i in k..run.end {
+                        if sure(i, d) {
+                            break;
+                        }
+                        dir[i] = d;
+                    }
+                }
+            }
+            // reaching a rest at run.end
+            if run.end < seg.end {
+                let q_rest = rest_angle(q, rest, run.end, seg.clone());
+                let last = (run.start..run.end).rev().find(|&k| (q[k] - q_rest).abs() > band);
+                let hi = (run.end + hold).min(seg.end);
+                amb[last.map_or(run.start, |k| k + 1)..hi].iter_mut().for_each(|a| *a = true);
+                if let Some(k) = last {
+                    let d = sgn(q_rest - q[k]);
+                    for i in (run.start..=k).rev() {
+                        if sure(i, d) {
+                            break;
+                        }
+                        if dir[i] == 0 {
+                            dir[i] = d;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (dir, amb)
+}
+
+/// Drops rows whose measured values all repeat the previous row's.
+fn drop_stale(log: &JointLog) -> (JointLog, usize) {
+    let n = log.len();
+    let same = |i: usize| -> bool {
+        let eq = |c: &Option<Vec<f64>>| c.as_ref().is_none_or(|v| v[i] == v[i - 1]);
+        log.q[i] == log.q[i - 1]
+            && eq(&log.qd)
+            && eq(&log.qdd)
+            && eq(&log.u)
+            && eq(&log.tau)
+            && log.others.iter().all(|(_, v)| v[i] == v[i - 1])
+            // a log of q alone at rest repeats itself legitimately
+            && (log.qd.is_some() || log.u.is_some() || log.tau.is_some())
+    };
+    let keep: Vec<usize> = (0..n).filter(|&i| i == 0 || !same(i)).collect();
+    let dropped = n - keep.len();
+    if dropped == 0 {
+        return (log.clone(), 0);
+    }
+    let pick = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    let pick_opt = |v: &Option<Vec<f64>>| v.as_ref().map(|v| pick(v));
+    let out = JointLog {
+        t: pick(&log.t),
+        q: pick(&log.q),
+        qd: pick_opt(&log.qd),
+        qdd: pick_opt(&log.qdd),
+        u: pick_opt(&log.u),
+        tau: pick_opt(&log.tau),
+        temp: pick_opt(&log.temp),
+        others: log.others.iter().map(|(k, v)| (k.clone(), pick(v))).collect(),
+        unknown: log.unknown.clone(),
+    };
+    (out, dropped)
+}
+
+/// Median time step (robust to jitter and the odd gap).
+pub fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 1e-3;
+    }
+    let k = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m
+}
+
+fn split_at_gaps(t: &[f64], dt: f64) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for i in 1..t.len() {
+        if t[i] - t[i - 1] > GAP_FACTOR * dt {
+            out.push(start..i);
+            start = i;
+        }
+    }
+    out.push(start..t.len());
+    out
+}
+
+/// Splits segments where q steps further in one sample than its motion can: more than 20× the
+/// robust spread of its one-sample changes and 10× both neighbouring changes. Returns the count.
+fn split_at_jumps(q: &[f64], segments: &mut Vec<std::ops::Range<usize>>) -> usize {
+    let d: Vec<f64> = q.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if d.len() < 10 {
+        return 0;
+    }
+    let mut s = d.clone();
+    let k = s.len() * 9 / 10;
+    let (_, p90, _) = s.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    let limit = 20.0 * *p90;
+    if !(limit > 0.0) {
+        return 0;
+    }
+    let mut out = Vec::new();
+    let mut count = 0;
+    for seg in segments.iter() {
+        let mut start = seg.start;
+        for i in seg.start + 1..seg.end {
+            let step = d[i - 1];
+            let before = if i >= 2 { d[i - 2] } else { 0.0 };
+            let after = d.get(i).copied().unwrap_or(0.0);
+            if step > limit && step > 10.0 * before.max(after) {
+                out.push(start..i);
+                start = i;
+                count += 1;
+            }
+        }
+        out.push(start..seg.end);
+    }
+    *segments = out;
+    count
+}
+
+fn longest(segments: &[std::ops::Range<usize>]) -> Option<&std::ops::Range<usize>> {
+    segments.iter().max_by_key(|r| r.len())
+}
+
+/// A logged column's own white noise: from its spectrum (or its 4th differences when short).
+fn own_noise(x: &[f64], segments: &[std::ops::Range<usize>], dt: f64) -> f64 {
+    longest(segments).and_then(|r| spectrum::analyse(&x[r.clone()], dt)).map_or_else(|| diff_noise(x), |s| s.noise_sd)
+}
+
+/// White noise on `x` from its 4th differences (robust), for logs too short for a spectrum.
+fn diff_noise(x: &[f64]) -> f64 {
+    if x.len() < 6 {
+        return 0.0;
+    }
+    let mut d: Vec<f64> = x.windows(5).map(|w| (w[4] - 4.0 * w[3] + 6.0 * w[2] - 4.0 * w[1] + w[0]).abs()).collect();
+    let k = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    1.4826 * *m / 70f64.sqrt()
+}
+
+/// The uniform-quantisation error of an encoder, `step/√12`, with its step read as the most
+/// common smallest non-zero change of `x` (0 when x does not look quantised).
+fn resolution_sd(x: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).collect();
+    if steps.len() < 20 {
+        return 0.0;
+    }
+    steps.sort_by(|a, b| a.total_cmp(b));
+    let smallest = steps[steps.len() / 100];
+    // Quantised: most changes are whole multiples of the smallest.
+    let on_grid = steps
+        .iter()
+        .filter(|d| {
+            let r = *d / smallest;
+            (r - r.round()).abs() < 0.02
+        })
+        .count();
+    if on_grid * 10 >= steps.len() * 9 {
+        smallest / 12f64.sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Unit factors a logged derivative may be off by, with what each means.
+const FACTORS: [(f64, &str); 9] = [
+    (180.0 / std::f64::consts::PI, "degrees against radians"),
+    (std::f64::consts::PI / 180.0, "radians against degrees"),
+    (1000.0, "per millisecond against per second, or milli-units"),
+    (1.0e-3, "per second against per millisecond"),
+    (std::f64::consts::TAU, "radians against revolutions"),
+    (1.0 / std::f64::consts::TAU, "revolutions against radians"),
+    (60.0, "per minute against per second"),
+    (1.0 / 60.0, "per second against per minute"),
+    (-1.0, "the opposite sign"),
+];
+
+/// The logged column `v` against the estimate `e` (error `e_sd`): its scale (least squares
+/// slope where the estimate is well above its error) and its noise. A scale at a unit factor
+/// refuses the log naming it.
+fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Result<(f64, f64), PrepError> {
+    let strong: Vec<(f64, f64)> =
+        v.iter().zip(e).filter(|(_, e)| e.abs() > 5.0 * e_sd).map(|(a, b)| (*a, *b)).collect();
+    let mut scale = 1.0;
+    if strong.len() >= 20 {
+        let sxy: f64 = strong.iter().map(|(a, b)| a * b).sum();
+        let sxx: f64 = strong.iter().map(|(_, b)| b * b).sum();
+        if sxx > 0.0 {
+            scale = sxy / sxx;
+        }
+        for (f, what) in FACTORS {
+            if (scale / f - 1.0).abs() < 0.1 {
+                return Err(PrepError::Refused(format!(
+                    "the logged `{name}` is {scale:.4}× the derivative of `{of}` ({what}): the columns are not in \
+                     consistent SI units (spec §1: rad, rad/s, rad/s², s); convert them, or leave `{name}` out and it \
+                     is derived from `{of}`"
+                )));
+            }
+        }
+    }
+    let mut r: Vec<f64> = v.iter().zip(e).map(|(a, b)| (a - b).abs()).collect();
+    if r.is_empty() {
+        return Ok((scale, 0.0));
+    }
+    let k = r.len() / 2;
+    let (_, m, _) = r.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    let diff_sd = 1.4826 * *m;
+    let noise = (diff_sd * diff_sd - e_sd * e_sd).max(0.0).sqrt();
+    Ok((scale, noise))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+
+    fn log_of(t: Vec<f64>, q: Vec<f64>) -> JointLog {
+        JointLog { t, q, ..JointLog::default() }
+    }
+
+    #[test]
+    fn expected_sign_is_the_sign_far_from_rest_and_zero_at_rest() {
+        assert!((expected_sign(1.0, 0.0, 0.01) - 1.0).abs() < 1e-12);
+        assert!(expected_sign(0.0, 0.0, 0.01).abs() < 1e-12);
+        assert!((expected_sign(0.01, 0.0, 0.01) - 0.6827).abs() < 1e-3);
+        // with a band much wider than the error it is the clamp
+        assert!((expected_sign(0.005, 0.02, 1e-5) - 0.25).abs() < 1e-6);
+        assert!((expected_sign(-0.5, 0.02, 1e-3) + 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn sign_variance_is_one_at_rest_and_small_inside_a_wide_band() {
+        assert!((sign_variance(0.0, 0.0, 0.01) - 1.0).abs() < 1e-12);
+        assert_eq!(sign_variance(1.0, 0.0, 0.01), 0.0);
+        // inside a band 10× the error: the clamp is linear, variance (σ/b)²
+        let v = sign_variance(0.0, 0.1, 0.01);
+        assert!((v / 0.01 - 1.0).abs() < 0.02, "{v}");
+    }
+
+    #[test]
+    fn stale_rows_are_dropped_and_gaps_split() {
+        let mut t: Vec<f64> = (0..400).map(|i| i as f64 * 1e-3).collect();
+        for x in t.iter_mut().skip(200) {
+            *x += 2.0;
+        }
+        let mut q: Vec<f64> = t.iter().map(|t| (2.0 * t).sin()).collect();
+        let mut u = q.clone();
+        q[50] = q[49];
+        u[50] = u[49];
+        let log = JointLog { u: Some(u), tau: Some(vec![0.0; 400]), ..log_of(t, q) };
+        let p = prepare(&log).unwrap();
+        assert_eq!(p.report.stale_dropped, 1);
+        assert_eq!(p.segments.len(), 2);
+        assert_eq!(p.report.samples, 399);
+    }
+
+    #[test]
+    fn time_in_milliseconds_is_refused() {
+        let t: Vec<f64> = (0..500).map(|i| i as f64).collect();
+        let q: Vec<f64> = t.iter().map(|t| (0.002 * t).sin()).collect();
+        let e = prepare(&log_of(t, q)).unwrap_err();
+        assert!(e.to_string().contains("milliseconds"), "{e}");
+    }
+
+    #[test]
+    fn a_logged_qd_in_degrees_is_refused_naming_the_factor() {
+        let t: Vec<f64> = (0..3000).map(|i| i as f64 * 1e-3).collect();
+        let q: Vec<f64> = t.iter().map(|t| (2.0 * t).sin()).collect();
+        let qd: Vec<f64> = t.iter().map(|t| 2.0 * (2.0 * t).cos() * 180.0 / std::f64::consts::PI).collect();
+        let e = prepare(&JointLog { qd: Some(qd), ..log_of(t, q) }).unwrap_err();
+        assert!(e.to_string().contains("57.29") && e.to_string().contains("degrees"), "{e}");
+    }
+}
