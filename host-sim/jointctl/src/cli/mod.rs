@@ -15,6 +15,7 @@ pub mod eds;
 pub mod identify;
 pub mod import;
 pub mod log_can;
+pub mod num;
 pub mod pull;
 pub mod push;
 pub mod save;
