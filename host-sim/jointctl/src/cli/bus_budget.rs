@@ -19,7 +19,7 @@ use joint_can::timing;
 #[command(verbatim_doc_comment)]
 pub struct BusBudgetArgs {
     /// Number of joints on the bus (1..=127, the CANopen node ids)
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(1..=127))]
+    #[arg(long, value_parser = num::int::<u32>(1, 127))]
     pub joints: u32,
     /// Telemetry rate per joint, Hz (0 < HZ ≤ 10000)
     #[arg(long, value_name = "HZ", value_parser = num::positive(10_000.0, "Hz"))]

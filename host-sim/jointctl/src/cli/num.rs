@@ -6,7 +6,6 @@
 //! file is read. `docs/outputs.md` lists every option with its range; the test
 //! `tests/numeric_args.rs` checks the list against `jointctl --help`.
 
-use clap::builder::{RangedU64ValueParser, TypedValueParser};
 use joint_core::params::ParamId;
 
 /// The most samples one log may hold (rows × columns of f64 in memory, then CSV on disk: a
@@ -24,18 +23,32 @@ pub const CAN_BITRATE: (u64, u64) = (10_000, 1_000_000);
 pub const CAN_FD_DATA_BITRATE: (u64, u64) = (10_000, 8_000_000);
 
 /// Node ids a CANopen node may have.
-pub fn node_id() -> impl TypedValueParser<Value = u8> {
-    RangedU64ValueParser::<u8>::new().range(1..=127)
+pub fn node_id() -> impl Fn(&str) -> Result<u8, String> + Clone + Send + Sync + 'static {
+    int(1, 127)
 }
 
 /// A count in `lo..=hi`.
-pub fn count(lo: u64, hi: u64) -> impl TypedValueParser<Value = usize> {
-    RangedU64ValueParser::<usize>::new().range(lo..=hi)
+pub fn count(lo: u64, hi: u64) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    int(lo, hi)
 }
 
 /// A bitrate in `range`, bit/s.
-pub fn bitrate(range: (u64, u64)) -> impl TypedValueParser<Value = u32> {
-    RangedU64ValueParser::<u32>::new().range(range.0..=range.1)
+pub fn bitrate(range: (u64, u64)) -> impl Fn(&str) -> Result<u32, String> + Clone + Send + Sync + 'static {
+    int(range.0, range.1)
+}
+
+/// A whole number in `lo..=hi` (`T` holds every value of the range).
+pub fn int<T: TryFrom<u64> + Clone + Send + Sync + 'static>(
+    lo: u64,
+    hi: u64,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |s: &str| {
+        let v: u64 = s.trim().parse().map_err(|_| format!("not a whole number; allowed: {lo}..={hi}"))?;
+        if !(lo..=hi).contains(&v) {
+            return Err(format!("outside the allowed range: {lo}..={hi}"));
+        }
+        T::try_from(v).map_err(|_| format!("outside the allowed range: {lo}..={hi}"))
+    }
 }
 
 /// A finite real number `lo < x ≤ hi` (`lo_open`) or `lo ≤ x ≤ hi`, in `unit`.
@@ -136,5 +149,16 @@ mod tests {
         budget("samples", &[("--rate", 1000.0), ("--seconds", 10.0)], 1e7).unwrap();
         let e = budget("samples", &[("--rate", 1000.0), ("--seconds", 1e5)], 1e7).unwrap_err().to_string();
         assert!(e.contains("--rate 1000 × --seconds 100000") && e.contains("1e7"), "{e}");
+    }
+
+    #[test]
+    fn whole_numbers_say_the_range_for_every_refusal() {
+        let p = node_id();
+        for bad in ["0", "128", "-1", "1.5", "x", "", "99999999999999999999"] {
+            let e = p(bad).unwrap_err();
+            assert!(e.contains("1..=127"), "{bad}: {e}");
+        }
+        assert_eq!(p("127").unwrap(), 127u8);
+        assert_eq!(bitrate(CAN_BITRATE)(" 1000000").unwrap(), 1_000_000u32);
     }
 }

@@ -88,7 +88,7 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
     let p = |x: &str| x.trim().parse::<f64>().map_err(|_| format!("`{x}` is not a number"));
     let (lo, hi) = (p(a)?, p(b)?);
     if !(lo.is_finite() && hi.is_finite() && hi > lo && lo >= -360.0 && hi <= 360.0) {
-        return Err(format!("`{s}`: allowed: −360 ≤ MIN < MAX ≤ 360 degrees"));
+        return Err(format!("`{s}`: allowed: -360 ≤ MIN < MAX ≤ 360 degrees"));
     }
     Ok((lo, hi))
 }
