@@ -3,7 +3,9 @@
 //! - [`log`]: the joint-log CSV (spec §1), strict reader and writer;
 //! - [`model_file`]: the model TOML (spec §2) ⇄ the core's parameters;
 //! - [`import`]: converters from published data sets' files to joint logs;
-//! - [`predict`]: the model's disturbance on a log and the residual against it.
+//! - [`predict`]: the model's disturbance on a log and the residual against it;
+//! - [`output`]: how every tool writes its outputs (never over an input, atomically for
+//!   regular files, in place for devices, report folders as a whole).
 //!
 //! What it may depend on: the joint core (the parameter table the model file is checked
 //! against, the control law the prediction runs), serde/toml and thiserror. What it must not:
@@ -21,4 +23,5 @@
 pub mod import;
 pub mod log;
 pub mod model_file;
+pub mod output;
 pub mod predict;

@@ -177,10 +177,12 @@ impl JointLog {
         w.write_all(buf.as_bytes())
     }
 
-    /// Writes the log to `path` through a temporary file in the same directory and a rename,
-    /// so a failed run never leaves a half-written log behind.
-    pub fn write_file(&self, path: &Path) -> std::io::Result<()> {
-        write_atomic(path, |f| self.write_csv(f))
+    /// Writes the log to `path` by the rules of [`crate::output`]: a regular file through a
+    /// temporary file and a rename (a failed write never leaves a half-written log), a device
+    /// or FIFO in place. A command that also reads files declares them in an
+    /// [`output::Plan`](crate::output::Plan) instead, so the log cannot land on one of them.
+    pub fn write_file(&self, path: &Path) -> Result<(), crate::output::OutputError> {
+        crate::output::write_file(path, |w| self.write_csv(w))
     }
 }
 
@@ -516,28 +518,6 @@ fn push_num(buf: &mut String, v: f64) {
     } else {
         write!(buf, "{v:e}")
     };
-}
-
-/// Creates `path` via a sibling temporary file and a rename (atomic on one filesystem).
-pub fn write_atomic(
-    path: &Path,
-    body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> std::io::Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(f);
-        body(&mut w)?;
-        w.flush()?;
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }
 
 #[cfg(test)]

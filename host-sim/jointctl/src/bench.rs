@@ -23,6 +23,7 @@
 #![allow(clippy::indexing_slicing)]
 
 use std::collections::BTreeMap;
+use std::io::Write as _;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -450,7 +451,8 @@ pub fn run_mode(
             log.write_file(&dir.join(format!("case-{c}.csv"))).map_err(|e| e.to_string())?;
             let text =
                 format!("# bench case {c}: withheld {} ({})\n{}", r.truth, r.effect_sections, model.to_toml_string());
-            std::fs::write(dir.join(format!("case-{c}.toml")), text).map_err(|e| e.to_string())?;
+            joint_formats::output::write_file(&dir.join(format!("case-{c}.toml")), |w| w.write_all(text.as_bytes()))
+                .map_err(|e| e.to_string())?;
         }
         progress(&r);
         out.push(r);

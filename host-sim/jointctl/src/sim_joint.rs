@@ -14,6 +14,7 @@ use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, S
 use joint_core::canopen::CanFrame;
 use joint_core::params::{ParamId, ParamSet, RawParams};
 use joint_formats::model_file::ModelFile;
+use std::io::Write as _;
 use std::path::PathBuf;
 
 /// Parameter storage of a simulated joint: in memory, or a model TOML file (the host-side
@@ -31,7 +32,8 @@ impl ParamStorage for SimStorage {
             SimStorage::Memory(m) => m.save(set),
             SimStorage::File(p) => {
                 let text = ModelFile::from_raw(set.raw(), None, &[]).to_toml_string();
-                std::fs::write(p, text).map_err(|_| StorageError::Failed)
+                // replaced atomically, like the board's A/B records: a crash mid-save keeps the old set
+                joint_formats::output::write_file(p, |w| w.write_all(text.as_bytes())).map_err(|_| StorageError::Failed)
             }
         }
     }

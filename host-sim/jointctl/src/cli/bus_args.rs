@@ -16,8 +16,9 @@ pub struct BusArgs {
     /// (Lawicel serial adapter or pty), socketcan:IFACE
     #[arg(long, value_name = "BUS", default_value = "sim")]
     pub bus: BusSpec,
-    /// Bitrate of the simulated bus, bit/s (slcan takes it after @, socketcan from the interface)
-    #[arg(long, value_name = "BIT/S", default_value_t = 1_000_000)]
+    /// Bitrate of the simulated bus, bit/s (10000..=1000000, classic CAN; slcan takes it after
+    /// @, socketcan from the interface)
+    #[arg(long, value_name = "BIT/S", default_value_t = 1_000_000, value_parser = super::num::bitrate(super::num::CAN_BITRATE))]
     pub bitrate: u32,
 }
 

@@ -1,5 +1,6 @@
 //! `jointctl bus-budget`: bus load of joint telemetry from the real frame layout.
 
+use super::num;
 use clap::Args;
 use joint_can::timing;
 
@@ -17,16 +18,17 @@ use joint_can::timing;
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct BusBudgetArgs {
-    #[arg(long)]
+    /// Number of joints on the bus (1..=127, the CANopen node ids)
+    #[arg(long, value_parser = num::int::<u32>(1, 127))]
     pub joints: u32,
-    /// Telemetry rate per joint, Hz
-    #[arg(long)]
+    /// Telemetry rate per joint, Hz (0 < HZ ≤ 10000)
+    #[arg(long, value_name = "HZ", value_parser = num::positive(10_000.0, "Hz"))]
     pub rate: f64,
-    /// Nominal (arbitration) bitrate, bit/s
-    #[arg(long, default_value_t = 1_000_000)]
+    /// Nominal (arbitration) bitrate, bit/s (10000..=1000000)
+    #[arg(long, value_name = "BIT/S", default_value_t = 1_000_000, value_parser = num::bitrate(num::CAN_BITRATE))]
     pub bitrate: u32,
-    /// CAN FD data-phase bitrate, bit/s (omit for classic CAN)
-    #[arg(long)]
+    /// CAN FD data-phase bitrate, bit/s (--bitrate ≤ BIT/S ≤ 8000000; omit for classic CAN)
+    #[arg(long, value_name = "BIT/S", value_parser = num::bitrate(num::CAN_FD_DATA_BITRATE))]
     pub data_bitrate: Option<u32>,
     /// Also print the joints × rate table for classic 1 Mbit/s and FD 1/5 Mbit/s
     #[arg(long)]
@@ -91,11 +93,11 @@ pub fn max_joints(rate: f64, bitrate: u32, data_bitrate: Option<u32>, limit: f64
 }
 
 pub fn run(a: &BusBudgetArgs) -> anyhow::Result<()> {
-    if a.joints == 0 || a.joints > 127 {
-        anyhow::bail!("--joints {} is outside 1..=127", a.joints);
-    }
-    if !(a.rate > 0.0 && a.rate.is_finite()) {
-        anyhow::bail!("--rate must be a positive number of Hz");
+    if let Some(d) = a.data_bitrate.filter(|&d| d < a.bitrate) {
+        anyhow::bail!(
+            "--data-bitrate {d} is below --bitrate {}: the data phase is at least the nominal rate",
+            a.bitrate
+        );
     }
     let (w, t) = load(a.joints, a.rate, a.bitrate, a.data_bitrate);
     let fit = max_joints(a.rate, a.bitrate, a.data_bitrate, 0.8);

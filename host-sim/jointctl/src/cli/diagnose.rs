@@ -1,15 +1,19 @@
 //! `jointctl diagnose`: where the sim-to-real gap lies, which effect causes it, how far it
-//! shrinks. Output files are written through a temporary file and a rename, and only after the
-//! whole diagnosis succeeded, so a refused input never leaves a report behind.
+//! shrinks. The outputs are checked against the inputs before anything is read, rendered after
+//! the whole diagnosis succeeded, and committed only when all of them were written (see
+//! `joint_formats::output`), so a refused input never leaves a report behind.
 
+use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::Context;
 use clap::Args;
 
+use super::num;
+use joint_analysis::diagnose::candidates::Kind;
 use joint_analysis::diagnose::{self, Options};
-use joint_formats::log::{write_atomic, JointLog};
+use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
+use joint_formats::output::Plan;
 
 /// Compare a joint log with a model: split the residual by regime, test every effect of the
 /// vocabulary on held-out data, and report how far the best one shrinks the gap.
@@ -30,72 +34,91 @@ pub struct DiagnoseArgs {
     /// Model TOML (spec §2)
     #[arg(long, value_name = "MODEL.toml")]
     pub model: PathBuf,
-    /// Write the diagnosis JSON (spec §3) here
+    /// Write the diagnosis JSON (spec §3) here (- for stdout)
     #[arg(long, value_name = "OUT.json")]
     pub json: Option<PathBuf>,
-    /// Write a self-contained HTML report (inline SVG plots) here
+    /// Write a self-contained HTML report (inline SVG plots) here (- for stdout)
     #[arg(long, value_name = "OUT.html")]
     pub report: Option<PathBuf>,
-    /// Write the refitted model plus the selected effects' sections (plant TOML) here
+    /// Write the refitted model plus the selected effects' sections (plant TOML) here (- for
+    /// stdout)
     #[arg(long, value_name = "OUT.toml")]
     pub emit_model: Option<PathBuf>,
-    /// At most this many effects in the forward selection
-    #[arg(long, default_value_t = 3)]
+    /// At most this many effects in the forward selection (1 ≤ N ≤ the vocabulary's 9)
+    #[arg(long, default_value_t = 3, value_parser = num::count(1, Kind::ALL.len() as u64))]
     pub max_effects: usize,
 }
 
 pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
+    let mut plan = Plan::new();
+    plan.input("--log", &a.log).input("--model", &a.model);
+    let json_out = plan.file_opt("--json", a.json.as_deref());
+    let report_out = plan.file_opt("--report", a.report.as_deref());
+    let model_out = plan.file_opt("--emit-model", a.emit_model.as_deref());
+    let outs = plan.check()?;
     let log = JointLog::read_file(&a.log)?;
     let model = ModelFile::read_file(&a.model)?;
     let t0 = std::time::Instant::now();
-    let d = diagnose::diagnose(&log, &model, &Options { max_effects: a.max_effects.max(1) })
+    let d = diagnose::diagnose(&log, &model, &Options { max_effects: a.max_effects })
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.log.display()))?;
     let elapsed = t0.elapsed().as_secs_f64();
-    // Render everything first, then write: nothing is written unless everything succeeded.
+    // Render everything first, write every output to its temporary file, then commit them:
+    // a failure on any one leaves none of them behind.
     let json = serde_json::to_string_pretty(&d.report)?;
-    let html = a.report.as_ref().map(|_| diagnose::report_html::render(&d));
-    if let Some(p) = &a.json {
-        write_atomic(p, |f| std::io::Write::write_all(f, json.as_bytes()))
-            .with_context(|| format!("{}: cannot write", p.display()))?;
+    let html = report_out.map(|_| diagnose::report_html::render(&d));
+    let mut sinks = Vec::new();
+    for (slot, text) in [(json_out, Some(&json)), (report_out, html.as_ref()), (model_out, Some(&d.emitted_model))] {
+        if let (Some(slot), Some(text)) = (slot, text) {
+            let mut s = outs.open(slot)?;
+            s.write_all(text.as_bytes()).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", s.named()))?;
+            sinks.push(s);
+        }
     }
-    if let (Some(p), Some(h)) = (&a.report, &html) {
-        write_atomic(p, |f| std::io::Write::write_all(f, h.as_bytes()))
-            .with_context(|| format!("{}: cannot write", p.display()))?;
+    for s in sinks {
+        s.commit()?;
     }
-    if let Some(p) = &a.emit_model {
-        write_atomic(p, |f| std::io::Write::write_all(f, d.emitted_model.as_bytes()))
-            .with_context(|| format!("{}: cannot write", p.display()))?;
-    }
-    print_summary(&d.report, elapsed);
+    print_summary(&mut outs.human(), &d.report, elapsed);
     Ok(())
 }
 
-fn print_summary(r: &diagnose::Report, secs: f64) {
+fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
     let u = r.gap.unit;
-    println!(
+    say!(
+        o,
         "{} mode, {} samples ({} train / {} held out, {}), {:.2} s",
-        r.mode, r.samples, r.split.train, r.split.holdout, r.split.method, secs
+        r.mode,
+        r.samples,
+        r.split.train,
+        r.split.holdout,
+        r.split.method,
+        secs
     );
     if let Some(rt) = &r.split.rest_tail {
-        println!(
+        say!(
+            o,
             "  the last {} samples (from t = {:.3} s) left out: the log and the model are both at rest there",
-            rt.samples, rt.from_t
+            rt.samples,
+            rt.from_t
         );
     }
-    println!(
+    say!(
+        o,
         "gap: RMSE {:.4} {u} (held out {:.4}), noise floor ≈ {:.4} {u}",
-        r.gap.rmse, r.gap.holdout_rmse, r.gap.noise_floor
+        r.gap.rmse,
+        r.gap.holdout_rmse,
+        r.gap.noise_floor
     );
     if let Some(sd) = r.gap.qdd_noise_sd {
-        println!("  the log's q̈ carries white noise of ≈ {sd:.3} rad/s²: removed from the inertia's fit (errors in variables)");
+        say!(o, "  the log's q̈ carries white noise of ≈ {sd:.3} rad/s²: removed from the inertia's fit (errors in variables)");
     }
-    println!("where (share of squared residual, RMSE):");
+    say!(o, "where (share of squared residual, RMSE):");
     for g in &r.regimes {
-        println!("  {:<16} {:>6.1} %  {:.4} {u}   {}", g.name, 100.0 * g.share, g.rmse, g.where_);
+        say!(o, "  {:<16} {:>6.1} %  {:.4} {u}   {}", g.name, 100.0 * g.share, g.rmse, g.where_);
     }
-    println!("effects (held-out RMSE after, shrink, p):");
+    say!(o, "effects (held-out RMSE after, shrink, p):");
     for e in &r.effects {
-        println!(
+        say!(
+            o,
             "  {:<24} {:.4} {u}  {:>6.1} %  p={:.2e} {}",
             e.effect,
             e.holdout_rmse_after,
@@ -110,7 +133,8 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
             }
         );
     }
-    println!(
+    say!(
+        o,
         "verdict: {} (held-out RMSE {:.4} → {:.4} {u}, shrink {:.1} %){}",
         r.verdict.effect,
         r.verdict.holdout_rmse_before,
@@ -123,6 +147,6 @@ fn print_summary(r: &diagnose::Report, secs: f64) {
         }
     );
     for w in &r.warnings {
-        println!("warning: {w}");
+        say!(o, "warning: {w}");
     }
 }

@@ -1,13 +1,23 @@
 //! `jointctl identify`: logged characterisation tests → model TOML (+ validation report).
 
+use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
 
+use super::num;
 use joint_analysis::identify::segments::Window;
 use joint_analysis::identify::{self, Method, Options, Progress, Term};
-use joint_formats::log::{self, JointLog};
+use joint_formats::log::JointLog;
+use joint_formats::output::{FolderKind, Plan};
+
+/// What `--report DIR` writes; an existing folder holding only these is a previous report and
+/// is replaced as a whole, anything else in it makes the run refuse.
+pub const REPORT: FolderKind = FolderKind {
+    what: "an identification report (report.md, report.json, *.svg)",
+    owns: |name| name == "report.md" || name == "report.json" || name.ends_with(".svg"),
+};
 
 /// Identify the joint model from logged tests and write the model TOML (ready for `push`).
 ///
@@ -33,22 +43,24 @@ pub struct IdentifyArgs {
     /// [default: friction,weight,inertia,offset with torque logs, spring with trajectory logs]
     #[arg(long, value_name = "LIST")]
     pub terms: Option<String>,
-    /// Output model TOML; written only when identification succeeds
+    /// Output model TOML, or - for stdout; written only when identification succeeds
     #[arg(long, value_name = "MODEL.toml")]
     pub out: PathBuf,
-    /// Directory for the validation report (report.md, report.json, SVG plots)
+    /// Directory for the validation report (report.md, report.json, SVG plots); built aside and
+    /// moved into place whole; an existing DIR is replaced only if it holds a previous report
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Use START..END seconds as a segment of KIND (plateau, static, motion, free) instead of
-    /// the automatic search for that kind; repeatable
-    #[arg(long = "window", value_name = "START:END:KIND")]
+    /// the automatic search for that kind (0 ≤ START < END, finite); repeatable
+    #[arg(long = "window", value_name = "START:END:KIND", value_parser = parse_window)]
     pub windows: Vec<Window>,
     /// papers = the papers' procedures (plateaus, poses, motion); joint-ls = one least-squares
     /// fit of all rigid terms on every sample, for logs without plateaus or poses
     #[arg(long, value_parser = super::choice::described(&Method::NAMES), default_value = "papers")]
     pub method: Method,
-    /// Zero-phase low-pass cut-off of the inertia (and joint-ls) fit, Hz
-    #[arg(long, value_name = "HZ", default_value_t = 5.0)]
+    /// Zero-phase low-pass cut-off of the inertia (and joint-ls) fit, Hz (0 < HZ ≤ 10000; at or
+    /// above the log's Nyquist frequency the filter passes everything)
+    #[arg(long, value_name = "HZ", default_value_t = 5.0, value_parser = num::positive(10_000.0, "Hz"))]
     pub accel_cutoff: f64,
     /// Model name written to the TOML
     #[arg(long)]
@@ -73,10 +85,26 @@ impl Progress for Bar {
     }
 }
 
-pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
-    if !(a.accel_cutoff.is_finite() && a.accel_cutoff > 0.0) {
-        anyhow::bail!("--accel-cutoff {} must be a positive frequency in Hz", a.accel_cutoff);
+/// The analysis's own parse (finite, START < END) plus a window that starts before the log.
+fn parse_window(s: &str) -> Result<Window, String> {
+    let w: Window = s.parse()?;
+    if w.start < 0.0 {
+        return Err(format!("`{s}`: allowed: 0 ≤ START < END (seconds from the log's start)"));
     }
+    Ok(w)
+}
+
+pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
+    let mut plan = Plan::new();
+    for p in &a.logs {
+        plan.input("--log", p);
+    }
+    let model_out = plan.file("--out", &a.out);
+    let report_out = plan.folder_opt("--report", a.report.as_deref(), REPORT);
+    if a.json {
+        plan.stdout("--json");
+    }
+    let outs = plan.check()?;
     let mut logs = Vec::with_capacity(a.logs.len());
     for path in &a.logs {
         // Errors name the file, line and column; nothing is written on error.
@@ -107,29 +135,36 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
     let (data, id) = identify::identify(&logs, &opts, &progress)?;
     let name = a.name.clone().or_else(|| a.out.file_stem().map(|s| s.to_string_lossy().into_owned()));
     let mf = identify::model_file(&id, name.as_deref())?;
-    let rep = match &a.report {
-        Some(dir) => {
+    // The report is built in a folder beside DIR; the model and the report are committed only
+    // when both were written.
+    let (rep, staged) = match report_out {
+        Some(slot) => {
             let r = identify::report::validate(&data, &opts, &id)?;
-            identify::report::write_dir(dir, &r, &id, &data)
-                .with_context(|| format!("writing the report to {}", dir.display()))?;
-            Some(r)
+            let st = outs.stage(slot)?;
+            identify::report::write_dir(st.path(), &r, &id, &data)
+                .with_context(|| format!("{}: cannot write the report", st.named()))?;
+            (Some(r), Some(st))
         }
-        None => None,
+        None => (None, None),
     };
     if let Some(b) = &progress.0 {
         b.finish_and_clear();
     }
-    let text = mf.to_toml_string();
-    log::write_atomic(&a.out, |w| std::io::Write::write_all(w, text.as_bytes()))
-        .with_context(|| format!("writing {}", a.out.display()))?;
+    let mut sink = outs.open(model_out)?;
+    sink.write_all(mf.to_toml_string().as_bytes()).with_context(|| format!("{}: cannot write", sink.named()))?;
+    if let Some(st) = staged {
+        st.commit()?;
+    }
+    sink.commit()?;
+    let mut o = outs.human();
     if a.json {
         let v = serde_json::json!({ "model": a.out.display().to_string(), "identified": id, "report": rep });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        say!(o, "{}", serde_json::to_string_pretty(&v)?);
     } else {
-        print!("{}", identify::report::summary_text(&id, rep.as_ref()));
-        println!("wrote {}", a.out.display());
+        say_raw!(o, "{}", identify::report::summary_text(&id, rep.as_ref()));
+        say!(o, "wrote {}", a.out.display());
         if let Some(d) = &a.report {
-            println!("report in {}", d.display());
+            say!(o, "report in {}", d.display());
         }
     }
     Ok(())

@@ -1,9 +1,11 @@
 //! `jointctl log`: record a joint's TPDOs into a joint-log CSV (spec §1).
 
-use super::bus_args::{check_node, open_master, BusArgs};
+use super::bus_args::{open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_core::canopen::node::{NMT_START, TPDO1_BASE};
 use joint_core::canopen::pdo::{Tpdo1, Tpdo2};
+use joint_formats::output::Plan;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -13,10 +15,13 @@ use std::time::Duration;
 /// The measured torque is written as `tau` only with --load-cell (a joint without one sends 0).
 #[derive(Debug, Args)]
 pub struct LogArgs {
-    #[arg(long)]
+    /// Node id of the joint (1..=127)
+    #[arg(long, value_parser = num::node_id())]
     pub node: u8,
-    #[arg(long)]
+    /// How long to record, seconds (0 < S ≤ 3600: 3.6 M rows at 1 kHz)
+    #[arg(long, value_name = "S", value_parser = num::positive(3600.0, "s"))]
     pub seconds: f64,
+    /// Joint log to write, or - for stdout
     #[arg(long, value_name = "LOG.csv")]
     pub out: PathBuf,
     /// The joint has a load cell: write its torque as the `tau` column
@@ -32,14 +37,19 @@ pub struct LogArgs {
 }
 
 pub fn run(a: &LogArgs) -> anyhow::Result<()> {
-    check_node(a.node)?;
+    let mut plan = Plan::new();
+    let out = plan.file("--out", &a.out);
+    if a.json {
+        plan.stdout("--json");
+    }
+    let outs = plan.check()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
     m.keep_other = true;
     if a.start {
         m.nmt(a.node, NMT_START)?;
     }
     let t0 = m.bus.now_us();
-    let end = t0 + (a.seconds.max(0.0) * 1e6) as u64;
+    let end = t0 + (a.seconds * 1e6) as u64;
     let mut rows: Vec<(f64, Tpdo1, Tpdo2)> = Vec::new();
     let mut last2 = Tpdo2::default();
     let id1 = TPDO1_BASE + u16::from(a.node);
@@ -67,7 +77,7 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
             m.bus.describe()
         );
     }
-    let mut out = String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp\n" } else { "t,q,qd,qdd,u,temp\n" });
+    let mut text = String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp\n" } else { "t,q,qd,qdd,u,temp\n" });
     let mut last_t = f64::NEG_INFINITY;
     for (t, p1, p2) in &rows {
         // the spec needs strictly increasing time: two TPDOs in the same µs keep the first
@@ -76,21 +86,20 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         }
         last_t = *t;
         if a.load_cell {
-            out.push_str(&format!(
+            text.push_str(&format!(
                 "{t:.6},{},{},{},{},{},{}\n",
                 p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature
             ));
         } else {
-            out.push_str(&format!("{t:.6},{},{},{},{},{}\n", p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature));
+            text.push_str(&format!("{t:.6},{},{},{},{},{}\n", p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature));
         }
     }
-    std::fs::File::create(&a.out)
-        .and_then(|mut f| f.write_all(out.as_bytes()))
-        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", a.out.display()))?;
+    outs.write(out, text.as_bytes())?;
+    let mut o = outs.human();
     if a.json {
-        println!("{}", serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string()}));
+        say!(o, "{}", serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string()}));
     } else {
-        println!("node {}: {} samples in {:.1} s → {}", a.node, rows.len(), a.seconds, a.out.display());
+        say!(o, "node {}: {} samples in {:.1} s → {}", a.node, rows.len(), a.seconds, a.out.display());
     }
     Ok(())
 }

@@ -4,6 +4,25 @@
 
 use clap::{Parser, Subcommand};
 
+/// `println!` to a chosen stream: stdout, or stderr when an output (`--out -`) took stdout (see
+/// `joint_formats::output::Outputs::human`). A closed terminal is not worth failing a finished
+/// run for, so write errors are dropped (where `println!` would have panicked).
+macro_rules! say {
+    ($o:expr) => {{
+        let _ = writeln!($o);
+    }};
+    ($o:expr, $($a:tt)*) => {{
+        let _ = writeln!($o, $($a)*);
+    }};
+}
+
+/// `print!` to a chosen stream, as [`say!`].
+macro_rules! say_raw {
+    ($o:expr, $($a:tt)*) => {{
+        let _ = write!($o, $($a)*);
+    }};
+}
+
 pub mod arm;
 pub mod bus_args;
 pub mod bus_budget;
@@ -15,6 +34,7 @@ pub mod eds;
 pub mod identify;
 pub mod import;
 pub mod log_can;
+pub mod num;
 pub mod pull;
 pub mod push;
 pub mod save;

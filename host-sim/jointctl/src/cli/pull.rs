@@ -1,9 +1,12 @@
 //! `jointctl pull`: read a joint's parameter set into a model TOML.
 
-use super::bus_args::{check_node, open_master, BusArgs};
+use super::bus_args::{open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_can::transfer;
 use joint_formats::model_file::ModelFile;
+use joint_formats::output::Plan;
+use std::io::Write as _;
 use std::path::PathBuf;
 
 /// Read a joint node's parameters (scalars and gravity table) into a model TOML.
@@ -13,9 +16,10 @@ use std::path::PathBuf;
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct PullArgs {
-    #[arg(long)]
+    /// Node id of the joint (1..=127)
+    #[arg(long, value_parser = num::node_id())]
     pub node: u8,
-    /// Model TOML to write
+    /// Model TOML to write, or - for stdout
     #[arg(long, value_name = "MODEL.toml")]
     pub out: PathBuf,
     /// `name` written into the model
@@ -32,15 +36,19 @@ pub struct PullArgs {
 }
 
 pub fn run(a: &PullArgs) -> anyhow::Result<()> {
-    check_node(a.node)?;
+    let mut plan = Plan::new();
+    let out = plan.file("--out", &a.out);
+    if a.json {
+        plan.stdout("--json");
+    }
+    let outs = plan.check()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
     let (raw, pending) = transfer::pull(&mut m, a.node)?;
     if pending {
         eprintln!("warning: node {} has staged changes not committed; the file holds the staged values", a.node);
     }
     let mf = ModelFile::from_raw(&raw, a.name.as_deref(), &a.others);
-    std::fs::write(&a.out, mf.to_toml_string())
-        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", a.out.display()))?;
+    outs.write(out, mf.to_toml_string().as_bytes())?;
     if a.json {
         let values: serde_json::Map<String, serde_json::Value> = joint_core::params::PARAMS
             .iter()
@@ -50,13 +58,20 @@ pub fn run(a: &PullArgs) -> anyhow::Result<()> {
                 (d.name.to_string(), serde_json::json!(v))
             })
             .collect();
-        println!(
+        say!(
+            outs.human(),
             "{}",
             serde_json::json!({"node": a.node, "out": a.out.display().to_string(), "pending": pending,
                 "table_axes": raw.table.n_axes, "values": values})
         );
     } else {
-        println!("pulled node {} into {}{}", a.node, a.out.display(), if pending { " (staged values)" } else { "" });
+        say!(
+            outs.human(),
+            "pulled node {} into {}{}",
+            a.node,
+            a.out.display(),
+            if pending { " (staged values)" } else { "" }
+        );
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `jointctl push`: stage a model's parameters on a joint by SDO, read them back, commit.
 
 use super::bus_args::{check_node, open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_can::transfer::{self, PushOptions};
 use joint_formats::model_file::ModelFile;
@@ -18,7 +19,7 @@ pub struct PushArgs {
     #[arg(value_name = "MODEL.toml")]
     pub model: PathBuf,
     /// Node id of the joint (1..=127)
-    #[arg(long)]
+    #[arg(long, value_parser = num::node_id())]
     pub node: u8,
     /// Persist the committed set on the joint (object 0x1010 "save")
     #[arg(long)]

@@ -1,13 +1,15 @@
 //! `jointctl save`: persist a joint's committed parameter set (0x1010 "save").
 
 use super::bus_args::{check_node, open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_core::canopen::od;
 
 /// Make the joint store its committed parameter set in flash (CiA 301 object 0x1010).
 #[derive(Debug, Args)]
 pub struct SaveArgs {
-    #[arg(long)]
+    /// Node id of the joint (1..=127)
+    #[arg(long, value_parser = num::node_id())]
     pub node: u8,
     #[arg(long)]
     pub json: bool,

@@ -1,6 +1,7 @@
 //! `jointctl scan`: find the nodes on a bus by their heartbeats.
 
 use super::bus_args::{open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_core::canopen::od;
 use std::time::Duration;
@@ -9,12 +10,12 @@ use std::time::Duration;
 /// identity.
 #[derive(Debug, Args)]
 pub struct ScanArgs {
-    /// How long to listen, seconds (heartbeats come every 0.1 s from our joints; other
-    /// devices often use 1 s)
-    #[arg(long, default_value_t = 1.5)]
+    /// How long to listen, seconds, 0 < S ≤ 3600 (heartbeats come every 0.1 s from our joints;
+    /// other devices often use 1 s)
+    #[arg(long, value_name = "S", default_value_t = 1.5, value_parser = num::positive(3600.0, "s"))]
     pub seconds: f64,
-    /// Node ids of the simulated joints on --bus sim
-    #[arg(long = "sim-node", default_values_t = [1u8, 2])]
+    /// Node ids of the simulated joints on --bus sim (1..=127)
+    #[arg(long = "sim-node", default_values_t = [1u8, 2], value_parser = num::node_id())]
     pub sim_nodes: Vec<u8>,
     #[arg(long)]
     pub json: bool,
@@ -24,7 +25,7 @@ pub struct ScanArgs {
 
 pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
     let (mut m, _sim) = open_master(&a.bus, &a.sim_nodes)?;
-    m.listen(Duration::from_secs_f64(a.seconds.max(0.0)))?;
+    m.listen(Duration::from_secs_f64(a.seconds))?;
     let mut rows = Vec::new();
     let seen: Vec<(u8, _)> = m.seen.iter().map(|(k, v)| (*k, *v)).collect();
     for (node, s) in seen {

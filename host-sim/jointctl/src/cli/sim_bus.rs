@@ -1,12 +1,14 @@
 //! `jointctl sim`: serve simulated joints (the core's CANopen node + host-sim's plant) on a
 //! real bus, so any CANopen master can talk to them.
 
+use super::num;
 use crate::sim_joint::{JointSim, SimStorage};
 use clap::Args;
 use host_sim::plant::PlantFile;
 use joint_can::BusSpec;
 use joint_core::canopen::node::MemoryStorage;
 use joint_core::canopen::CanFrame;
+use joint_formats::output::Plan;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -26,17 +28,17 @@ pub struct SimArgs {
     /// slcan:PATH[@BITRATE] or socketcan:IFACE
     #[arg(long, value_name = "BUS")]
     pub bus: BusSpec,
-    /// Node id of a simulated joint; repeat for several
-    #[arg(long = "node", required = true)]
+    /// Node id of a simulated joint (1..=127); repeat for several
+    #[arg(long = "node", required = true, value_parser = num::node_id())]
     pub nodes: Vec<u8>,
     /// Plant TOML the joints move as (default: held at rest)
     #[arg(long, value_name = "PLANT.toml")]
     pub plant: Option<PathBuf>,
-    /// Stop after this many seconds
-    #[arg(long)]
+    /// Stop after this many seconds (0 < S ≤ 1e7)
+    #[arg(long, value_name = "S", value_parser = num::positive(1.0e7, "s"))]
     pub seconds: Option<f64>,
-    /// Directory for the joints' stored parameters (node-N.toml), the stand-in for flash;
-    /// default: in memory
+    /// Existing directory for the joints' stored parameters (node-N.toml, each replaced
+    /// atomically on save), the stand-in for flash; default: in memory
     #[arg(long, value_name = "DIR")]
     pub store_dir: Option<PathBuf>,
     /// Print a JSON summary at the end
@@ -54,6 +56,18 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     if a.bus == BusSpec::Sim {
         anyhow::bail!("`jointctl sim` serves joints to other programs: give a real bus (slcan:PATH or socketcan:IFACE); the in-process bus is what push/pull/scan use with --bus sim");
     }
+    // The store's files are written while serving (each save replaces one atomically);
+    // checked here so a node file is never the plant file, a folder or read-only.
+    let mut plan = Plan::new();
+    if let Some(p) = &a.plant {
+        plan.input("--plant", p);
+    }
+    if let Some(d) = &a.store_dir {
+        for &n in &a.nodes {
+            plan.file("--store-dir", &store_file(d, n));
+        }
+    }
+    plan.check()?;
     let plant = a.plant.as_ref().map(|p| PlantFile::read_file(p)).transpose()?;
     let mut bus = joint_can::open(&a.bus)?;
     let stop = Arc::new(AtomicBool::new(false));
@@ -67,7 +81,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         .iter()
         .map(|&n| {
             let storage = match &a.store_dir {
-                Some(d) => SimStorage::File(d.join(format!("node-{n}.toml"))),
+                Some(d) => SimStorage::File(store_file(d, n)),
                 None => SimStorage::Memory(MemoryStorage::default()),
             };
             JointSim::new(n, plant.as_ref(), storage, now0)
@@ -128,4 +142,9 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         eprintln!("stopped after {secs:.1} s: {rx_frames} frames received, {tx_frames} sent");
     }
     Ok(())
+}
+
+/// Where node `n`'s parameters are stored under `--store-dir`.
+fn store_file(dir: &std::path::Path, n: u8) -> PathBuf {
+    dir.join(format!("node-{n}.toml"))
 }

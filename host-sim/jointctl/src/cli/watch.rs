@@ -1,6 +1,7 @@
 //! `jointctl watch`: a live table of every node's state from heartbeats and TPDOs.
 
 use super::bus_args::{open_master, BusArgs};
+use super::num;
 use clap::Args;
 use joint_core::canopen::node::{NMT_START, TPDO1_BASE};
 use joint_core::canopen::pdo::Tpdo1;
@@ -12,13 +13,14 @@ use std::time::Duration;
 /// a second, until Ctrl-C or --seconds.
 #[derive(Debug, Args)]
 pub struct WatchArgs {
-    #[arg(long)]
+    /// Stop after this many seconds (0 < S ≤ 1e7) [default: until Ctrl-C]
+    #[arg(long, value_name = "S", value_parser = num::positive(1.0e7, "s"))]
     pub seconds: Option<f64>,
     /// Send NMT start to all nodes first (TPDOs flow only in operational)
     #[arg(long)]
     pub start: bool,
-    /// Node ids of the simulated joints on --bus sim
-    #[arg(long = "sim-node", default_values_t = [1u8, 2])]
+    /// Node ids of the simulated joints on --bus sim (1..=127)
+    #[arg(long = "sim-node", default_values_t = [1u8, 2], value_parser = num::node_id())]
     pub sim_nodes: Vec<u8>,
     /// One JSON object per refresh (JSON lines)
     #[arg(long)]
