@@ -8,12 +8,21 @@
 //! In assist mode the output torque is `assist_k·q + assist_cmd + fraction·C_c`, limited to
 //! ±torque_limit and to rate_limit·dt per step; the motor command is that torque / (N − 1).
 //!
+//! With `presliding.sigma > 0` the controller carries one Dahl friction state ([`Dahl`], see
+//! [`crate::model::Presliding`]) that stands in for the Coulomb terms: it is advanced to every
+//! valid sample in every mode (it is the joint's friction, not the controller's intent), so a
+//! mode change keeps it; it starts afresh when a parameter set is put in force
+//! ([`Controller::reset_presliding`]: σ or c may have changed, and a state from before
+//! presliding was switched on would be stale), primed at its first sample with the value the
+//! Coulomb term itself has there. [`disturbance_stateful`] is the controller's own `C_c`, for
+//! hosts that evaluate a model sample by sample on a log.
+//!
 //! The step is sans-IO and allocation-free: time (dt) and samples in, torques out. It clamps
 //! its inputs to [`INPUT_LIMITS`] and treats a non-finite input as a fault that drives the
 //! command to zero, so no input can produce a NaN or an unbounded torque.
 
 use crate::math;
-use crate::model::INPUT_LIMITS;
+use crate::model::{Presliding, INPUT_LIMITS};
 use crate::params::{ParamId, ParamSet};
 use crate::series;
 use crate::table;
@@ -89,7 +98,7 @@ pub struct Output {
 ///
 /// An empty series adds nothing (not even `+ 0.0`, which would turn a −0 weight torque into +0),
 /// so sets without one keep their exact bits.
-#[inline]
+#[inline(always)]
 pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
     let w = p.terms().weight.torque(q);
     let [o0, o1, o2] = *others;
@@ -113,10 +122,109 @@ pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
 
 /// The modelled disturbance `C_c` (trunk paper eq. 7, with spring and table terms): the torque
 /// the joint's own mechanics take at this state. In torque-mode logs this is `u − tau`.
+/// Stateless: with presliding on, the Coulomb terms are `c·sign(q̇)` with the Dahl level c
+/// (`friction.c + dry_friction.c`), the value the Dahl state reaches after a travel well beyond
+/// `c/σ`; the controller uses [`disturbance_stateful`].
 #[inline]
 pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
     let t = p.terms();
-    t.j * qdd + t.friction.torque(qd) + gravity(p, q, others) + t.c0 + t.spring.torque(q, qd) + t.extra_torque(q, qd)
+    let c = if t.presliding.on { t.presliding.c } else { t.friction.c };
+    with_coulomb(p, q, qd, qdd, others, c * math::sign_smooth(qd, t.friction.v_band))
+}
+
+/// The modelled disturbance with a Dahl friction state `f` (N·m) in place of the Coulomb
+/// terms `friction.c·sign(q̇)` and `dry_friction.c·sign(q̇)`: what the model is when
+/// presliding is on (`p`'s effect terms then hold no dry friction). `f` comes from a [`Dahl`]
+/// advanced to this sample.
+#[inline]
+pub fn disturbance_dahl(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], f: f32) -> f32 {
+    with_coulomb(p, q, qd, qdd, others, f)
+}
+
+/// `C_c` exactly as [`Controller::step`] computes it: with presliding off [`disturbance`] (and
+/// `dahl` untouched), else `dahl` advanced to this sample and [`disturbance_dahl`]. Feed the
+/// samples of a log in order through one `Dahl` (from [`Dahl::new`]) and the numbers are the
+/// joint's, bit for bit; the state makes the prediction depend on every earlier sample.
+#[inline]
+pub fn disturbance_stateful(p: &ParamSet, dahl: &mut Dahl, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
+    let t = p.terms();
+    // One branch when off (the full step's instruction budget has no room for more): only the
+    // Coulomb torque differs between the two models.
+    let coulomb =
+        if t.presliding.on { dahl.update(p, q, qd) } else { t.friction.c * math::sign_smooth(qd, t.friction.v_band) };
+    with_coulomb(p, q, qd, qdd, others, coulomb)
+}
+
+/// `C_c` with the Coulomb torque `coulomb` (c·sign(q̇) or a Dahl state) given. `viscous +
+/// coulomb` is the friction polynomial's own association, so with `c·sign(q̇)` the bits are
+/// [`crate::model::Friction::torque`]'s.
+#[inline(always)]
+fn with_coulomb(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], coulomb: f32) -> f32 {
+    let t = p.terms();
+    t.j * qdd
+        + (t.friction.viscous(qd) + coulomb)
+        + gravity(p, q, others)
+        + t.c0
+        + t.spring.torque(q, qd)
+        + t.extra_torque(q, qd)
+}
+
+/// The Dahl friction state between samples: F and the angle it was advanced to.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Dahl {
+    f: f32,
+    q_prev: f32,
+    primed: bool,
+}
+
+impl Dahl {
+    /// A state with no history: its first [`Dahl::update`] primes it.
+    pub const fn new() -> Self {
+        Dahl { f: 0.0, q_prev: 0.0, primed: false }
+    }
+
+    /// F, N·m (0 before the first update).
+    #[inline]
+    pub fn force(&self) -> f32 {
+        self.f
+    }
+
+    /// Advance to the sample (q, q̇) with `p`'s presliding parameters and return F. The first
+    /// sample primes the state with the Coulomb term's own value there, `c·sign(q̇)` with the
+    /// friction band: 0 at rest, ±c while sliding, so a state switched on or reset while the
+    /// joint moves starts where the sign model stands instead of at 0. After that only the
+    /// angle counts (see [`Presliding::advance`]). A non-finite sample leaves the state as is.
+    /// Out of line: inlined, its registers would cost the common step (presliding off).
+    #[inline(never)]
+    pub fn update(&mut self, p: &ParamSet, q: f32, qd: f32) -> f32 {
+        let t = p.terms();
+        self.update_with(&t.presliding, t.friction.v_band, q, qd)
+    }
+
+    /// [`Dahl::update`] with the parameters given directly.
+    pub fn update_with(&mut self, pre: &Presliding, v_band: f32, q: f32, qd: f32) -> f32 {
+        if !(math::is_finite(q) && math::is_finite(qd)) {
+            return self.f;
+        }
+        self.f = if self.primed {
+            pre.advance(self.f, q - self.q_prev)
+        } else {
+            self.primed = true;
+            math::clamp(pre.c * math::sign_smooth(qd, v_band), -pre.c, pre.c)
+        };
+        self.q_prev = q;
+        self.f
+    }
+}
+
+/// The Dahl state over a sequence of samples from a fresh start: `out[i]` is F after
+/// `(q[i], qd[i])`. Stops at the shortest of the three slices. The same [`Dahl::update`] the
+/// controller runs, so the numbers are the joint's.
+pub fn presliding_forces(p: &ParamSet, q: &[f32], qd: &[f32], out: &mut [f32]) {
+    let mut d = Dahl::new();
+    for ((o, &x), &v) in out.iter_mut().zip(q).zip(qd) {
+        *o = d.update(p, x, v);
+    }
 }
 
 /// The controller's memory between steps.
@@ -124,16 +232,30 @@ pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -
 pub struct Controller {
     prev_tau: f32,
     integ: f32,
+    dahl: Dahl,
 }
 
 impl Controller {
     pub const fn new() -> Self {
-        Controller { prev_tau: 0.0, integ: 0.0 }
+        Controller { prev_tau: 0.0, integ: 0.0, dahl: Dahl::new() }
     }
 
-    /// Forget the integrator and the last output (after a fault or a mode change).
+    /// Forget the integrator and the last output (after a fault or a mode change). The Dahl
+    /// friction state stays: it describes the joint, which a mode change does not touch.
     pub fn reset(&mut self) {
-        *self = Self::new();
+        self.prev_tau = 0.0;
+        self.integ = 0.0;
+    }
+
+    /// Start the Dahl friction state afresh (primed again at the next step): call it when a
+    /// new parameter set is put in force, whose σ or Coulomb level may differ.
+    pub fn reset_presliding(&mut self) {
+        self.dahl = Dahl::new();
+    }
+
+    /// The Dahl friction state (F stays 0 while presliding is off).
+    pub fn presliding(&self) -> &Dahl {
+        &self.dahl
     }
 
     /// The output torque of the previous step, N·m.
@@ -189,7 +311,7 @@ impl Controller {
                 0.0
             }
             Some(Input { q, qd, qdd, others, assist_cmd }) => {
-                let c_c = disturbance(p, q, qd, qdd, &others);
+                let c_c = disturbance_stateful(p, &mut self.dahl, q, qd, qdd, &others);
                 out.c_c = c_c;
                 match mode {
                     Mode::Off => {
@@ -209,11 +331,13 @@ impl Controller {
                         let err = v - qd;
                         // Anti-windup: the integrator alone can never ask for more than the limit.
                         self.integ = math::clamp(self.integ + p.get(ParamId::VelKi) * err * dt, -limit, limit);
-                        let ff = t.friction.torque(v)
-                            + gravity(p, q, &others)
-                            + t.c0
-                            + t.spring.torque(q, v)
-                            + t.extra_torque(q, v);
+                        // With presliding the Coulomb part of the feed-forward is the Dahl state.
+                        let fric = if t.presliding.on {
+                            t.friction.viscous(v) + self.dahl.force()
+                        } else {
+                            t.friction.torque(v)
+                        };
+                        let ff = fric + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v) + t.extra_torque(q, v);
                         p.get(ParamId::VelKp) * err + self.integ + ff
                     }
                     Mode::Position(x) => {

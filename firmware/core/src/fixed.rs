@@ -1,5 +1,6 @@
 //! Fixed-point path for boards without an FPU: friction + weight + spring in Q16.16
-//! ([`I16F16`]: ±32768 range, 1.5e-5 resolution).
+//! ([`I16F16`]: ±32768 range, 1.5e-5 resolution), with the pre-sliding (Dahl) friction state
+//! when `presliding.sigma > 0` ([`DahlFx`], [`disturbance_stateful_fx`]).
 //!
 //! Every operation saturates instead of wrapping or panicking. The sine uses a quarter-wave
 //! table of 257 points built at compile time, indexed by the angle converted to a 32-bit phase
@@ -10,6 +11,18 @@
 //! q̇ ∈ [−2, 2] rad/s, Table 1 parameters of both joints, spring of the elastic joint):
 //! measured by `tests/fixed_point.rs`, which asserts ≤ 0.002 N·m (the target is
 //! 0.01 N·m); the README quotes the printed figure.
+//!
+//! The Dahl state follows the f32 path ([`crate::model::Presliding`]): the same exact
+//! exponential update over each step's travel, `F' = T + (F − T)·exp(−(σ/c)·|Δq|)` with
+//! `T = c·sign(Δq)`, its level the whole Coulomb level `friction.c + dry_friction.c` (dry
+//! friction is otherwise one of the effect terms this path leaves out). `exp(−x)` is
+//! `2^(−n)·exp(−g)` with `x·log₂e = n + g/ln 2`: a shift and a 10-term Taylor series in 64-bit
+//! integers (error < 4e-8). F is carried with 24 fractional bits and handed out in Q16.16, never
+//! outside `[−c, c]`. Limits of the format: σ/c saturates at 32767 1/rad (a pre-sliding
+//! distance below 31 µrad acts as 31 µrad), and an angle is resolved to 15 µrad: F's slope
+//! right after a reversal is 2σ, so when the angle itself is rounded F can differ from the f32
+//! path's by up to 2σ·2⁻¹⁶ there (on angles both paths hold exactly, by Q16.16's resolution);
+//! `tests/fixed_point.rs` measures both.
 
 use crate::params::{ParamId, ParamSet};
 use fixed::types::I16F16;
@@ -29,11 +42,18 @@ pub struct FixedParams {
     pub k: Fx,
     pub b: Fx,
     pub q0: Fx,
+    /// presliding on: the Coulomb term is a [`DahlFx`] state
+    pub dahl_on: bool,
+    /// the Dahl state's level c = friction.c + dry_friction.c, N·m
+    pub dahl_c: Fx,
+    /// σ/c, 1/rad (saturated at Q16.16's maximum)
+    pub dahl_k: Fx,
 }
 
 impl FixedParams {
     pub fn from_set(p: &ParamSet) -> Self {
         let f = |id: ParamId| Fx::saturating_from_num(p.get(id));
+        let pre = p.terms().presliding;
         FixedParams {
             fa: f(ParamId::FrictionA),
             fb: f(ParamId::FrictionB),
@@ -45,6 +65,11 @@ impl FixedParams {
             k: f(ParamId::SpringK),
             b: f(ParamId::SpringB),
             q0: f(ParamId::SpringQ0),
+            dahl_on: pre.on,
+            // k is finite or +∞ (never NaN: σ and c are finite, c > 0 when divided by), and
+            // saturating_from_num saturates ±∞.
+            dahl_c: Fx::saturating_from_num(pre.c),
+            dahl_k: Fx::saturating_from_num(pre.k),
         }
     }
 }
@@ -135,4 +160,138 @@ pub fn spring_fx(p: &FixedParams, q: Fx, qd: Fx) -> Fx {
 /// friction + weight + spring: the disturbance terms an FPU-less board compensates.
 pub fn disturbance_fx(p: &FixedParams, q: Fx, qd: Fx) -> Fx {
     friction_fx(p, qd).saturating_add(weight_fx(p, q)).saturating_add(spring_fx(p, q, qd))
+}
+
+/// The velocity terms `a·q̇|q̇| + b·q̇` in fixed point (the friction a Dahl state completes).
+pub fn viscous_fx(p: &FixedParams, qd: Fx) -> Fx {
+    let quad = p.fa.saturating_mul(qd.saturating_mul(qd.saturating_abs()));
+    quad.saturating_add(p.fb.saturating_mul(qd))
+}
+
+/// [`disturbance_fx`], or with presliding on the same terms with the Dahl state `dahl`, advanced
+/// to this sample, as the Coulomb torque: the fixed-point twin of
+/// [`crate::control::disturbance_stateful`]. `dahl` is untouched when presliding is off.
+pub fn disturbance_stateful_fx(p: &FixedParams, dahl: &mut DahlFx, q: Fx, qd: Fx) -> Fx {
+    if p.dahl_on {
+        let f = dahl.update(p, q, qd);
+        viscous_fx(p, qd).saturating_add(f).saturating_add(weight_fx(p, q)).saturating_add(spring_fx(p, q, qd))
+    } else {
+        disturbance_fx(p, q, qd)
+    }
+}
+
+/// The Dahl friction state in fixed point: F and the angle it was advanced to (see the module
+/// documentation and [`crate::control::Dahl`], whose rules it follows). F is carried with 24
+/// fractional bits, so its rounding does not pile up over the hundreds of tiny steps of an
+/// oscillation inside the pre-sliding distance (each step then contracts an error by only a
+/// few per cent); it is handed out in Q16.16.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DahlFx {
+    /// F·2²⁴
+    f: i64,
+    q_prev: Fx,
+    primed: bool,
+}
+
+/// Fractional bits of [`DahlFx`]'s F.
+const F_FRAC: u32 = 24;
+
+impl DahlFx {
+    /// A state with no history: its first update primes it.
+    pub const fn new() -> Self {
+        DahlFx { f: 0, q_prev: Fx::ZERO, primed: false }
+    }
+
+    /// F, N·m (rounded to Q16.16).
+    pub fn force(&self) -> Fx {
+        // |F| ≤ c < 2^15 N·m: the Q16.16 value fits.
+        Fx::from_bits(((self.f + (1 << (F_FRAC - 17))) >> (F_FRAC - 16)) as i32)
+    }
+
+    /// Advance to the sample (q, q̇) and return F. The first sample primes F with
+    /// `c·sign(q̇)` (band included); after that `F' = T + (F − T)·exp(−k·|Δq|)`, `T = c·sign(Δq)`,
+    /// limited to `[−c, c]`.
+    pub fn update(&mut self, p: &FixedParams, q: Fx, qd: Fx) -> Fx {
+        let c = i64::from(p.dahl_c.to_bits()) << (F_FRAC - 16);
+        let moved = if self.primed {
+            let dq = q.saturating_sub(self.q_prev);
+            if dq == Fx::ZERO {
+                self.f
+            } else {
+                let target = if dq > Fx::ZERO { c } else { -c };
+                // k·|Δq| with all 32 fractional bits of the product (Q16.16 · Q16.16).
+                let x = i64::from(p.dahl_k.to_bits()) * i64::from(dq.saturating_abs().to_bits());
+                let e = exp_neg_q26(x);
+                // c ≤ 2000 N·m (friction.c + dry_friction.c, by the parameter table): |F − T| ≤ 2c
+                // < 2^36 in Q24, and with e ≤ 2^26 the product stays below 2^62.
+                target + (((self.f - target) * e + (1 << 25)) >> 26)
+            }
+        } else {
+            self.primed = true;
+            i64::from(p.dahl_c.saturating_mul(sign_smooth_fx(qd, p.v_band)).to_bits()) << (F_FRAC - 16)
+        };
+        self.q_prev = q;
+        self.f = moved.clamp(-c, c);
+        self.force()
+    }
+}
+
+/// log₂(e) in Q8.24.
+const LOG2E_Q24: i64 = 24_204_406;
+/// ln 2 in Q2.30.
+const LN2_Q30: i64 = 744_261_118;
+/// 1/i! for i = 0..=10 in Q2.30 (the last terms are coarse, but they weigh < 3e-7).
+const INV_FACTORIAL_Q30: [i64; 11] = [
+    1_073_741_824,
+    1_073_741_824,
+    536_870_912,
+    178_956_971,
+    44_739_243,
+    8_947_849,
+    1_491_308,
+    213_044,
+    26_631,
+    2_959,
+    296,
+];
+
+/// exp(−x) in Q6.26 for `x_q32` ≥ 0, x with 32 fractional bits: `2^(−n)·exp(−g)` with
+/// `x·log₂e = n + f`, `g = f·ln 2 ∈ [0, ln 2)`, and exp(−g) by its Taylor series to g¹⁰
+/// (truncation < 4e-10) in Horner form, all in 64-bit integers.
+fn exp_neg_q26(x_q32: i64) -> i64 {
+    // exp(−32) < 2^-46 is 0 in Q26, and x < 2^37 keeps x·log₂e (Q56) below 2^62.
+    if x_q32 >= 32 << 32 {
+        return 0;
+    }
+    let y = x_q32.max(0) * LOG2E_Q24;
+    let n = y >> 56;
+    let f = (y >> 26) & ((1 << 30) - 1);
+    let g = (f * LN2_Q30) >> 30;
+    let mut acc = 0i64;
+    for c in INV_FACTORIAL_Q30.iter().rev() {
+        // acc ← 1/i! − g·acc: Horner for Σ (−g)^i/i!, every value within ±1 (Q30).
+        acc = c - ((acc * g) >> 30);
+    }
+    ((acc + 8) >> 4) >> n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_neg_matches_f64() {
+        let mut worst = 0.0f64;
+        for i in 0..400_000i64 {
+            let bits = i * 350_000; // x from 0 to ~32.6 (Q32)
+            let x = bits as f64 / 4294967296.0;
+            let got = exp_neg_q26(bits) as f64 / 67108864.0;
+            // libm in f64, not std: the no-std-float scan covers test modules in src/ too.
+            worst = worst.max(libm::fabs(got - libm::exp(-x)));
+        }
+        // The Q26 result's own resolution is 1.5e-8.
+        assert!(worst < 4e-8, "{worst}");
+        assert_eq!(exp_neg_q26(0), 1 << 26);
+        assert_eq!(exp_neg_q26(i64::MAX), 0);
+    }
 }

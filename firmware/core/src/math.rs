@@ -122,6 +122,12 @@ pub fn exp(x: f32) -> f32 {
     libm::expf(x)
 }
 
+/// `exp(x) − 1`, accurate for small |x| (where `exp(x) − 1` would cancel).
+#[inline(always)]
+pub fn expm1(x: f32) -> f32 {
+    libm::expm1f(x)
+}
+
 #[inline(always)]
 pub fn tanh(x: f32) -> f32 {
     libm::tanhf(x)

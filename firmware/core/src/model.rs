@@ -4,7 +4,9 @@
 //!   velocity band so a noisy zero velocity does not chatter between ±c;
 //! - weight, trunk paper eq. 4: `C_w0·sin(s·q + φ)`;
 //! - spring-damper, elastic-joint paper eq. 1–2: `K·(q − q0) + B·q̇`;
-//! - inertia `J·q̈` and constant offset `C_0` (trunk paper eq. 2, 5).
+//! - inertia `J·q̈` and constant offset `C_0` (trunk paper eq. 2, 5);
+//! - pre-sliding (Dahl) friction, [`Presliding`]: with `presliding.sigma > 0` a state F replaces
+//!   the Coulomb terms `(c + c_dry)·sign(q̇)`, `dF/dq = σ·(1 − F/c·sign(dq))`, `|F| ≤ c`.
 //!
 //! All are odd/even in the way the physics says and finite for inputs inside [`INPUT_LIMITS`]
 //! with parameters inside the parameter table's ranges.
@@ -39,6 +41,63 @@ impl Friction {
     #[inline]
     pub fn torque(&self, qd: f32) -> f32 {
         self.a * qd * math::abs(qd) + self.b * qd + self.c * math::sign_smooth(qd, self.v_band)
+    }
+
+    /// The velocity terms alone, `a·q̇|q̇| + b·q̇`: the friction left when a Dahl state stands
+    /// in for the Coulomb term.
+    #[inline]
+    pub fn viscous(&self, qd: f32) -> f32 {
+        self.a * qd * math::abs(qd) + self.b * qd
+    }
+}
+
+/// Pre-sliding (Dahl) friction: a state F, carried between steps, in place of the Coulomb
+/// terms `c·sign(q̇)` of the friction polynomial and of `[dry_friction]` (sign band included).
+///
+/// F evolves over the travelled angle, `dF/dq = σ·(1 − F/c·sign(dq))`: after a reversal the
+/// friction builds up over a pre-sliding distance of about `c/σ` instead of jumping with
+/// sign(q̇), and a small oscillation inside that distance meets a spring of stiffness σ, not a
+/// ±c square wave. Between two samples the travel `Δq` is taken as monotone and the equation
+/// solved exactly ([`Presliding::advance`]): an exponential approach to `c·sign(Δq)`, so
+/// `|F| ≤ c` for any step size. Stribeck, asymmetric friction and the velocity terms keep
+/// their sign-based form.
+///
+/// The level c is the model's whole Coulomb level, `friction.c + dry_friction.c`: both are the
+/// same physical torque (the diagnosis emits `[dry_friction]` for a model that lacks
+/// `friction.c`), and a Dahl state beside a remaining `c_dry·sign(q̇)` would still jump at
+/// every reversal.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Presliding {
+    /// `presliding.sigma > 0`: the Dahl state replaces the Coulomb terms
+    pub on: bool,
+    /// Coulomb level c = friction.c + dry_friction.c, N·m
+    pub c: f32,
+    /// σ/c, 1/rad (the inverse of the pre-sliding distance); 0 when c = 0
+    pub k: f32,
+}
+
+impl Presliding {
+    /// From the parameters: stiffness σ (N·m/rad), Coulomb level c (N·m).
+    pub fn new(sigma: f32, c: f32) -> Self {
+        // c/σ under ~1e-45 rad makes k infinite: exp(−∞) = 0, F jumps to ±c (still bounded).
+        Presliding { on: sigma > 0.0, c, k: if c > 0.0 { sigma / c } else { 0.0 } }
+    }
+
+    /// F after a travel `dq` from F = `f`: the exact solution of `dF/dq = σ·(1 − F/c·sign(dq))`
+    /// over a monotone `dq`, `F' = F + (c·sign(dq) − F)·(1 − exp(−σ|dq|/c))` (written with
+    /// `expm1`, so a tiny step keeps its increment's precision), limited to `[−c, c]` (which it
+    /// can leave only by a rounding, or when c shrank under F). `dq = 0` keeps F. A NaN `dq`
+    /// gives −c (the limit's NaN rule); the controller never passes one.
+    #[inline]
+    pub fn advance(&self, f: f32, dq: f32) -> f32 {
+        let c = self.c;
+        let moved = if dq == 0.0 {
+            f
+        } else {
+            let target = math::copysign(c, dq);
+            f - (target - f) * math::expm1(-(self.k * math::abs(dq)))
+        };
+        math::clamp(moved, -c, c)
     }
 }
 
@@ -92,6 +151,8 @@ pub struct Terms {
     /// effect terms a diagnosis can add (Stribeck, asymmetric and dry friction, position
     /// ripple, cable spring)
     pub extra: Extra,
+    /// the Dahl friction state's parameters (off unless `presliding.sigma > 0`)
+    pub presliding: Presliding,
 }
 
 impl Terms {
@@ -120,7 +181,7 @@ impl Terms {
 /// plant's structure rather than add a torque (see the README).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Extra {
-    /// any term non-zero
+    /// any term non-zero (dry friction counted only outside a Dahl state)
     pub any: bool,
     pub stribeck_level: f32,
     pub stribeck_inv_speed: f32,
@@ -132,6 +193,8 @@ pub struct Extra {
     pub cable_k: f32,
     pub cable_engage: f32,
     pub cable_width: f32,
+    /// the dry friction level outside a Dahl state: `dry_friction.c`, or 0 with presliding on
+    /// (the level has moved into [`Presliding::c`])
     pub dry_c: f32,
 }
 

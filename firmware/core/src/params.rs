@@ -9,7 +9,7 @@
 //! running, never half of each.
 
 use crate::math;
-use crate::model::{Extra, Friction, Spring, Terms, Weight};
+use crate::model::{Extra, Friction, Presliding, Spring, Terms, Weight};
 pub use crate::series::RawSeries;
 use crate::series::{self, SeriesError};
 pub use crate::table::RawTable;
@@ -58,9 +58,10 @@ pub enum ParamId {
     CableEngage,
     CableWidth,
     DryFrictionC,
+    PreslidingSigma,
 }
 
-pub const PARAM_COUNT: usize = 37;
+pub const PARAM_COUNT: usize = 38;
 
 impl ParamId {
     /// All ids in table order.
@@ -102,6 +103,7 @@ impl ParamId {
         ParamId::CableEngage,
         ParamId::CableWidth,
         ParamId::DryFrictionC,
+        ParamId::PreslidingSigma,
     ];
 
     pub const fn index(self) -> usize {
@@ -251,7 +253,10 @@ pub static PARAMS: [ParamDesc; PARAM_COUNT] = [
     p!(CableWidth, "cable_spring_width", "cable_spring", "width", "rad", 1.0e-4, 10.0, 0.01, false,
        "width of the quadratic blend into the cable spring's slope"),
     p!(DryFrictionC, "dry_friction_c", "dry_friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
-       "extra Coulomb torque c·sign(q̇)"),
+       "extra Coulomb torque c·sign(q̇); with presliding on it joins friction_c as the Dahl state's level"),
+    // Appended last so every CANopen index above keeps its place (0x2000 + table position).
+    p!(PreslidingSigma, "presliding_sigma", "presliding", "sigma", "N·m/rad", 0.0, 1.0e7, 0.0, false,
+       "pre-sliding stiffness σ of a Dahl friction state F that replaces c·sign(q̇): dF/dq = σ·(1 − F/c·sign(dq)), |F| ≤ c = friction_c + dry_friction_c (0 = off)"),
 ];
 
 /// A parameter set as received; nothing here is trusted until [`check`] says so.
@@ -437,6 +442,10 @@ impl Default for ParamSet {
 
 fn terms_of(raw: &RawParams) -> Terms {
     let g = |id: ParamId| raw.get(id);
+    // With presliding on, dry friction is part of the Dahl state's level, not an effect term:
+    // the effect terms then hold no dry friction and the step's common path stays as it is.
+    let dahl = g(ParamId::PreslidingSigma) > 0.0;
+    let dry_c = if dahl { 0.0 } else { g(ParamId::DryFrictionC) };
     Terms {
         friction: Friction {
             a: g(ParamId::FrictionA),
@@ -453,7 +462,7 @@ fn terms_of(raw: &RawParams) -> Terms {
                 || g(ParamId::AsymmetricDelta) != 0.0
                 || g(ParamId::RippleAmplitude) != 0.0
                 || g(ParamId::CableK) != 0.0
-                || g(ParamId::DryFrictionC) != 0.0,
+                || dry_c != 0.0,
             stribeck_level: g(ParamId::StribeckLevel),
             stribeck_inv_speed: 1.0 / g(ParamId::StribeckSpeed),
             asym_delta: g(ParamId::AsymmetricDelta),
@@ -463,8 +472,9 @@ fn terms_of(raw: &RawParams) -> Terms {
             cable_k: g(ParamId::CableK),
             cable_engage: g(ParamId::CableEngage),
             cable_width: g(ParamId::CableWidth),
-            dry_c: g(ParamId::DryFrictionC),
+            dry_c,
         },
+        presliding: Presliding::new(g(ParamId::PreslidingSigma), g(ParamId::FrictionC) + g(ParamId::DryFrictionC)),
     }
 }
 

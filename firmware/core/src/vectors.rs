@@ -14,10 +14,14 @@
 //! a 9-term sine series over four joint angles with the table as its residual, and a series
 //! that must be refused while it is in force; it also runs a stretch where
 //! q̇ and q̈ come from the core's [`Differentiator`] fed with encoder-like positions, and
-//! the fixed-point path. The parameter builders are reused by the cost benchmark.
+//! the fixed-point path. Last, pre-sliding (Dahl) friction: the fused-table joint with
+//! `presliding.sigma` and dry friction joining the Dahl level, driven through reversals, small
+//! oscillations inside the pre-sliding distance, zero travel, large and clamped steps, bad
+//! samples and mode changes, then a refused σ while the state runs on. The parameter builders
+//! are reused by the cost benchmark.
 
 use crate::control::{Controller, Differentiator, Input, Mode, Output};
-use crate::fixed::{self, FixedParams, Fx};
+use crate::fixed::{self, DahlFx, FixedParams, Fx};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, RawParams};
 use crate::series::SeriesError;
@@ -192,6 +196,26 @@ pub fn arm_series_bad_multiplier() -> RawParams {
     if let Some(m) = p.series.mult.get_mut(4).and_then(|m| m.get_mut(2)) {
         *m = 5;
     }
+    p
+}
+
+/// Pre-sliding stiffness of [`presliding_fused`], N·m/rad: with its Coulomb level
+/// 2.32 + 0.3 N·m a pre-sliding distance c/σ of 3.3 mrad, a harmonic-drive-like figure.
+pub const PRESLIDING_SIGMA: f32 = 800.0;
+
+/// [`trunk_table_fused`] (the full step) with pre-sliding friction: a Dahl state of stiffness
+/// [`PRESLIDING_SIGMA`] in place of c·sign(q̇), and 0.3 N·m of dry friction that joins its level.
+pub fn presliding_fused() -> RawParams {
+    let mut p = trunk_table_fused();
+    p.set(ParamId::PreslidingSigma, PRESLIDING_SIGMA);
+    p.set(ParamId::DryFrictionC, 0.3);
+    p
+}
+
+/// [`presliding_fused`] with σ above its range: refused, the running set and its state stay.
+pub fn presliding_sigma_out_of_range() -> RawParams {
+    let mut p = presliding_fused();
+    p.set(ParamId::PreslidingSigma, 2.0e7);
     p
 }
 
@@ -396,6 +420,7 @@ struct Runner<'a, F: FnMut(&Record)> {
     active: ActiveParams,
     ctl: Controller,
     fixed: FixedParams,
+    fixed_dahl: DahlFx,
     summary: Summary,
 }
 
@@ -414,7 +439,9 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
             Ok(()) => {
                 self.summary.accepted += 1;
                 self.fixed = FixedParams::from_set(self.active.current());
+                self.fixed_dahl = DahlFx::new();
                 self.ctl.reset();
+                self.ctl.reset_presliding();
             }
             Err(_) => {
                 self.summary.rejected += 1;
@@ -438,7 +465,7 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
         if !(math::is_finite(out.tau_out) && math::is_finite(out.u_motor) && math::abs(out.tau_out) <= limit) {
             self.summary.unsafe_outputs += 1;
         }
-        let fx = fixed::disturbance_fx(&self.fixed, to_fx(inp.q), to_fx(inp.qd));
+        let fx = fixed::disturbance_stateful_fx(&self.fixed, &mut self.fixed_dahl, to_fx(inp.q), to_fx(inp.qd));
         self.summary.steps += 1;
         let index = self.summary.records;
         self.emit(Record::step(index, &out, fx, inp.qd, inp.qdd));
@@ -470,6 +497,41 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
             self.step(Mode::Assist, &inp);
         }
     }
+
+    /// Steps that exercise the Dahl state: `q(i)` with its exact derivative `qd(i)`, in `mode`.
+    fn path(&mut self, n: u32, mode: Mode, q: impl Fn(f32) -> f32, qd: impl Fn(f32) -> f32) {
+        for i in 0..n {
+            let x = i as f32;
+            let inp = Input { q: q(x), qd: qd(x), qdd: 0.0, others: [0.4, 0.0, 0.0], assist_cmd: 0.0 };
+            self.step(mode, &inp);
+        }
+    }
+
+    /// The presliding phase's motions, in order (the state carries over from one to the next).
+    fn presliding_steps(&mut self) {
+        const TAU: f32 = 2.0 * core::f32::consts::PI;
+        // Primed while sliding (F starts at +c), then a swing of ±50 mrad, period 64 steps:
+        // up to 4.9 mrad per step against a pre-sliding distance of 3.3 mrad, four reversals.
+        let w = TAU / 64.0;
+        self.path(128, Mode::Assist, |i| 0.9 + 0.05 * math::sin(w * i), |i| 0.05 * w * 1000.0 * math::cos(w * i));
+        // Oscillation of ±0.5 mrad inside the pre-sliding distance: F on a hysteresis loop,
+        // never reaching ±c; a few steps without travel in between.
+        let w = TAU / 16.0;
+        self.path(48, Mode::Assist, |i| 0.95 + 5.0e-4 * math::sin(w * i), |i| 5.0e-4 * w * 1000.0 * math::cos(w * i));
+        self.path(4, Mode::Assist, |_| 0.95, |_| 0.0);
+        // The state runs on in the other modes.
+        self.path(8, Mode::Off, |i| 0.95 - 1.0e-3 * i, |_| -1.0);
+        self.path(8, Mode::Velocity(0.5), |i| 0.942 + 1.0e-3 * i, |_| 1.0);
+        self.path(8, Mode::Position(1.0), |i| 0.95 + 2.0e-4 * i, |_| 0.2);
+        // Large steps (F at ±c at once, never beyond), the input clamp, bad samples that leave
+        // the state as it is.
+        let big = [1.5, -0.2, -0.2, 2.1, 1.0e4, 2.1, f32::NAN, 2.0999, 2.1001, -1.0e4, 0.3];
+        for (k, &q) in big.iter().enumerate() {
+            let qd = if k == 4 { f32::INFINITY } else { 0.0 };
+            self.step(Mode::Assist, &Input { q, qd, qdd: 0.0, others: [0.4, 0.0, 0.0], assist_cmd: 0.0 });
+        }
+        self.random_steps(STEPS_PER_PHASE / 2);
+    }
 }
 
 /// f32 → Q16.16 for the fixed path's inputs. `saturating_from_num` panics on NaN, so a
@@ -497,6 +559,7 @@ pub fn session<F: FnMut(&Record)>(sink: &mut F) -> Summary {
         active: ActiveParams::default(),
         ctl: Controller::new(),
         fixed: FixedParams::default(),
+        fixed_dahl: DahlFx::new(),
         summary: Summary::default(),
     };
     // Defaults first: fraction 0, so only limits and the velocity/position modes act.
@@ -522,6 +585,11 @@ pub fn session<F: FnMut(&Record)>(sink: &mut F) -> Summary {
     r.offer(&arm_series_bad_multiplier(), false);
     r.random_steps(STEPS_PER_PHASE / 4);
     r.differentiated_steps(DIFF_STEPS);
+    // Pre-sliding friction: the Dahl state, then a refused σ while it runs.
+    r.offer(&presliding_fused(), true);
+    r.presliding_steps();
+    r.offer(&presliding_sigma_out_of_range(), false);
+    r.path(32, Mode::Assist, |i| 0.3 + 1.0e-3 * math::sin(0.4 * i), |i| 0.4 * math::cos(0.4 * i));
     r.summary
 }
 
@@ -575,12 +643,12 @@ mod tests {
     #[test]
     fn session_facts() {
         let s = session(&mut |_| {});
-        assert_eq!(s.accepted, 4);
-        assert_eq!(s.rejected, 6);
+        assert_eq!(s.accepted, 5);
+        assert_eq!(s.rejected, 7);
         assert_eq!(s.rejected_but_changed, 0);
         assert_eq!(s.unexpected_results, 0);
         assert_eq!(s.unsafe_outputs, 0);
-        assert_eq!(s.records, s.steps + 10);
+        assert_eq!(s.records, s.steps + 12);
     }
 
     #[test]
@@ -625,10 +693,18 @@ mod tests {
 
     #[test]
     fn builders_pass_check_and_rejects_fail() {
-        for raw in [trunk_right(), friction_weight_only(), trunk_spring(), trunk_table_fused(), arm_series_residual()] {
+        for raw in [
+            trunk_right(),
+            friction_weight_only(),
+            trunk_spring(),
+            trunk_table_fused(),
+            arm_series_residual(),
+            presliding_fused(),
+        ] {
             assert!(check(&raw).is_ok());
         }
         assert!(check(&arm_series_bad_multiplier()).is_err());
+        assert!(check(&presliding_sigma_out_of_range()).is_err());
         for (name, raw) in rejected_sets().iter() {
             assert!(check(raw).is_err(), "{name} was accepted");
         }

@@ -12,6 +12,13 @@
 //! [`ModelFile::other_columns`] returns that mapping so a log's `q_<name>` columns can feed the
 //! core's `Input::others`.
 //!
+//! `[presliding]` (spec §2, `sigma` N·m/rad) is a section of the model and of a plant alike: with
+//! `sigma > 0` the Coulomb terms `friction.c·sign(q̇)` and `dry_friction.c·sign(q̇)` become one
+//! Dahl friction state of level `friction.c + dry_friction.c` (see `joint_core::model::
+//! Presliding`), so the model's prediction on a log depends on the samples before
+//! ([`crate::predict::predicted`] runs it in order). A file without the section, or with
+//! `sigma = 0`, has no such state.
+//!
 //! Optional extension (not in spec §2, which it does not change): `[gravity_series]`, the
 //! analytic multi-angle gravity term of the core ([`joint_core::series`]),
 //! `τ_s = Σ amplitude[k]·sin(Σ_i mult[k][i]·angle_i + phase[k])`:
@@ -93,12 +100,14 @@ macro_rules! model_toml_struct {
             pub compensation: Option<$crate::model_file::Section>,
             #[serde(default)]
             pub controller: Option<$crate::model_file::Section>,
+            #[serde(default)]
+            pub presliding: Option<$crate::model_file::Section>,
             $($extra)*
         }
 
         impl $name {
             /// The scalar sections by TOML name, for the `PARAMS` lookup.
-            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&$crate::model_file::Section>); 7] {
+            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&$crate::model_file::Section>); 8] {
                 [
                     ("friction", self.friction.as_ref()),
                     ("weight", self.weight.as_ref()),
@@ -107,6 +116,7 @@ macro_rules! model_toml_struct {
                     ("spring", self.spring.as_ref()),
                     ("compensation", self.compensation.as_ref()),
                     ("controller", self.controller.as_ref()),
+                    ("presliding", self.presliding.as_ref()),
                 ]
             }
         }

@@ -1,9 +1,17 @@
 //! The model evaluated on a log: the disturbance the model file predicts at every sample, the
 //! residual against the logged `u − tau`, and its RMS. One definition for the simulator's run
 //! summary, identification, diagnosis and the tests, computed by the core's own f32
-//! `control::disturbance`, so a residual here is what the joint itself would see.
+//! `control::disturbance_stateful`, so a residual here is what the joint itself would see.
+//!
+//! With `[presliding]` the prediction is stateful: the Dahl friction state is advanced through
+//! the samples in log order, from a fresh state primed at the first sample, exactly as the
+//! joint's controller carries it from a parameter commit. The numbers are the joint's to the
+//! bit for samples inside the core's input limits (|q| ≤ 1e3 rad, |q̇| ≤ 1e3 rad/s,
+//! |q̈| ≤ 1e6 rad/s², which the controller clamps to). A prediction on a slice of a log starts
+//! its own state at the slice's first sample, so it can differ from the same samples' prediction
+//! on the whole log for the first pre-sliding distance of travel.
 
-use joint_core::control;
+use joint_core::control::{self, Dahl};
 use joint_core::params::ParamSet;
 
 use crate::log::JointLog;
@@ -13,6 +21,7 @@ use crate::log::JointLog;
 pub fn predicted(log: &JointLog, p: &ParamSet, other_columns: &[String]) -> Option<Vec<f64>> {
     let (qd, qdd) = (log.qd.as_ref()?, log.qdd.as_ref()?);
     let others: Vec<&[f64]> = other_columns.iter().map(|n| log.other(n)).collect::<Option<Vec<_>>>()?;
+    let mut dahl = Dahl::new();
     Some(
         (0..log.len())
             .map(|i| {
@@ -23,10 +32,23 @@ pub fn predicted(log: &JointLog, p: &ParamSet, other_columns: &[String]) -> Opti
                 let q = log.q.get(i).copied().unwrap_or(0.0) as f32;
                 let v = qd.get(i).copied().unwrap_or(0.0) as f32;
                 let a = qdd.get(i).copied().unwrap_or(0.0) as f32;
-                f64::from(control::disturbance(p, q, v, a, &o))
+                // Presliding off: the stateless `control::disturbance`, bit for bit.
+                f64::from(control::disturbance_stateful(p, &mut dahl, q, v, a, &o))
             })
             .collect(),
     )
+}
+
+/// The Dahl friction state F (N·m) at every sample of a log, as [`predicted`] carries it (all
+/// zero when the model has no `[presliding]`). Needs qd, which primes the state at the first
+/// sample; the angle alone moves it after that.
+pub fn presliding_force(log: &JointLog, p: &ParamSet) -> Option<Vec<f64>> {
+    let qd = log.qd.as_ref()?;
+    if !p.terms().presliding.on {
+        return Some(vec![0.0; log.len()]);
+    }
+    let mut dahl = Dahl::new();
+    Some(log.q.iter().zip(qd).map(|(&q, &v)| f64::from(dahl.update(p, q as f32, v as f32))).collect())
 }
 
 /// `d − prediction` per sample of a torque-mode log, `None` without u/tau/qd/qdd.

@@ -96,6 +96,50 @@ fraction = 0.5
 }
 
 #[test]
+fn push_then_pull_round_trips_presliding() {
+    // The trunk model with its Coulomb friction as a Dahl state (dry friction joining the level).
+    let text = format!(
+        "{}\n[dry_friction]\nc = 0.4\n\n[presliding]\nsigma = 1250.0\n",
+        std::fs::read_to_string(root().join("examples/models/trunk-right.toml")).unwrap()
+    );
+    let mf = ModelFile::parse(&text, "dahl.toml").unwrap();
+    let want = mf.raw_params().unwrap();
+    assert_eq!(want.get(ParamId::PreslidingSigma), 1250.0);
+    let mut r = rig(1_000_000, &[4]);
+    transfer::push(&mut r.m, 4, &want, PushOptions { save: true, ..Default::default() }, &mut |_| {}).unwrap();
+    let j = running(&r.joints[0]);
+    assert_eq!(j, want);
+    {
+        let mut joint = r.joints[0].lock().unwrap();
+        let p = joint.node.params();
+        assert!(p.terms().presliding.on && p.terms().presliding.c == 2.72, "the joint runs the Dahl state");
+        assert_eq!(joint.node.storage_mut().load().unwrap(), want, "and stores it");
+    }
+    let (pulled, pending) = transfer::pull(&mut r.m, 4).unwrap();
+    assert!(!pending);
+    assert_eq!(pulled, want);
+    let written = ModelFile::from_raw(&pulled, Some("dahl"), &[]).to_toml_string();
+    assert!(written.contains("[presliding]\nsigma = 1250.0"), "{written}");
+    assert_eq!(ModelFile::parse(&written, "pulled.toml").unwrap().raw_params().unwrap(), want);
+    // A file without the section switches the state off on the joint again.
+    let plain = model("trunk-right.toml");
+    transfer::push(&mut r.m, 4, &plain, PushOptions::default(), &mut |_| {}).unwrap();
+    assert!(!r.joints[0].lock().unwrap().node.params().terms().presliding.on);
+    assert_eq!(transfer::pull(&mut r.m, 4).unwrap().0.get(ParamId::PreslidingSigma), 0.0);
+}
+
+#[test]
+fn eds_lists_presliding_after_every_older_object() {
+    let eds = joint_can::eds::generate();
+    let entry = "[2025]\nParameterName=presliding_sigma\nObjectType=0x7\nDataType=0x0008\nAccessType=rw\n\
+                 DefaultValue=0\nLowLimit=0\nHighLimit=10000000\n";
+    assert!(eds.contains(entry), "no presliding entry at 0x2025:\n{eds}");
+    // The objects before it keep their indices.
+    assert!(eds.contains("[2000]\nParameterName=friction_a\n"));
+    assert!(eds.contains("[2024]\nParameterName=dry_friction_c\n"));
+}
+
+#[test]
 fn a_push_cut_off_halfway_leaves_the_old_set_running() {
     let mut r = rig(1_000_000, &[5]);
     let old = model("trunk-right.toml");

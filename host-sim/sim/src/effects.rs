@@ -16,7 +16,7 @@
 //! | `[cable_spring]` | `k` N·m/rad, `engage` rad, `width` rad (default 0.01) | with `x = q − engage`: 0 for x ≤ 0, `k·x²/(2·width)` for 0 < x < width, `k·(x − width/2)` above: exactly zero below `engage`, slope exactly `k` above `engage + width`, C¹ in between |
 //! | `[backlash]` | `width` rad (total), `output_inertia_share` (default 0.1) | a dead zone of total width `width`: with a spring in the plant (`[spring] k ≠ 0`, elastic joint) the spring force becomes `k·dz(q − q0)` (the damper `b·q̇` stays); without a spring the transmission is split in two masses, see [`crate::plant`] |
 //! | `[delay]` | `seconds` s | sensors (q, qd, qdd, tau, others) are seen and logged `seconds` after the state they measure; the controller sees the same late sensors; u is logged when it is applied |
-//! | `[dry_friction]` | `c` N·m | `c·sgn(q̇)` |
+//! | `[dry_friction]` | `c` N·m | `c·sgn(q̇)`; in a plant with `[presliding]` its level joins the Dahl state instead (see [`crate::plant`]) |
 //!
 //! `dz(x) = x − w/2` for `x > w/2`, `x + w/2` for `x < −w/2`, `0` inside.
 
@@ -194,7 +194,18 @@ impl Effects {
 
     /// Sum of the additive effect torques (everything except thermal scaling, backlash and
     /// delay, which change the plant's structure). `sgn` is the plant's smoothed sign of q̇.
+    /// `load`: the external torque the joint transmits (a load-dependent friction grows with it).
     pub fn torque(&self, q: f64, qd: f64, load: f64, sgn: f64) -> f64 {
+        let tau = self.torque_without_dry(q, qd, load, sgn);
+        match &self.dry_friction {
+            Some(e) => tau + e.c * sgn,
+            None => tau,
+        }
+    }
+
+    /// [`Effects::torque`] without `[dry_friction]`, whose level a Dahl state carries in a plant
+    /// with `[presliding]`.
+    pub fn torque_without_dry(&self, q: f64, qd: f64, load: f64, sgn: f64) -> f64 {
         let mut tau = 0.0;
         if let Some(e) = &self.stribeck {
             let r = qd / e.speed;
@@ -211,9 +222,6 @@ impl Effects {
         }
         if let Some(e) = &self.cable_spring {
             tau += cable_spring(e, q);
-        }
-        if let Some(e) = &self.dry_friction {
-            tau += e.c * sgn;
         }
         tau
     }

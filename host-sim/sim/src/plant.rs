@@ -16,6 +16,18 @@
 //! stays well inside RK4's stability region. Near rest this acts as a very stiff viscous
 //! damper: an unbalanced joint creeps at `|q̇| < ε` instead of sticking exactly.
 //!
+//! Pre-sliding friction (`[presliding] sigma > 0`, spec §2): the Coulomb terms `c·sgn(q̇)` of
+//! `[friction]` and of a `[dry_friction]` effect become one Dahl state F of level
+//! `c_D = s(t)·c + c_dry` (thermal drift scales the joint's own Coulomb level as it does
+//! without the state), `dF/dq = σ·(1 − F/c_D·sign(dq))`, so
+//! `D = s(t)·(a·q̇|q̇| + b·q̇) + F + …`. F is part of the [`State`]: RK4 integrates q and q̇
+//! with F held over the fine step, then F is advanced in closed form over the step's travel
+//! (`F → T + (F − T)·e^(−σ|Δq|/c_D)`, `T = c_D·sign(Δq)`), which keeps `|F| ≤ c_D` whatever the
+//! step. The fine step's travel is tiny against a pre-sliding distance, so holding F for one
+//! step costs nothing measurable; near a reversal F acts as a spring of stiffness up to 2σ,
+//! whose period stays far above the plant step for any joint this simulator is given.
+//! This is the plant's own f64 code; it shares nothing with the core's state.
+//!
 //! Backlash without a spring splits the inertia into a motor side `J_m = (1 − r)·J` and an output
 //! side `J_o = r·J` (r = `output_inertia_share`): `J_m·q̈_m = u − τ_c`, `J_o·q̈ = τ_c + τ_ext − D`,
 //! with the contact torque `τ_c = k_c·dz(q_m − q) + c_c·(q̇_m − q̇)` only while in contact (and
@@ -230,13 +242,22 @@ struct TwoMass {
     width: f64,
 }
 
-/// The plant's state: output angle/velocity and, with a two-mass transmission, the motor side.
+/// The plant's state: output angle/velocity, with a two-mass transmission the motor side, and
+/// the Dahl friction state (N·m; stays 0 without `[presliding]`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct State {
     pub q: f64,
     pub qd: f64,
     pub qm: f64,
     pub qdm: f64,
+    pub dahl: f64,
+}
+
+impl State {
+    /// At rest at angle q (both sides of a two-mass transmission), no friction state.
+    pub fn at_rest(q: f64) -> State {
+        State { q, qd: 0.0, qm: q, qdm: 0.0, dahl: 0.0 }
+    }
 }
 
 /// The environment's torque on the output over one control period: an impedance toward a
@@ -277,6 +298,10 @@ pub struct Plant {
     pub band: f64,
     two_mass: Option<TwoMass>,
     spring_backlash: Option<f64>,
+    /// pre-sliding stiffness σ, N·m/rad (0: the Coulomb terms are c·sgn(q̇))
+    dahl_sigma: f64,
+    /// the dry friction effect's level, part of the Dahl level when σ > 0
+    dahl_dry: f64,
     pub dt: f64,
 }
 
@@ -314,12 +339,19 @@ impl Plant {
             None => (None, None),
         };
         let c = v(ParamId::FrictionC);
+        let dahl_sigma = v(ParamId::PreslidingSigma);
+        let dahl_dry = e.dry_friction.as_ref().map_or(0.0, |d| d.c);
         let thermal_max = e
             .thermal_drift
             .as_ref()
             .map(|t| 1.0 + t.coefficient.abs() * ((t.t_ambient - t.t_ref).abs() + t.rise.abs()))
             .unwrap_or(1.0);
-        let c_tot = c * thermal_max + e.coulomb_levels(u_max);
+        // The levels that go through sgn(q̇): with a Dahl state, c and the dry friction do not.
+        let c_tot = if dahl_sigma > 0.0 {
+            e.coulomb_levels(u_max) - dahl_dry
+        } else {
+            c * thermal_max + e.coulomb_levels(u_max)
+        };
         let j_min = two_mass.as_ref().map(|t| t.jo).unwrap_or(j);
         let band = v(ParamId::FrictionVBand).max(2.0 * c_tot * dt / j_min);
         Plant {
@@ -341,8 +373,36 @@ impl Plant {
             band,
             two_mass,
             spring_backlash,
+            dahl_sigma,
+            dahl_dry,
             dt,
         }
+    }
+
+    /// The plant has a Dahl friction state (`[presliding] sigma > 0`).
+    pub fn has_presliding(&self) -> bool {
+        self.dahl_sigma > 0.0
+    }
+
+    /// The Dahl state's level at plant time `t`, N·m.
+    fn dahl_level(&self, t: f64) -> f64 {
+        self.effects.friction_scale(t) * self.c + self.dahl_dry
+    }
+
+    /// The Dahl state `f` after a travel `dq` at plant time `t` (closed form, see the module
+    /// documentation).
+    fn dahl_after(&self, t: f64, f: f64, dq: f64) -> f64 {
+        let level = self.dahl_level(t).max(0.0);
+        if level == 0.0 {
+            return 0.0;
+        }
+        let moved = if dq == 0.0 {
+            f
+        } else {
+            let target = level * dq.signum();
+            target + (f - target) * (-self.dahl_sigma * dq.abs() / level).exp()
+        };
+        moved.clamp(-level, level)
     }
 
     /// The plant's smoothed sign.
@@ -377,30 +437,32 @@ impl Plant {
         }
     }
 
-    /// The disturbance D at plant time `t` (everything the output side's mechanics take).
-    /// `load`: the external torque the joint transmits (what its load cell measures), which a
-    /// load-dependent friction grows with.
-    pub fn disturbance(&self, t: f64, q: f64, qd: f64, load: f64, others: &[f64]) -> f64 {
+    /// The disturbance D at plant time `t` (everything the output side's mechanics take), with
+    /// the Dahl friction state `x.dahl` when the plant has one. `load`: the external torque the
+    /// joint transmits (what its load cell measures), which a load-dependent friction grows with.
+    pub fn disturbance(&self, t: f64, x: &State, load: f64, others: &[f64]) -> f64 {
+        let (q, qd) = (x.q, x.qd);
         let sg = self.sgn(qd);
-        let friction = self.a * qd * qd.abs() + self.b * qd + self.c * sg;
         let spring_x = match self.spring_backlash {
             Some(w) => effects::dead_zone(q - self.q0, w),
             None => q - self.q0,
         };
-        self.effects.friction_scale(t) * friction
-            + self.gravity(q, others)
-            + self.c0
-            + self.k * spring_x
-            + self.kb * qd
-            + self.effects.torque(q, qd, load, sg)
+        let (friction, effects) = if self.has_presliding() {
+            let viscous = self.a * qd * qd.abs() + self.b * qd;
+            (self.effects.friction_scale(t) * viscous + x.dahl, self.effects.torque_without_dry(q, qd, load, sg))
+        } else {
+            let friction = self.a * qd * qd.abs() + self.b * qd + self.c * sg;
+            (self.effects.friction_scale(t) * friction, self.effects.torque(q, qd, load, sg))
+        };
+        friction + self.gravity(q, others) + self.c0 + self.k * spring_x + self.kb * qd + effects
     }
 
-    /// Time derivative of the state.
+    /// Time derivative of the state (the Dahl state's is 0: it moves with travel, in [`Plant::step`]).
     pub fn deriv(&self, t: f64, x: &State, u: f64, op: &Operator, others: &[f64]) -> State {
         let ext = op.torque(x.q, x.qd);
-        let d = self.disturbance(t, x.q, x.qd, ext, others);
+        let d = self.disturbance(t, x, ext, others);
         match &self.two_mass {
-            None => State { q: x.qd, qd: (u + ext - d) / self.j, qm: x.qd, qdm: (u + ext - d) / self.j },
+            None => State { q: x.qd, qd: (u + ext - d) / self.j, qm: x.qd, qdm: (u + ext - d) / self.j, dahl: 0.0 },
             Some(tm) => {
                 let gap = x.qm - x.q;
                 let dz = effects::dead_zone(gap, tm.width);
@@ -411,12 +473,13 @@ impl Plant {
                 } else {
                     0.0
                 };
-                State { q: x.qd, qd: (tc + ext - d) / tm.jo, qm: x.qdm, qdm: (u - tc) / tm.jm }
+                State { q: x.qd, qd: (tc + ext - d) / tm.jo, qm: x.qdm, qdm: (u - tc) / tm.jm, dahl: 0.0 }
             }
         }
     }
 
-    /// One RK4 step of length `self.dt` with u, the operator and the other joints held.
+    /// One RK4 step of length `self.dt` with u, the operator and the other joints held; the
+    /// Dahl state held over the step, then advanced over its travel.
     pub fn step(&self, t: f64, x: &State, u: f64, op: &Operator, others: &[f64]) -> State {
         let h = self.dt;
         let add = |x: &State, k: &State, s: f64| State {
@@ -424,17 +487,20 @@ impl Plant {
             qd: x.qd + s * k.qd,
             qm: x.qm + s * k.qm,
             qdm: x.qdm + s * k.qdm,
+            dahl: x.dahl,
         };
         let k1 = self.deriv(t, x, u, op, others);
         let k2 = self.deriv(t + h / 2.0, &add(x, &k1, h / 2.0), u, op, others);
         let k3 = self.deriv(t + h / 2.0, &add(x, &k2, h / 2.0), u, op, others);
         let k4 = self.deriv(t + h, &add(x, &k3, h), u, op, others);
         let comb = |a: f64, b: f64, c: f64, d: f64| (a + 2.0 * b + 2.0 * c + d) * h / 6.0;
+        let q = x.q + comb(k1.q, k2.q, k3.q, k4.q);
         State {
-            q: x.q + comb(k1.q, k2.q, k3.q, k4.q),
+            q,
             qd: x.qd + comb(k1.qd, k2.qd, k3.qd, k4.qd),
             qm: x.qm + comb(k1.qm, k2.qm, k3.qm, k4.qm),
             qdm: x.qdm + comb(k1.qdm, k2.qdm, k3.qdm, k4.qdm),
+            dahl: if self.has_presliding() { self.dahl_after(t + h, x.dahl, q - x.q) } else { 0.0 },
         }
     }
 

@@ -316,7 +316,7 @@ impl<'a> Run<'a> {
             other_paths,
             others_hist: VecDeque::new(),
             delay_steps,
-            x: State { q: q_init, qd: 0.0, qm: q_init, qdm: 0.0 },
+            x: State::at_rest(q_init),
             controller: Controller::new(),
             diff: Differentiator::new(),
             hist: VecDeque::with_capacity(delay_steps + timing.sub + 2),

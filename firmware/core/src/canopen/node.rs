@@ -390,6 +390,7 @@ impl<S: ParamStorage> Node<S> {
         self.safety.raise(faults);
         self.commit_error = None;
         self.controller.reset();
+        self.controller.reset_presliding();
         self.assist_cmd = 0.0;
         self.others = [0.0; 3];
         self.reset_communication(now_us);
@@ -1245,6 +1246,8 @@ impl<S: ParamStorage> Node<S> {
         match self.active.replace(&self.staged) {
             Ok(()) => {
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
+                // The Dahl friction state belongs to the set that made it (its σ and level).
+                self.controller.reset_presliding();
                 self.commit_error = None;
                 Ok(())
             }

@@ -6,8 +6,11 @@
 //! (two instructions per iteration, two lengths so the fixed cost of reading the counter
 //! cancels), then times each configuration over the same inputs and subtracts the cost of
 //! the bare loop. Output: a table on semihosting stdout, one `bench` line per row for
-//! scripts. Exit status 0 when the full step (2-D fused table) is within
-//! `STEP_BUDGET_INSTRUCTIONS`, 2 when it is not, 1 on panic.
+//! scripts. Exit status 0 when the full step (2-D fused table, presliding off) is within
+//! `STEP_BUDGET_INSTRUCTIONS`, 2 when it is not, 1 on panic. The full step with pre-sliding
+//! (Dahl) friction is its own row, timed on inputs whose angle moves in small steps with
+//! reversals (random angles would make every step a jump that saturates the exponential),
+//! beside the step without it on those same inputs.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -22,7 +25,7 @@ mod bench {
     use core::hint::black_box;
     use firmware_qemu::systick;
     use joint_core::control::{Controller, Differentiator, Input, Mode};
-    use joint_core::fixed::{self, FixedParams, Fx};
+    use joint_core::fixed::{self, DahlFx, FixedParams, Fx};
     use joint_core::params::{check, ParamId, ParamSet, RawParams};
     use joint_core::vectors::{self, XorShift32};
 
@@ -77,6 +80,19 @@ mod bench {
         let mut v = *inp;
         for i in v.iter_mut() {
             i.others = [rng.uniform(-1.2, 2.2), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)];
+        }
+        v
+    }
+
+    /// The same inputs with the angle on a walk: steps of up to 3 mrad (about the pre-sliding
+    /// distance of `vectors::presliding_fused`), reversing every 12 steps, so the Dahl state's
+    /// exponential works on the travel it meets in a real joint at 1 kHz.
+    pub fn walk_inputs(inp: &[Input; INPUTS]) -> [Input; INPUTS] {
+        let mut v = *inp;
+        let mut q = 0.9f32;
+        for (k, i) in v.iter_mut().enumerate() {
+            q += 3.0e-3 * joint_core::math::sin(2.0 * core::f32::consts::PI * k as f32 / 24.0);
+            i.q = q;
         }
         v
     }
@@ -152,6 +168,24 @@ mod bench {
             }
         })
     }
+
+    /// The fixed path with its Dahl state (presliding on in `p`).
+    pub fn fixed_path_dahl(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
+        let fp = FixedParams::from_set(p);
+        let mut q = [Fx::ZERO; INPUTS];
+        let mut qd = [Fx::ZERO; INPUTS];
+        for ((a, b), i) in q.iter_mut().zip(qd.iter_mut()).zip(inp.iter()) {
+            *a = vectors::to_fx(i.q);
+            *b = vectors::to_fx(i.qd);
+        }
+        let mut dahl = DahlFx::new();
+        ticks(|| {
+            for (a, b) in q.iter().zip(qd.iter()) {
+                let d = fixed::disturbance_stateful_fx(black_box(&fp), &mut dahl, black_box(*a), black_box(*b));
+                black_box(d);
+            }
+        })
+    }
 }
 
 #[cfg(target_os = "none")]
@@ -217,12 +251,34 @@ fn run() -> i32 {
     let n = per(steps(&arm, &arm_inp));
     let _ = writeln!(out, "{:<44} {:>14.1}", "arm: 9-term series (4 angles) + residual table", n);
     let _ = writeln!(out, "bench step \"arm: 9-term series + residual table\" {n:.1}");
+    // Pre-sliding (Dahl) friction on the full step, on inputs whose angle walks in small steps
+    // with reversals; the step without it on the same inputs beside it, for the difference.
+    let Some(dahl) = set(&vectors::presliding_fused()) else {
+        let _ = writeln!(out, "parameter set 'presliding' was refused by check()");
+        return EXIT_CHECK_FAILED;
+    };
+    let walk = walk_inputs(&inp);
+    let n = per(steps(&dahl, &walk));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "+ presliding: Dahl state (walk, reversals)", n);
+    let _ = writeln!(out, "bench step \"+ presliding: Dahl state\" {n:.1}");
+    let Some(fused) = set(&vectors::trunk_table_fused()) else {
+        return EXIT_CHECK_FAILED;
+    };
+    let n = per(steps(&fused, &walk));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "  the same inputs, presliding off", n);
+    let _ = writeln!(out, "bench step \"same walk, presliding off\" {n:.1}");
     let Some(spring) = set(&vectors::trunk_spring()) else {
         return EXIT_CHECK_FAILED;
     };
     let n = per(fixed_path(&spring, &inp));
     let _ = writeln!(out, "{:<44} {:>14.1}", "fixed-point friction+weight+spring (Q16.16)", n);
     let _ = writeln!(out, "bench fixed \"fixed-point friction+weight+spring\" {n:.1}");
+    let n = per(fixed_path_dahl(&dahl, &walk));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "fixed-point + Dahl state (Q16.16, walk)", n);
+    let _ = writeln!(out, "bench fixed \"fixed-point + Dahl state\" {n:.1}");
+    let n = per(fixed_path(&spring, &walk));
+    let _ = writeln!(out, "{:<44} {:>14.1}", "  the same inputs, presliding off", n);
+    let _ = writeln!(out, "bench fixed \"same walk, presliding off\" {n:.1}");
     let Some(table) = set(&vectors::trunk_table_fused()) else {
         return EXIT_CHECK_FAILED;
     };
@@ -234,7 +290,7 @@ fn run() -> i32 {
     let _ = writeln!(out, "components (same inputs, same subtraction):");
     let t = table.terms();
     let tbl = table.table();
-    let comps: [(&str, u32); 7] = [
+    let comps: [(&str, u32); 8] = [
         ("math::sin (core f32 routine)", each(&inp, |i| joint_core::math::sin(i.q))),
         ("Friction::torque", each(&inp, |i| t.friction.torque(i.qd))),
         ("Weight::torque", each(&inp, |i| t.weight.torque(i.q))),
@@ -250,6 +306,10 @@ fn run() -> i32 {
         ("Differentiator::update", {
             let mut d = joint_core::control::Differentiator::new();
             each(&inp, |i| d.update(i.q, 0.001, 100.0))
+        }),
+        ("Dahl::update (walk)", {
+            let mut d = joint_core::control::Dahl::new();
+            each(&walk, |i| d.update(&dahl, i.q, i.qd))
         }),
     ];
     for (name, tk) in comps.iter() {

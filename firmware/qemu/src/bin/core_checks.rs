@@ -28,7 +28,7 @@ fn run() -> i32 {
     };
 
     let s = vectors::session(&mut |_| {});
-    check_that("session: 4 sets accepted, 6 refused", s.accepted == 4 && s.rejected == 6, &mut out);
+    check_that("session: 5 sets accepted, 7 refused", s.accepted == 5 && s.rejected == 7, &mut out);
     check_that("session: a refused set never changes the set in force", s.rejected_but_changed == 0, &mut out);
     check_that("session: every result as expected", s.unexpected_results == 0, &mut out);
     check_that("session: outputs finite and within the torque limit", s.unsafe_outputs == 0, &mut out);
@@ -85,6 +85,26 @@ fn run() -> i32 {
         }
     }
     check_that("output never exceeds torque_limit", worst <= set.get(ParamId::TorqueLimit), &mut out);
+
+    // The Dahl friction state never leaves ±c, whatever the steps, and reaches ±c exactly
+    // after a travel far beyond the pre-sliding distance.
+    let dahl_set = match check(&vectors::presliding_fused()) {
+        Ok(s) => s,
+        Err(_) => ParamSet::defaults(),
+    };
+    let pre = dahl_set.terms().presliding;
+    let mut dahl = joint_core::control::Dahl::new();
+    let mut rng = vectors::XorShift32::new(7);
+    let mut bounded = pre.on;
+    let mut q = 0.0f32;
+    for _ in 0..4000 {
+        let r = rng.unit();
+        q += if r < 0.1 { rng.uniform(-2.0, 2.0) } else { rng.uniform(-3.0e-3, 3.0e-3) };
+        let f = dahl.update(&dahl_set, q, 0.0);
+        bounded &= joint_core::math::abs(f) <= pre.c;
+    }
+    let far = dahl.update(&dahl_set, q + 1.0, 0.0) == pre.c && dahl.update(&dahl_set, q - 1.0, 0.0) == -pre.c;
+    check_that("Dahl state within ±c, exactly ±c after a long travel", bounded && far, &mut out);
 
     // The differentiator recovers a ramp's slope.
     let mut d = Differentiator::new();

@@ -52,8 +52,10 @@ pub mod watch;
         Files: a joint log is a CSV (t, q, qd, qdd, u, tau, temp, q_<joint> columns, SI units); \
         a model is a TOML with [friction], [weight], [inertia], [offset], [spring], \
         [gravity_table], [compensation] sections, optionally [controller], [gravity_series] \
-        (a multi-angle sine series, docs/arm-gravity.md) and the effect terms \
-        the joint can compensate ([stribeck], [asymmetric_friction], [position_ripple], \
+        (a multi-angle sine series, docs/arm-gravity.md), [presliding] (sigma: the Coulomb \
+        friction as a Dahl pre-sliding state that builds up over c/sigma after each reversal \
+        instead of c·sign(qd); its level is [friction] c plus [dry_friction] c) and the effect \
+        terms the joint can compensate ([stribeck], [asymmetric_friction], [position_ripple], \
         [cable_spring], [dry_friction]); a plant is a model plus the unmodelled \
         effects and sensor noise of a simulated joint. See shared/spec/formats.md.",
     propagate_version = true

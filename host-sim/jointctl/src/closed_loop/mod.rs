@@ -279,7 +279,7 @@ impl LoopJoint {
         LoopJoint {
             node,
             plant: Plant::new(pf, dt, u_max),
-            x: State { q: hold, qd: 0.0, qm: hold, qdm: 0.0 },
+            x: State::at_rest(hold),
             hist: VecDeque::new(),
             delay_steps: (s.delay / dt).round() as usize,
             dq: Differentiator::new(),
