@@ -528,7 +528,7 @@ fn torque_floor(r0: &[f64], d: &Data, base: &Base, prep: &crate::prep::Prepared)
     let n = d.n.max(1) as f64;
     let pure_sign = d.band == 0.0;
     let prop2: f64 = (0..d.n)
-        .filter(|&i| !prep.ambiguous[i] && !(pure_sign && prep.sign_unknown[i]))
+        .filter(|&i| !(prep.ambiguous[i] || pure_sign && prep.sign_unknown[i]))
         .map(|i| {
             let slope = b + 2.0 * a * d.qd[i].abs();
             let sv = if dv { prep.qd_err[i] } else { 0.0 };

@@ -64,8 +64,7 @@ pub fn error_at(h: usize, dt: f64, order: Order, sigma: f64, d4: f64, d5: f64) -
     };
     let var = sigma * sigma * w.iter().map(|x| x * x).sum::<f64>();
     let fact: f64 = (1..=k).map(|i| i as f64).product();
-    let moment: f64 =
-        w.iter().enumerate().map(|(i, wj)| wj * ((i as f64 - h as f64) * dt).powi(k as i32) / fact).sum::<f64>();
+    let moment: f64 = w.iter().enumerate().map(|(i, wj)| wj * ((i as f64 - h as f64) * dt).powi(k) / fact).sum::<f64>();
     Some((var, (moment * dk).abs()))
 }
 
