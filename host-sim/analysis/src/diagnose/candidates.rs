@@ -669,12 +669,15 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
         }
         Kind::Delay => {
-            // Whole-sample lags from one sample up to 100 ms (at most 200 samples). No fractional
-            // lag: interpolating u between two samples averages its noise away, which scores as
-            // a "delay" of half a sample on any log whose u is noisy.
-            let max_lag = ((0.1 / d.dt).round() as usize).clamp(3, 200);
+            // Whole-sample lags from two samples up to 100 ms (at most 200 samples). No
+            // fractional lag: interpolating u between two samples averages its noise away,
+            // which scores as a "delay" of half a sample on any log whose u is noisy. No lag of
+            // one sample: a torque held over the sample period (zero-order hold) already puts
+            // the q̈ seen from q half a sample off the logged u, whichever way the logger
+            // stamps it, so one sample is the logging convention, not a delay.
+            let max_lag = ((0.1 / d.dt).round() as usize).clamp(4, 200);
             let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
-            let b = vals.iter().enumerate().skip(1).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(1);
+            let b = vals.iter().enumerate().skip(2).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(2);
             Some(Effect::Delay { lag: b as f64 })
         }
     }

@@ -141,6 +141,69 @@ pub struct Verdict {
     pub shrink: f64,
     /// optional: all effects forward selection kept, in order
     pub effects: Vec<String>,
+    /// optional: explanations this log cannot tell apart from the verdict (held-out difference
+    /// within its standard error), each with the test that would separate them
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub alternatives: Vec<Alternative>,
+    /// optional (`unexplained`): the candidates that came closest, best first
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub closest: Vec<String>,
+}
+
+/// An explanation the log cannot tell apart from the verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct Alternative {
+    pub effect: String,
+    /// what log would tell them apart
+    pub test: &'static str,
+}
+
+/// What would separate effect `a` from effect `b` (either order).
+pub fn separating_test(a: &str, b: &str) -> &'static str {
+    let pair = |x: &str, y: &str| (a == x && b == y) || (a == y && b == x);
+    if pair("asymmetric_friction", "parameters") {
+        "a log with the joint at rest after moving each way: while it moves, a direction-dependent friction level is a constant offset"
+    } else if pair("stribeck", "presliding_hysteresis") || pair("stribeck", "dry_friction") {
+        "slow constant-velocity plateaus near rest in both directions, and small reversals: the friction curve against speed and after a reversal"
+    } else if pair("cable_spring", "parameters") || pair("cable_spring", "position_ripple") {
+        "static poses across the whole range: a position-dependent torque shows as a curve against q"
+    } else if pair("thermal_drift", "parameters") || pair("thermal_drift", "load_dependent_friction") {
+        "a log with a logged temperature that changes, or the same motion repeated cold and warm"
+    } else if pair("delay", "parameters") {
+        "motion with fast torque changes (steps, a chirp to higher frequency): a lag shows against the torque's changes"
+    } else if pair("load_dependent_friction", "parameters") {
+        "the same speeds under different external loads (or with and without a payload)"
+    } else {
+        "a longer log, or one that excites both (more speeds, positions and reversals)"
+    }
+}
+
+/// The verdict's company: explanations the held-out data cannot tell from it (alternatives),
+/// and, for `unexplained`, the candidates that came closest.
+fn verdict_company(sel: &Selection, verdict: &str) -> (Vec<Alternative>, Vec<String>) {
+    let all: Vec<&Outcome> = std::iter::once(&sel.refit).chain(&sel.candidates).collect();
+    if verdict == "unexplained" {
+        let mut v: Vec<&&Outcome> = all.iter().filter(|o| o.implausible.is_none() && o.gain > 0.0).collect();
+        v.sort_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
+        return (Vec::new(), v.iter().take(3).map(|o| o.name.to_string()).collect());
+    }
+    let chosen = match sel.chosen.first() {
+        Some(c) => c,
+        None if verdict == "parameters" => &sel.refit,
+        None => return (Vec::new(), Vec::new()),
+    };
+    let alts = all
+        .iter()
+        .filter(|o| o.name != chosen.name && o.implausible.is_none())
+        .filter(|o| {
+            // it explains the gap too (beats the file's model) and the verdict does not beat it
+            let (_, p0, g0) = select::compare(&sel.m0, &o.scored);
+            let (_, p, g) = select::compare(&o.scored, &chosen.scored);
+            p0 < sel.alpha_each && g0 >= select::MIN_GAIN && !(p < sel.alpha_each && g >= select::MIN_GAIN)
+        })
+        .map(|o| Alternative { effect: o.name.to_string(), test: separating_test(chosen.name, o.name) })
+        .collect();
+    (alts, Vec::new())
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -827,10 +890,12 @@ fn build_report(
     let (vname, vafter) = match sel.chosen.first() {
         Some(o) => (o.name.to_string(), o.scored.rmse()),
         None if sel.refit.significant => ("parameters".to_string(), sel.refit.scored.rmse()),
+        None if before > select::UNEXPLAINED * floor => ("unexplained".to_string(), before),
         None => ("none".to_string(), before),
     };
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
+    let (alternatives, closest) = verdict_company(sel, &vname);
     let verdict = Verdict {
         effect: vname.clone(),
         holdout_rmse_before: before,
@@ -841,6 +906,8 @@ fn build_report(
         } else {
             sel.chosen.iter().map(|o| o.name.to_string()).collect()
         },
+        alternatives,
+        closest,
     };
     // resid evidence on the first held-out samples (at most 50 000).
     let resid = {

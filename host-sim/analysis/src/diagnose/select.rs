@@ -411,6 +411,41 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
     }
 }
 
+/// Why the model's own terms at a fit's values are no joint (negative inertia, friction that
+/// feeds energy in, a negative spring): such a fit lowers the residual by mimicking something
+/// else and is never a verdict, whatever it scores (`None`: physical).
+pub fn unphysical(s: &Scored) -> Option<&'static str> {
+    use super::candidates::Col;
+    for (c, b) in s.design.cols.iter().zip(&s.beta) {
+        let why = match c {
+            Col::Qdd if *b <= 0.0 => "the refit's inertia is not positive",
+            Col::QdAbsQd | Col::Qd if *b < 0.0 => "the refit's viscous friction is negative (it would feed energy in)",
+            Col::Sgn if *b < 0.0 => "the refit's Coulomb friction is negative (it would feed energy in)",
+            Col::Q if *b < 0.0 => "the refit's spring stiffness is negative",
+            _ => continue,
+        };
+        return Some(why);
+    }
+    None
+}
+
+/// How many values a candidate adds to the model's own (its shape parameters and amplitudes):
+/// where two explanations fit equally well, the one with fewer is the verdict.
+pub fn extra_params(k: Kind) -> usize {
+    match k {
+        Kind::Asymmetric | Kind::Load | Kind::Backlash | Kind::Delay | Kind::Dry => 1,
+        Kind::Stribeck | Kind::Thermal | Kind::Cable => 2,
+        Kind::Ripple => 3,
+    }
+}
+
+/// A held-out MSE at least this much above the noise floor's (in RMSE: ×1.5) that no
+/// candidate explains is `unexplained`, not `none`.
+pub const UNEXPLAINED: f64 = 1.5;
+/// A second effect is looked for only while the held-out RMSE stays above this factor of the
+/// floor (spec: report two effects when the first leaves more than 1.5× the floor).
+pub const SECOND_EFFECT: f64 = 1.5;
+
 /// Everything the selection found.
 #[derive(Clone, Debug)]
 pub struct Selection {
@@ -421,6 +456,20 @@ pub struct Selection {
     /// forward selection, in order
     pub chosen: Vec<Outcome>,
     pub alpha_each: f64,
+}
+
+/// The verdict among significant outcomes: the best held-out fit, unless one with fewer
+/// values is not significantly worse than it (held-out differences within their standard error
+/// go to the simpler explanation).
+fn parsimonious(outcomes: &[Outcome], alpha_each: f64) -> Option<&Outcome> {
+    let sig: Vec<&Outcome> = outcomes.iter().filter(|o| o.significant).collect();
+    let best = *sig.iter().min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()))?;
+    let size = |o: &Outcome| o.scored.effects.last().map_or(0, |e| extra_params(e.kind()));
+    let ties = sig.into_iter().filter(|o| {
+        let (_, p, g) = compare(&o.scored, &best.scored);
+        !(p < alpha_each && g >= MIN_GAIN)
+    });
+    ties.min_by(|a, b| size(a).cmp(&size(b)).then(a.scored.mse().total_cmp(&b.scored.mse())))
 }
 
 /// Searches and scores every applicable kind on top of the round's chosen effects, in parallel.
@@ -510,20 +559,21 @@ pub fn select(
     let (t, p, gain) = compare(&m0, &refit_s);
     let open = |r: &Scored| r.rmse() > at_floor_factor(d) * floor;
     let at_floor = !open(&m0);
+    let refit_unphysical = unphysical(&refit_s);
     let refit = Outcome {
         name: "parameters",
+        significant: !at_floor && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
+        implausible: refit_unphysical,
         scored: refit_s,
         t,
         p,
         gain,
-        significant: !at_floor && p < alpha_each && gain >= MIN_GAIN,
-        implausible: None,
     };
 
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
-        let implausible = implausible(&s, d);
+        let implausible = implausible(&s, d).or_else(|| unphysical(&s));
         let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
         Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
@@ -546,8 +596,7 @@ pub fn select(
         .collect();
 
     let mut chosen: Vec<Outcome> = Vec::new();
-    let best_first =
-        candidates.iter().filter(|o| o.significant).min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse())).cloned();
+    let best_first = parsimonious(&candidates, alpha_each).cloned();
     // Look-ahead for two effects that mask each other: when no single effect is significant
     // but several lower the held-out MSE, the best pairs of the three strongest are tried. A
     // pair is kept only if it is significant against the refit and against each partner alone
@@ -600,7 +649,7 @@ pub fn select(
         chosen.push(b);
         while chosen.len() < max_effects {
             let Some(cur) = chosen.last() else { break };
-            if !open(&cur.scored) {
+            if cur.scored.rmse() <= SECOND_EFFECT * floor {
                 break;
             }
             let effects = cur.scored.effects.clone();
@@ -609,11 +658,8 @@ pub fn select(
             let round = Round::new(d, base, &effects, &fit_idx, split);
             let next = try_kinds(&kinds, &round, &grid_idx, split, bits, n_regimes);
             let cur_s = cur.scored.clone();
-            let best = next
-                .into_iter()
-                .map(|s| outcome(&cur_s, s))
-                .filter(|o| o.significant)
-                .min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
+            let next: Vec<Outcome> = next.into_iter().map(|s| outcome(&cur_s, s)).collect();
+            let best = parsimonious(&next, alpha_each).cloned();
             match best {
                 Some(o) => chosen.push(o),
                 None => break,

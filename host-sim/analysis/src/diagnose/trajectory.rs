@@ -841,6 +841,8 @@ impl<'a> Window<'a> {
                 holdout_rmse_after: vafter,
                 shrink: super::shrink(before, vafter),
                 effects: vec![vname],
+                alternatives: Vec::new(),
+                closest: Vec::new(),
             },
             selected,
             refit: refit_out,

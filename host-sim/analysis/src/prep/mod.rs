@@ -155,6 +155,14 @@ impl Deriv {
     fn error(&self) -> Vec<f64> {
         self.noise.iter().map(|s| s.hypot(self.bias)).collect()
     }
+
+    /// The typical error a logged column's white noise is weighed against. Bias counts three
+    /// times its variance: it follows the motion, so it is structure a fit can mistake for an
+    /// effect, where white noise only adds to the residual (and errors-in-variables removes it).
+    fn effective_error(&self) -> f64 {
+        let n = typical(&self.noise);
+        (n * n + 3.0 * self.bias * self.bias).sqrt()
+    }
 }
 
 /// How a derivative is estimated: from which signal, which derivative of it, with what window.
@@ -246,7 +254,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         Some(v) => {
             let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
             let noise = diff.max(own_noise(v, &segments, dt));
-            if noise <= typical(&qd_q.error()) && consistent(scale) {
+            if noise <= qd_q.effective_error() && consistent(scale) {
                 let info = logged_info(noise, scale);
                 (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
             } else {
@@ -285,7 +293,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let best_err = typical(&qdd_best.error());
             let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
             let noise = diff.max(own_noise(a, &segments, dt));
-            if noise <= best_err && consistent(scale) {
+            if noise <= qdd_best.effective_error() && consistent(scale) {
                 (Deriv { values: a.clone(), noise: vec![noise; n], bias: 0.0, info: logged_info(noise, scale) }, None)
             } else {
                 notes.push(format!(
