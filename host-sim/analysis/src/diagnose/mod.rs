@@ -350,13 +350,14 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
             )));
         }
     }
-    if log.len() < 100 {
-        return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least 100", log.len())));
+    let min = if log.mode() == LogMode::Trajectory { trajectory::min_samples(model) } else { 100 };
+    if log.len() < min {
+        return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least {min}", log.len())));
     }
     let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
     let mut d = match log.mode() {
         LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
-        LogMode::Trajectory => trajectory::diagnose(&prep.log, model, &params, opts)?,
+        LogMode::Trajectory => trajectory::diagnose(&prep, model, &params, opts)?,
     };
     d.report.prep = Some(prep.report);
     Ok(d)
