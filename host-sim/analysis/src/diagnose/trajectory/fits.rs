@@ -10,6 +10,7 @@
 
 use super::lm;
 use super::sim;
+use super::split::Split;
 use super::terms::{Kind, Layout};
 use crate::diagnose::select::Scored;
 
@@ -29,15 +30,13 @@ pub struct Problem<'a> {
     pub u: Option<&'a [f64]>,
     pub lay: &'a Layout,
     pub n: usize,
-    /// first held-out sample
-    pub hold_from: usize,
-    /// training samples the residual reads
+    pub split: &'a Split,
+    /// training samples the residual reads (thinned)
     pub train_idx: Vec<usize>,
     pub prior: Prior,
     /// the angle noise the prior rows are weighed against, rad
     pub noise: f64,
-    /// held-out test units and regime bits (for [`Scored`])
-    pub units: usize,
+    /// regime bits (for [`Scored`])
     pub bits: &'a [u32],
     pub nreg: usize,
 }
@@ -49,6 +48,8 @@ pub enum Free {
     Start,
     /// the start (with its prior) and the model's terms (`parameters`)
     Terms,
+    /// the start and the effects' values, the model's terms at the file's values
+    Own,
     /// the start, the terms and the effects' values
     All,
 }
@@ -83,13 +84,20 @@ impl Fitted {
     pub fn base(&self, lay: &Layout) -> &[f64] {
         self.theta.get(2..2 + lay.nb()).unwrap_or(&[])
     }
+
+    /// How many values the fit adds to the file's model (what parsimony counts): its effects'
+    /// and, when it refits them, the model's terms.
+    pub fn size(&self, lay: &Layout) -> usize {
+        let own: usize = self.effects.iter().map(|k| k.size(lay)).sum();
+        own + if matches!(self.free, Free::All | Free::Terms) { lay.nb() } else { 0 }
+    }
 }
 
 impl Problem<'_> {
-    /// The input as the joint felt it: the logged `u` shifted by the fitted lag.
+    /// The input as the joint felt it: the logged `u` at `t − lag` (held at its ends).
     fn input(&self, lag: f64) -> Option<std::borrow::Cow<'_, [f64]>> {
         let u = self.u?;
-        if lag <= 0.0 {
+        if lag == 0.0 {
             return Some(std::borrow::Cow::Borrowed(u));
         }
         let t = self.t;
@@ -131,7 +139,7 @@ impl Problem<'_> {
 
     /// The prior rows' weights: the data residuals stand for `stride` samples each.
     fn prior_weights(&self) -> (f64, f64) {
-        let stride = (self.hold_from as f64 / self.train_idx.len().max(1) as f64).max(1.0);
+        let stride = (self.split.n_train() as f64 / self.train_idx.len().max(1) as f64).max(1.0);
         let w = |sd: f64| self.noise / (sd.max(1e-300) * stride.sqrt());
         (w(self.prior.sd_q), w(self.prior.sd_v))
     }
@@ -142,6 +150,7 @@ impl Problem<'_> {
         match free {
             Free::Start => vec![0, 1],
             Free::Terms => (0..2 + nb).collect(),
+            Free::Own => [0, 1].into_iter().chain(2 + nb..2 + nb + ne).collect(),
             Free::All => (0..2 + nb + ne).collect(),
         }
     }
@@ -192,13 +201,27 @@ impl Problem<'_> {
             }
             Some(r)
         };
+        let calls = std::cell::Cell::new(0usize);
+        let resid = |x: &[f64]| {
+            calls.set(calls.get() + 1);
+            resid(x)
+        };
         let f = lm::fit(&x0, &lo_f, &hi_f, &steps, iters, resid)?;
+        if std::env::var_os("DIAG_LM").is_some() {
+            eprintln!(
+                "[lm] {effects:?} free {} iters {iters}: {} sims, cost {:.3e} -> {:.3e}",
+                free.len(),
+                calls.get(),
+                0.0,
+                f.cost
+            );
+        }
         Some((full(&f.theta), f))
     }
 
     /// The best fit of `effects` over `starts` (full θ vectors), scored. With more than two
     /// starts each first gets a few iterations on the last effect's own values (the model's
-    /// terms held), and only the best two go on to the full fit.
+    /// terms held), and only the best two (three of a dense grid) go on to the full fit.
     pub fn fit(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Option<Fitted> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
@@ -207,18 +230,23 @@ impl Problem<'_> {
                 let len = self.lay.len(last);
                 let own: Vec<usize> =
                     (idx.len().saturating_sub(len)..idx.len()).filter_map(|k| idx.get(k).copied()).collect();
+                // a dense grid of starts (the ripple's periods) keeps three; the shapes are told
+                // apart on the first 40 % of the training samples (at least 30)
+                let (iters, keep) = if starts.len() > 8 { (4, 3) } else { (3, 2) };
+                let cut = self.train_idx.len() * 2 / 5;
+                let early: Vec<usize> = self.train_idx.iter().copied().take(cut.max(30)).collect();
                 let mut pre: Vec<(Vec<f64>, f64)> = starts
                     .iter()
-                    .filter_map(|th| self.lm(effects, &own, th, 3, None, prior).map(|(t, f)| (t, f.cost)))
+                    .filter_map(|th| self.lm(effects, &own, th, iters, Some(&early), prior).map(|(t, f)| (t, f.cost)))
                     .collect();
                 pre.sort_by(|a, b| a.1.total_cmp(&b.1));
-                pre.into_iter().take(2).map(|(t, _)| t).collect()
+                pre.into_iter().take(keep).map(|(t, _)| t).collect()
             }
             _ => starts,
         };
         let mut best: Option<(Vec<f64>, lm::Fit)> = None;
         for th in starts {
-            if let Some((t, f)) = self.lm(effects, &idx, &th, 30, None, prior) {
+            if let Some((t, f)) = self.lm(effects, &idx, &th, if effects.is_empty() { 30 } else { 15 }, None, prior) {
                 if best.as_ref().is_none_or(|b| f.cost < b.1.cost) {
                     best = Some((t, f));
                 }
@@ -232,7 +260,7 @@ impl Problem<'_> {
     pub fn finish(&self, effects: Vec<Kind>, free: Free, theta: Vec<f64>, f: Option<lm::Fit>) -> Option<Fitted> {
         let sim = self.simulate(&theta, &effects, self.n, None)?;
         let train_sse = self.train_idx.iter().map(|&i| (sim[i] - self.q[i]).powi(2)).sum();
-        let scored = score(&sim, self.q, self.hold_from, self.units, self.bits, self.nreg, theta.clone());
+        let scored = score(&sim, self.q, self.split, self.bits, self.nreg, theta.clone());
         Some(Fitted { effects, free, theta, sim, scored, train_sse, lm: f })
     }
 
@@ -246,35 +274,29 @@ impl Problem<'_> {
     }
 }
 
-/// The held-out score of a simulated angle: squared residuals over the last part, per test unit
-/// (consecutive runs of the held-out samples) and per regime.
-pub fn score(
-    sim: &[f64],
-    q: &[f64],
-    hold_from: usize,
-    units: usize,
-    bits: &[u32],
-    nreg: usize,
-    theta: Vec<f64>,
-) -> Scored {
-    let n = q.len();
-    let held = n - hold_from;
+/// The held-out score of a simulated angle: squared residuals over the held-out samples, per
+/// test unit and per regime.
+pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, theta: Vec<f64>) -> Scored {
+    let units = split.units;
     let mut s = Scored {
         effects: vec![],
         design: crate::diagnose::candidates::Design { cols: vec![], lag: 0.0, spans: vec![] },
         beta: theta,
         sse: 0.0,
-        n: held,
+        n: split.n_held(),
         unit_sse: vec![0.0; units],
         unit_n: vec![0.0; units],
         regime_sse: vec![0.0; nreg],
         regime_n: vec![0.0; nreg],
     };
-    for i in hold_from..n {
-        let r = q[i] - sim[i];
+    for (i, (&qi, &si)) in q.iter().zip(sim).enumerate() {
+        if !split.held[i] {
+            continue;
+        }
+        let r = qi - si;
         let r2 = r * r;
         s.sse += r2;
-        let u = ((i - hold_from) * units / held.max(1)).min(units.saturating_sub(1));
+        let u = split.unit[i];
         if let (Some(a), Some(b)) = (s.unit_sse.get_mut(u), s.unit_n.get_mut(u)) {
             *a += r2;
             *b += 1.0;

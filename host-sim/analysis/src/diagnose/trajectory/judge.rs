@@ -53,6 +53,8 @@ pub struct Judged {
     pub initial: Outcome,
     pub params: Outcome,
     pub effects: Vec<Outcome>,
+    /// per family, its variant on the file's own terms (an explanation instead of new values)
+    pub own: Vec<Outcome>,
     /// the verdict's chain: effects kept, in order (indices into the fits)
     pub chosen: Vec<Outcome>,
     pub verdict: &'static str,
@@ -93,6 +95,14 @@ fn sig(t: (f64, f64, f64), alpha: f64) -> bool {
     t.1 < alpha && t.2 >= MIN_GAIN
 }
 
+/// How far S's freed start lies from the estimate R0 starts from: χ² (2 dof) with the
+/// estimate's uncertainty `(sd_q, sd_v)` and the fit's standard errors `(se_q, se_v)`.
+pub fn start_chi2(r0: &Fitted, s: &Fitted, (sd_q, sd_v, se_q, se_v): (f64, f64, f64, f64)) -> f64 {
+    let dq = s.theta[0] - r0.theta[0];
+    let dv = s.theta[1] - r0.theta[1];
+    dq * dq / (sd_q * sd_q + se_q * se_q).max(1e-300) + dv * dv / (sd_v * sd_v + se_v * se_v).max(1e-300)
+}
+
 /// Judges the fits. `fits[0]` is R0, `fits[1]` S, `fits[2]` P; `families` lists, per tried
 /// effect family, the indices of its variants' fits.
 pub fn judge(
@@ -104,11 +114,7 @@ pub fn judge(
 ) -> Judged {
     let (r0, s, p) = (&fits[0], &fits[1], &fits[2]);
     let alpha_each = ALPHA / (families.len() + 2) as f64;
-    let (sd_q, sd_v, se_q, se_v) = start_sd;
-    let dq = s.theta[0] - r0.theta[0];
-    let dv = s.theta[1] - r0.theta[1];
-    let start_chi2 =
-        dq * dq / (sd_q * sd_q + se_q * se_q).max(1e-300) + dv * dv / (sd_v * sd_v + se_v * se_v).max(1e-300);
+    let start_chi2 = start_chi2(r0, s, start_sd);
     let start_off = start_chi2 > START_CHI2;
     let f_is_s = !start_off;
     let f = if f_is_s { s } else { r0 };
@@ -144,7 +150,10 @@ pub fn judge(
         let name = e.effects[last].name();
         let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each);
         if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!("[judge] {:?}: vs P {:?} vs F {:?} implausible {:?}", e.effects, t, t0, implausible);
+            eprintln!(
+                "[judge] {:?}: train {:.4e} (P {:.4e}) vs P {:?} vs F {:?} implausible {:?} θ {:?}",
+                e.effects, e.train_sse, p.train_sse, t, t0, implausible, e.theta
+            );
         }
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
@@ -152,6 +161,17 @@ pub fn judge(
         .iter()
         .filter_map(|variants| {
             let outs: Vec<Outcome> = variants.iter().map(|&k| outcome(k, &p.scored)).collect();
+            pick_variant(lay, fits, outs, alpha_each)
+        })
+        .collect();
+    let own: Vec<Outcome> = families
+        .iter()
+        .filter_map(|variants| {
+            let outs: Vec<Outcome> = variants
+                .iter()
+                .filter(|&&k| fits[k].free == super::fits::Free::Own)
+                .map(|&k| outcome(k, &f.scored))
+                .collect();
             pick_variant(lay, fits, outs, alpha_each)
         })
         .collect();
@@ -170,7 +190,7 @@ pub fn judge(
     } else {
         "none"
     };
-    Judged { alpha_each, floor, f_is_s, start_chi2, initial, params, effects, chosen, verdict }
+    Judged { alpha_each, floor, f_is_s, start_chi2, initial, params, effects, own, chosen, verdict }
 }
 
 /// The variant of one effect family that speaks for it: the best held-out fit among its
@@ -180,7 +200,7 @@ fn pick_variant(lay: &Layout, fits: &[Fitted], outs: Vec<Outcome>, alpha: f64) -
     let pool: Vec<&Outcome> = if physical.is_empty() { outs.iter().collect() } else { physical };
     let mse = |o: &Outcome| fits[o.fit].scored.mse();
     let best = *pool.iter().min_by(|a, b| mse(a).total_cmp(&mse(b)))?;
-    let size = |o: &Outcome| fits[o.fit].effects.last().map_or(0, |k| k.size(lay));
+    let size = |o: &Outcome| fits[o.fit].size(lay);
     pool.into_iter()
         .filter(|o| !sig(test(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
         .min_by(|a, b| size(a).cmp(&size(b)).then(mse(a).total_cmp(&mse(b))))
@@ -193,7 +213,7 @@ pub fn parsimonious(lay: &Layout, fits: &[Fitted], outs: &[Outcome], alpha: f64)
     let sig_outs: Vec<&Outcome> = outs.iter().filter(|o| o.significant).collect();
     let mse = |o: &Outcome| fits[o.fit].scored.mse();
     let best = *sig_outs.iter().min_by(|a, b| mse(a).total_cmp(&mse(b)))?;
-    let size = |o: &Outcome| fits[o.fit].effects.last().map_or(0, |k| k.size(lay));
+    let size = |o: &Outcome| fits[o.fit].size(lay);
     sig_outs
         .into_iter()
         .filter(|o| !sig(test(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
@@ -236,17 +256,22 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<&'static str>, V
         (None, "initial_state") => &j.initial,
         _ => return (Vec::new(), Vec::new()),
     };
-    let alts = all
-        .iter()
-        .filter(|o| o.name != chosen.name && o.implausible.is_none())
-        .filter(|o| o.name != "initial_state" || j.initial.significant)
-        .filter(|o| {
-            let t0 = test(f, &fits[o.fit].scored);
-            let t = test(&fits[o.fit].scored, &fits[chosen.fit].scored);
-            sig(t0, j.alpha_each) && !sig(t, j.alpha_each)
-        })
-        .map(|o| o.name)
-        .collect();
+    // An alternative is an explanation of its own: a significant effect, a significant refit or
+    // start, or, against new values of the model's terms, an effect on the file's own terms that
+    // beats the file's model (an effect fitted on top of the refit that adds nothing is the
+    // refit itself, not an alternative to it).
+    let own_alts: Vec<&Outcome> = if j.verdict == "parameters" {
+        j.own.iter().filter(|o| o.implausible.is_none() && sig(test(f, &fits[o.fit].scored), j.alpha_each)).collect()
+    } else {
+        Vec::new()
+    };
+    let mut alts: Vec<&'static str> = Vec::new();
+    for o in all.iter().copied().filter(|o| o.significant).chain(own_alts) {
+        let t = test(&fits[o.fit].scored, &fits[chosen.fit].scored);
+        if o.name != chosen.name && !sig(t, j.alpha_each) && !alts.contains(&o.name) {
+            alts.push(o.name);
+        }
+    }
     (alts, Vec::new())
 }
 

@@ -58,19 +58,28 @@ pub fn fit(
     let mut r = resid(&theta)?;
     let mut cost: f64 = r.iter().map(|x| x * x).sum();
     let mut lambda = 1e-3;
+    // Finite differences cost one simulation per value: they are taken afresh every fourth
+    // accepted step, and in between the Jacobian follows Broyden's rank-one updates along the
+    // steps taken (each step's own residual change), which cost nothing extra.
+    let fd = |theta: &[f64], r: &[f64], resid: &mut dyn FnMut(&[f64]) -> Option<Vec<f64>>| -> Vec<Vec<f64>> {
+        (0..p)
+            .map(|k| {
+                let mut th = theta.to_vec();
+                let h = if theta[k] + step[k] > hi[k] { -step[k] } else { step[k] };
+                th[k] += h;
+                match resid(&th) {
+                    Some(rk) => rk.iter().zip(r).map(|(a, b)| (a - b) / h).collect(),
+                    None => vec![0.0; r.len()],
+                }
+            })
+            .collect()
+    };
+    let mut jac = fd(&theta, &r, &mut resid);
+    let mut fresh = true;
+    let mut since_fd = 0;
+    let mut fds = 1;
     let mut jtj = Vec::new();
-    for _ in 0..iters {
-        let mut jac: Vec<Vec<f64>> = Vec::with_capacity(p);
-        for k in 0..p {
-            let mut th = theta.clone();
-            let h = if theta[k] + step[k] > hi[k] { -step[k] } else { step[k] };
-            th[k] += h;
-            let col = match resid(&th) {
-                Some(rk) => rk.iter().zip(&r).map(|(a, b)| (a - b) / h).collect(),
-                None => vec![0.0; r.len()],
-            };
-            jac.push(col);
-        }
+    while fds <= iters {
         let mut a = vec![0.0; p * p];
         let mut g = vec![0.0; p];
         for i in 0..p {
@@ -81,9 +90,11 @@ pub fn fit(
             }
             g[i] = jac[i].iter().zip(&r).map(|(x, y)| x * y).sum();
         }
-        jtj.clone_from(&a);
-        let mut improved = false;
-        for _ in 0..10 {
+        if fresh {
+            jtj.clone_from(&a);
+        }
+        let mut accepted: Option<(Vec<f64>, Vec<f64>, f64)> = None;
+        for _ in 0..6 {
             let mut m = a.clone();
             for i in 0..p {
                 m[i * p + i] += lambda * a[i * p + i].max(1e-12);
@@ -97,20 +108,49 @@ pub fn fit(
             if let Some(rc) = resid(&cand) {
                 let c: f64 = rc.iter().map(|x| x * x).sum();
                 if c.is_finite() && c < cost {
-                    let rel = (cost - c) / cost.max(1e-300);
-                    theta = cand;
-                    r = rc;
-                    cost = c;
                     lambda = (lambda / 10.0).max(1e-9);
-                    improved = rel > 1e-6;
+                    accepted = Some((cand, rc, c));
                     break;
                 }
             }
             lambda *= 10.0;
         }
-        if !improved {
-            break;
+        let converged = match accepted {
+            Some((cand, rc, c)) => {
+                let rel = (cost - c) / cost.max(1e-300);
+                let dth: Vec<f64> = cand.iter().zip(&theta).map(|(a, b)| a - b).collect();
+                let dd: f64 = dth.iter().map(|x| x * x).sum();
+                if dd > 0.0 {
+                    // Broyden: J += (Δr − J·Δθ)·Δθᵀ / |Δθ|²
+                    let jd: Vec<f64> = (0..r.len()).map(|i| (0..p).map(|k| jac[k][i] * dth[k]).sum()).collect();
+                    for (k, col) in jac.iter_mut().enumerate() {
+                        let f = dth[k] / dd;
+                        for (i, x) in col.iter_mut().enumerate() {
+                            *x += (rc[i] - r[i] - jd[i]) * f;
+                        }
+                    }
+                }
+                theta = cand;
+                r = rc;
+                cost = c;
+                since_fd += 1;
+                fresh = false;
+                rel <= 1e-5
+            }
+            None => true,
+        };
+        if converged {
+            if fresh {
+                break;
+            }
+            // a stall on an updated Jacobian is checked against a fresh one before stopping
+        } else if since_fd < 4 {
+            continue;
         }
+        jac = fd(&theta, &r, &mut resid);
+        fresh = true;
+        since_fd = 0;
+        fds += 1;
     }
     Some(Fit { theta, cost, jtj })
 }

@@ -31,6 +31,7 @@ mod judge;
 mod lm;
 mod report;
 pub mod sim;
+mod split;
 mod terms;
 
 use joint_core::params::{ParamId, ParamSet};
@@ -42,21 +43,20 @@ use crate::prep::Prepared;
 use fits::{Fitted, Free, Prior, Problem};
 use terms::{Kind, Layout};
 
-/// The share of the window that is held out (its end).
-const HOLD_SHARE: f64 = 0.3;
 /// Held-out samples the test needs at least.
 const MIN_HELD: usize = 5;
 
-fn hold_from(n: usize) -> usize {
-    (((1.0 - HOLD_SHARE) * n as f64).round() as usize).min(n.saturating_sub(MIN_HELD))
-}
-
 /// The fewest samples a trajectory-mode diagnosis of `model` runs on: the refit of the model's
 /// own terms plus the start and one effect value (`2 + terms + 1`) need that many training
-/// samples and two more, and the held-out last 30 % at least five test samples.
+/// samples and two more, and the held-out 30 % at least five test samples.
 pub fn min_samples(model: &ModelFile) -> usize {
     let p = fit_size(model);
-    (MIN_HELD..100_000).find(|&n| hold_from(n) >= p + 2 && n - hold_from(n) >= MIN_HELD).unwrap_or(100_000)
+    (MIN_HELD..100_000)
+        .find(|&n| {
+            let (train, held) = split::sizes(n);
+            train >= p + 2 && held >= MIN_HELD
+        })
+        .unwrap_or(100_000)
 }
 
 /// Values of the smallest effect fit: the start (2), the model's terms, one effect value.
@@ -81,7 +81,7 @@ pub fn diagnose(prep: &Prepared, model: &ModelFile, params: &ParamSet, opts: &Op
     if seg.len() < min {
         return Err(DiagError::Input(format!(
             "the log has {} samples{}; trajectory mode fits {} values of this model (the start, its {} terms and an \
-             effect value) on the first 70 % and tests the last 30 % on at least {MIN_HELD} samples: it needs at least {min}",
+             effect value) on 70 % of it and tests the other 30 % on at least {MIN_HELD} samples: it needs at least {min}",
             seg.len(),
             if seg.len() < prep.log.len() { " in its longest stretch without a gap" } else { "" },
             fit_size(model),
@@ -134,7 +134,7 @@ impl<'a> Window<'a> {
         let mut w = Window { prep, seg, n: 0, rest_tail: None, prior0 };
         w.n = w.seg.len();
         let (t, q) = (w.t(), w.q());
-        let lay = Layout::new(model, min_of(q), max_of(q), 1.0);
+        let lay = Layout::new(model, min_of(q), max_of(q), 1.0, false);
         let th0 = theta0(&lay, &prior0);
         let law = lay.law(&th0, &[]);
         let sim = sim::run(&law, t, w.u(), (th0[0], th0[1]), w.n)
@@ -154,14 +154,16 @@ impl<'a> Window<'a> {
         let n = self.n;
         let (t, q, qd) = (&self.t()[..n], &self.q()[..n], &self.qd()[..n]);
         let u = self.u().map(|u| &u[..n]);
-        let hold = hold_from(n);
+        let sp = split::Split::new(n);
+        let train_q: Vec<f64> = sp.train.iter().map(|&i| q[i]).collect();
+        let train_v: Vec<f64> = sp.train.iter().map(|&i| qd[i].abs()).collect();
         let qdd = &self.prep.qdd()[self.seg.clone()][..n];
         let dt = super::median_dt(t);
         let regimes = Regimes::build(t, q, qd, qdd, None, dt);
-        let v_typ = percentile(&qd[..hold].iter().map(|v| v.abs()).collect::<Vec<_>>(), 0.95);
-        let lay = Layout::new(model, min_of(&q[..hold]), max_of(&q[..hold]), v_typ);
-        let units = (n - hold).min(20);
-        let stride = hold.div_ceil(2000).max(1);
+        let v_typ = percentile(&train_v, 0.95);
+        let driven = u.is_some_and(|u| u.iter().any(|x| *x != 0.0));
+        let lay = Layout::new(model, min_of(&train_q), max_of(&train_q), v_typ, driven);
+        let stride = sp.n_train().div_ceil(2000).max(1);
         let noise = self.prep.report.q_noise_sd.max(1e-12);
         let mut pb = Problem {
             t,
@@ -169,18 +171,18 @@ impl<'a> Window<'a> {
             u,
             lay: &lay,
             n,
-            hold_from: hold,
-            train_idx: (0..hold).step_by(stride).collect(),
+            split: &sp,
+            train_idx: sp.train.iter().copied().step_by(stride).collect(),
             prior: self.prior0,
             noise,
-            units,
             bits: &regimes.bits,
             nreg: regimes.defs.len(),
         };
         let th0 = theta0(&lay, &self.prior0);
         // The start's uncertainty: the estimate's own, and its distance to the start that
         // makes the file's model follow the first samples.
-        let k_local = local_samples(&lay, t, hold);
+        let first_block = sp.held.iter().take_while(|h| !**h).count();
+        let k_local = local_samples(&lay, t, first_block);
         let local = pb.local_start(&th0, k_local).unwrap_or((th0[0], th0[1]));
         pb.prior.sd_q = noise.hypot(local.0 - self.prior0.q);
         pb.prior.sd_v = self.prior0.sd_v.hypot(local.1 - self.prior0.v).max(1e-3 * lay.v_typ);
@@ -198,12 +200,26 @@ impl<'a> Window<'a> {
         let s = pb.fit(&[], Free::Start, vec![th0.clone()]).unwrap_or_else(|| r0.clone());
         let p = fit_terms(&pb, &th0, &s.theta).unwrap_or_else(|| s.clone());
         lap("start, initial_state and the refit");
-        let mut fits = vec![r0, s, p];
-        let (families, skipped) = fit_candidates(&pb, &mut fits);
-        lap("candidates");
-        let floor = noise;
-        let se = |k: usize| fits[1].lm.as_ref().and_then(|f| f.std_err(k, noise)).unwrap_or(0.0);
+        // The floor: the angle noise, and what reading a sampled input between its samples
+        // leaves open (a step's edge spanning a few samples): half the difference between a
+        // line and the cubic between the samples, the usual share of two readings' spread.
+        let spread_ms =
+            u.and_then(|u| sim::input_spread(&lay.law(&th0, &[]), t, u, (th0[0], th0[1]), n)).map_or(0.0, |s| {
+                let held: Vec<f64> = s.iter().zip(&sp.held).filter(|(_, h)| **h).map(|(d, _)| d * d).collect();
+                0.25 * held.iter().sum::<f64>() / held.len().max(1) as f64
+            });
+        let floor = (noise * noise + spread_ms).sqrt();
+        let se = |k: usize| s.lm.as_ref().and_then(|f| f.std_err(k, noise)).unwrap_or(0.0);
         let start_sd = (pb.prior.sd_q, pb.prior.sd_v, se(0), se(1));
+        let f_rmse = if judge::start_chi2(&r0, &s, start_sd) > judge::START_CHI2 { &r0 } else { &s }.scored.rmse();
+        let mut fits = vec![r0, s, p];
+        // Nothing is tested once the file's model is at the floor: the candidates are not fitted.
+        let (families, skipped) = if f_rmse <= super::select::AT_FLOOR * floor {
+            (Vec::new(), vec![("*", "the file's model is at the noise floor: nothing is left to explain")])
+        } else {
+            fit_candidates(&pb, &mut fits)
+        };
+        lap("candidates");
         let mut judged = judge::judge(&lay, &fits, &families, floor, start_sd);
         second_effect(&pb, &mut fits, &mut judged, opts);
         let ctx = report::Ctx {
@@ -213,7 +229,7 @@ impl<'a> Window<'a> {
             t,
             q,
             qd,
-            hold,
+            split: &sp,
             regimes: &regimes,
             rest_tail: self.rest_tail.clone(),
             skipped,
@@ -232,30 +248,45 @@ fn theta0(lay: &Layout, prior: &Prior) -> Vec<f64> {
 }
 
 /// The first samples the local start fit reads: an eighth of the model's fastest period, at
-/// least four, at most the training part.
-fn local_samples(lay: &Layout, t: &[f64], hold: usize) -> usize {
+/// least four, at most the first training stretch (`first`).
+fn local_samples(lay: &Layout, t: &[f64], first: usize) -> usize {
     let law = lay.law(&theta0(lay, &Prior { q: 0.0, v: 0.0, sd_q: 1.0, sd_v: 1.0 }), &[]);
     let omega = (lay.torque / (0.5 * lay.span()) / law.j.max(1e-12)).sqrt().max(1e-3);
     let dt = super::median_dt(t);
-    ((0.125 * std::f64::consts::TAU / omega / dt).round() as usize).clamp(4, hold.max(4))
+    ((0.125 * std::f64::consts::TAU / omega / dt).round() as usize).clamp(4, first.max(4))
 }
 
-/// The refit of the model's terms: from the file's values and from the freed start, each first
-/// on the first third of the training part (so a period that is off cannot lock the phase one
-/// cycle away), then on all of it.
+/// The refit of the model's terms: from the file's values and from the freed start, each also
+/// carried through growing stretches of the training part (the first 10 %, then 30 % of the
+/// window) so a period that is off cannot lock the phase a cycle away, then on all of it.
 fn fit_terms(pb: &Problem, th0: &[f64], th_s: &[f64]) -> Option<Fitted> {
     let mut starts = vec![th0.to_vec()];
     if th_s != th0 {
         starts.push(th_s.to_vec());
     }
-    let short: Vec<usize> = pb.train_idx.iter().copied().filter(|&i| i < pb.hold_from / 3).collect();
-    let warmed: Vec<Vec<f64>> = if short.len() > pb.lay.nb() + 4 {
-        let sub = Problem { train_idx: short, ..pb.clone_shallow() };
-        starts.iter().filter_map(|th| sub.fit(&[], Free::Terms, vec![th.clone()]).map(|f| f.theta)).collect()
-    } else {
-        Vec::new()
-    };
-    starts.extend(warmed);
+    let mut carried = Vec::new();
+    for th in starts.iter().take(1) {
+        let mut x = th.clone();
+        for frac in [0.1, 0.3] {
+            let upto = (frac * pb.n as f64) as usize;
+            let short: Vec<usize> = pb.train_idx.iter().copied().filter(|&i| i < upto).collect();
+            if short.len() <= pb.lay.nb() + 4 {
+                continue;
+            }
+            let sub = Problem { train_idx: short, ..pb.clone_shallow() };
+            if let Some(f) = sub.fit(&[], Free::Terms, vec![x.clone()]) {
+                x = f.theta;
+            }
+        }
+        if x != *th {
+            carried.push(x);
+        }
+    }
+    // the carried fit replaces the file's values as a start
+    if !carried.is_empty() {
+        starts.remove(0);
+    }
+    starts.extend(carried);
     pb.fit(&[], Free::Terms, starts)
 }
 
@@ -267,11 +298,10 @@ impl<'a> Problem<'a> {
             u: self.u,
             lay: self.lay,
             n: self.n,
-            hold_from: self.hold_from,
+            split: self.split,
             train_idx: self.train_idx.clone(),
             prior: self.prior,
             noise: self.noise,
-            units: self.units,
             bits: self.bits,
             nreg: self.nreg,
         }
@@ -300,33 +330,45 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>) -> (Vec<Vec<usize>>, Ski
                     skipped.push((k.name(), why));
                 }
             }
-            Ok(()) if refit.len() + lay.len(k) + 2 > pb.hold_from => {
+            Ok(()) if refit.len() + lay.len(k) + 2 > pb.split.n_train() => {
                 skipped.push((k.name(), "the log's training part is too short for its values on top of the model's"))
             }
             Ok(()) => kinds.push(k),
         }
     }
-    let with = |e: &[f64]| {
-        let mut v = refit.clone();
-        v.extend_from_slice(e);
-        v
+    // Every effect twice: on top of the refitted terms, and on the file's own terms (fewer
+    // values; on a short log the refit's freedom can cost more held-out accuracy than it wins).
+    let file_terms = {
+        let mut th = lay.beta0.clone();
+        th.splice(0..0, fits[1].theta[..2].iter().copied());
+        th
     };
-    let work = |k: Kind| -> Option<Fitted> {
+    let jobs: Vec<(Kind, Free)> = kinds.iter().flat_map(|&k| [(k, Free::All), (k, Free::Own)]).collect();
+    let work = |(k, free): (Kind, Free)| -> Option<Fitted> {
         let clock = std::time::Instant::now();
-        let starts: Vec<Vec<f64>> = lay.effect_starts(k, c_ref).iter().map(|e| with(e)).collect();
-        let f = pb.fit(&[k], Free::All, starts);
+        let base = if free == Free::All { &refit } else { &file_terms };
+        let starts: Vec<Vec<f64>> = lay
+            .effect_starts(k, c_ref)
+            .iter()
+            .map(|e| {
+                let mut v = base.clone();
+                v.extend_from_slice(e);
+                v
+            })
+            .collect();
+        let f = pb.fit(&[k], free, starts);
         if std::env::var_os("DIAG_TIMING").is_some() {
-            eprintln!("[trajectory] {k:?}: {:.3} s", clock.elapsed().as_secs_f64());
+            eprintln!("[trajectory] {k:?} {free:?}: {:.3} s", clock.elapsed().as_secs_f64());
         }
         f
     };
-    let mut got = run_parallel(&kinds, work);
+    let mut got = run_parallel(&jobs, work);
     // Two ripple harmonics, started from the best single one: the second at half its period
     // (the mesh's own harmonic) or at another of the searched periods.
     let best_ripple =
         got.iter().flatten().filter(|f| f.effects == [Kind::Ripple]).min_by(|a, b| a.train_sse.total_cmp(&b.train_sse));
     if let (Some(r), Ok(())) = (best_ripple, lay.applies(Kind::Ripple2, pb.u.is_some())) {
-        if r.theta.len() + 3 + 2 <= pb.hold_from {
+        if r.theta.len() + 3 + 2 <= pb.split.n_train() {
             let e = r.effect_values(lay, 0).to_vec();
             let p1 = e[2].exp();
             let tq = 0.3 * e[0].hypot(e[1]);
@@ -342,7 +384,7 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>) -> (Vec<Vec<usize>>, Ski
                 })
                 .collect();
             // the single harmonic's θ with a second `[α, β, ln P]` appended is Ripple2's layout
-            got.push(pb.fit(&[Kind::Ripple2], Free::All, starts));
+            got.push(pb.fit(&[Kind::Ripple2], r.free, starts));
         }
     }
     let mut families: Vec<Vec<usize>> = Vec::new();
@@ -358,11 +400,28 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>) -> (Vec<Vec<usize>>, Ski
     (families, skipped)
 }
 
-/// Runs `work` on every kind on two threads, the costliest kinds first; results keep `kinds`'
+/// A job [`run_parallel`] can order by cost.
+trait Job: Copy + Send + Sync {
+    fn kind(&self) -> Kind;
+}
+
+impl Job for Kind {
+    fn kind(&self) -> Kind {
+        *self
+    }
+}
+
+impl Job for (Kind, Free) {
+    fn kind(&self) -> Kind {
+        self.0
+    }
+}
+
+/// Runs `work` on every job on two threads, the costliest kinds first; results keep the jobs'
 /// order.
-fn run_parallel<F>(kinds: &[Kind], work: F) -> Vec<Option<Fitted>>
+fn run_parallel<J: Job, F>(jobs: &[J], work: F) -> Vec<Option<Fitted>>
 where
-    F: Fn(Kind) -> Option<Fitted> + Sync,
+    F: Fn(J) -> Option<Fitted> + Sync,
 {
     let cost = |k: Kind| match k {
         Kind::Ripple => 0,
@@ -370,8 +429,8 @@ where
         Kind::CableAbove | Kind::CableBelow => 2,
         _ => 3,
     };
-    let mut order: Vec<usize> = (0..kinds.len()).collect();
-    order.sort_by_key(|&i| cost(kinds[i]));
+    let mut order: Vec<usize> = (0..jobs.len()).collect();
+    order.sort_by_key(|&i| cost(jobs[i].kind()));
     let next = std::sync::atomic::AtomicUsize::new(0);
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
     let mut out: Vec<(usize, Option<Fitted>)> = std::thread::scope(|s| {
@@ -383,7 +442,7 @@ where
                     loop {
                         let slot = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         let Some(&pos) = order.get(slot) else { break };
-                        done.push((pos, work(kinds[pos])));
+                        done.push((pos, work(jobs[pos])));
                     }
                     done
                 })
@@ -413,7 +472,7 @@ fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, op
         .iter()
         .filter(|o| o.name != first.name)
         .map(|o| (fits[o.fit].effects[0], fits[o.fit].effect_values(lay, 0).to_vec()))
-        .filter(|(k, _)| base.theta.len() + lay.len(*k) + 2 <= pb.hold_from)
+        .filter(|(k, _)| base.theta.len() + lay.len(*k) + 2 <= pb.split.n_train())
         .collect();
     let kinds: Vec<Kind> = others.iter().map(|(k, _)| *k).collect();
     let work = |k: Kind| -> Option<Fitted> {
@@ -427,7 +486,7 @@ fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, op
                 th
             })
             .collect();
-        pb.fit(&[k1, k], Free::All, starts)
+        pb.fit(&[k1, k], base.free, starts)
     };
     let got = run_parallel(&kinds, work);
     let start = fits.len();

@@ -25,7 +25,7 @@ pub struct Ctx<'a> {
     pub t: &'a [f64],
     pub q: &'a [f64],
     pub qd: &'a [f64],
-    pub hold: usize,
+    pub split: &'a super::split::Split,
     pub regimes: &'a Regimes,
     pub rest_tail: Option<RestTail>,
     pub skipped: Skipped,
@@ -89,11 +89,11 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         mode: "trajectory",
         samples: n,
         split: SplitInfo {
-            method: "blocked_last_30_percent",
-            train: ctx.hold,
-            holdout: n - ctx.hold,
-            blocks: 1,
-            held_blocks: vec![],
+            method: "interleaved_blocks",
+            train: ctx.split.n_train(),
+            holdout: ctx.split.n_held(),
+            blocks: ctx.split.blocks,
+            held_blocks: ctx.split.held_blocks.clone(),
             guard_samples: 0,
             test_units: f.scored.unit_n.len(),
             rest_tail: ctx.rest_tail.clone(),
@@ -212,6 +212,11 @@ fn effect_params(ctx: &Ctx, f: &Fitted, k: usize, j: &Judged) -> BTreeMap<String
             put("k3", g(1));
             put("center", g(2));
         }
+        Kind::CableBump => {
+            put("amplitude", g(0));
+            put("center", g(1));
+            put("width", g(2).exp());
+        }
         Kind::Backlash => {
             put("width", g(0).exp());
             put("center", g(1));
@@ -224,7 +229,7 @@ fn effect_params(ctx: &Ctx, f: &Fitted, k: usize, j: &Judged) -> BTreeMap<String
             put("sigma", c.max(0.0) / x);
             put("c", c);
         }
-        Kind::Delay => put("seconds", g(0).exp()),
+        Kind::Delay => put("seconds", g(0)),
     }
     p
 }
@@ -278,8 +283,10 @@ fn regimes_out(regimes: &Regimes, r0: &[f64]) -> (f64, Vec<RegimeOut>) {
 fn resid(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> crate::diagnose::Resid {
     let dt = crate::diagnose::median_dt(ctx.t);
     let lag = ((0.1 / dt).round() as usize).clamp(10, 100);
-    let h = ctx.hold;
-    let (b, a, qd) = (&r0[h..], &ra[h..], &ctx.qd[h..]);
+    let held =
+        |x: &[f64]| -> Vec<f64> { x.iter().zip(&ctx.split.held).filter(|(_, h)| **h).map(|(v, _)| *v).collect() };
+    let (b, a, qd) = (held(r0), held(ra), held(ctx.qd));
+    let (b, a, qd) = (b.as_slice(), a.as_slice(), qd.as_slice());
     crate::diagnose::Resid {
         input: vec!["qd"],
         autocorrelation_before: crate::diagnose::resid::xcorr(b, b, lag, true),
@@ -383,13 +390,23 @@ fn effect_section(p: &BTreeMap<String, f64>, kind: Kind) -> String {
             g("k1"),
             g("k3")
         ),
+        Kind::CableBump => format!(
+            "\n# cable_spring, padding: {:?}·exp(−½((q − {:?})/{:?})²) N·m (no core section)\n",
+            g("amplitude"),
+            g("center"),
+            g("width")
+        ),
         Kind::Backlash => format!(
             "\n[backlash]\nwidth = {:?}\n# dead zone centred {:?} rad from the spring's rest angle\n",
             g("width"),
             g("offset")
         ),
         Kind::Dry => format!("\n[dry_friction]\nc = {:?}\n", g("c").max(0.0)),
-        Kind::Delay => format!("\n[delay]\nseconds = {:?}\n", g("seconds")),
+        Kind::Delay if g("seconds") >= 0.0 => format!("\n[delay]\nseconds = {:?}\n", g("seconds")),
+        Kind::Delay => format!(
+            "\n# delay: the logged u is {:?} s late against the motion (the [delay] section takes the other sign only)\n",
+            -g("seconds")
+        ),
         Kind::Presliding => String::new(),
     }
 }
@@ -424,7 +441,7 @@ fn plots(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> PlotData {
         } else {
             2
         });
-        p.held.push(i >= ctx.hold);
+        p.held.push(ctx.split.held[i]);
     }
     p
 }

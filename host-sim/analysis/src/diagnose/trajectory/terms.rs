@@ -8,12 +8,13 @@
 //! - `asymmetric_friction`: `delta·|sign(q̇)|` (`c ± delta` per direction);
 //! - `position_ripple`: one harmonic `α·sin(2πq/P) + β·cos(2πq/P)`, or two;
 //! - `cable_spring`: one-sided (taut above or below an angle, with a blend width) or progressive
-//!   `k1·x + k3·x³`;
+//!   `k1·x + k3·x³`, or padding pressed over a stretch of angle `A·exp(−½((q − q_b)/w)²)`;
 //! - `backlash`: a dead zone of width `w` centred at `m` in the spring (either side of its rest);
 //! - `dry_friction`: `c·sign(q̇)` when the model has none;
 //! - `presliding_hysteresis`: a Dahl state of the model's level `c` and pre-sliding distance
 //!   `x = c/σ` instead of `c·sign(q̇)`;
-//! - `delay`: the logged input `u` lags the joint by `δ` (only with a logged `u`).
+//! - `delay`: the joint felt the logged input `u` shifted by `δ` either way (only with a logged
+//!   `u`; positive as torque mode's: the logged state lags the input).
 
 use joint_core::params::ParamId;
 use joint_formats::model_file::ModelFile;
@@ -31,6 +32,7 @@ pub enum Kind {
     CableAbove,
     CableBelow,
     CableCubic,
+    CableBump,
     Backlash,
     Dry,
     Presliding,
@@ -38,7 +40,7 @@ pub enum Kind {
 }
 
 impl Kind {
-    pub const ALL: [Kind; 11] = [
+    pub const ALL: [Kind; 12] = [
         Kind::Stribeck,
         Kind::Asymmetric,
         Kind::Ripple,
@@ -46,6 +48,7 @@ impl Kind {
         Kind::CableAbove,
         Kind::CableBelow,
         Kind::CableCubic,
+        Kind::CableBump,
         Kind::Backlash,
         Kind::Dry,
         Kind::Presliding,
@@ -58,7 +61,7 @@ impl Kind {
             Kind::Stribeck => "stribeck",
             Kind::Asymmetric => "asymmetric_friction",
             Kind::Ripple | Kind::Ripple2 => "position_ripple",
-            Kind::CableAbove | Kind::CableBelow | Kind::CableCubic => "cable_spring",
+            Kind::CableAbove | Kind::CableBelow | Kind::CableCubic | Kind::CableBump => "cable_spring",
             Kind::Backlash => "backlash",
             Kind::Dry => "dry_friction",
             Kind::Presliding => "presliding_hysteresis",
@@ -72,7 +75,12 @@ impl Kind {
             Kind::Asymmetric | Kind::Dry | Kind::Presliding | Kind::Delay => 1,
             Kind::Backlash => 2,
             Kind::CableCubic if lay.has(Col::Q) => 2,
-            Kind::Stribeck | Kind::Ripple | Kind::CableAbove | Kind::CableBelow | Kind::CableCubic => 3,
+            Kind::CableBump
+            | Kind::Stribeck
+            | Kind::Ripple
+            | Kind::CableAbove
+            | Kind::CableBelow
+            | Kind::CableCubic => 3,
             Kind::Ripple2 => 6,
         }
     }
@@ -102,10 +110,12 @@ pub struct Layout {
 }
 
 impl Layout {
-    pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64) -> Layout {
+    /// `driven`: the log has a known input, so J is a term the fits can see (a free response
+    /// scales with D/J only, and J stays fixed).
+    pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64, driven: bool) -> Layout {
         let base = base_from_model(model);
         let (cols, beta0): (Vec<Col>, Vec<f64>) =
-            base.cols.iter().zip(&base.beta0).filter(|(c, _)| **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
+            base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
         let v = |id| model.value(id);
         let span = (qmax - qmin).max(1e-3);
         let k = if model.explicit(ParamId::SpringK).is_some() { v(ParamId::SpringK) } else { 0.0 };
@@ -185,7 +195,14 @@ impl Layout {
         for c in &self.cols {
             // friction cannot feed energy in, a spring cannot push away from its rest
             let nonneg = matches!(c, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Q | Col::Stribeck(_) | Col::Cable { .. });
-            lo.push(if nonneg { 0.0 } else { f64::NEG_INFINITY });
+            // an inertia is positive (and a tenth of the file's is a wrong model, not a fit)
+            lo.push(if *c == Col::Qdd {
+                0.1 * self.j
+            } else if nonneg {
+                0.0
+            } else {
+                f64::NEG_INFINITY
+            });
             hi.push(f64::INFINITY);
         }
         (lo, hi)
@@ -207,12 +224,13 @@ impl Layout {
             }
             Kind::CableCubic if self.has(Col::Q) => (vec![0.0, self.qmin], vec![inf, self.qmax]),
             Kind::CableCubic => (vec![0.0, 0.0, self.qmin], vec![inf, inf, self.qmax]),
+            Kind::CableBump => (vec![-inf, self.qmin, (0.01 * span).ln()], vec![inf, self.qmax, (0.5 * span).ln()]),
             Kind::Backlash => {
                 (vec![(1e-4f64).ln(), self.q_rest - 0.5 * span], vec![(0.5 * span).ln(), self.q_rest + 0.5 * span])
             }
             Kind::Dry => (vec![0.0], vec![inf]),
             Kind::Presliding => (vec![(1e-5f64).ln()], vec![(0.05f64).ln()]),
-            Kind::Delay => (vec![(1e-4f64).ln()], vec![(0.2f64).ln()]),
+            Kind::Delay => (vec![-0.2], vec![0.2]),
         };
         (lo, hi)
     }
@@ -224,8 +242,10 @@ impl Layout {
         let lvl = if c_ref > 0.0 { 0.3 * c_ref } else { 0.05 * tq };
         match k {
             Kind::Stribeck => {
+                // the speed is where the fit is multimodal (a high narrow curve and a low wide
+                // one take the same energy per reversal): a decade and a half of starts
                 let mut v = Vec::new();
-                for f in [0.03, 0.3] {
+                for f in [0.01, 0.03, 0.1, 0.3] {
                     for d in [1.0, 2.0] {
                         v.push(vec![lvl, (f * self.v_typ).ln(), d]);
                     }
@@ -258,13 +278,17 @@ impl Layout {
                     vec![vec![0.0, k3, mid], vec![0.1 * tq / span, k3, mid]]
                 }
             }
+            Kind::CableBump => [0.25, 0.5, 0.75]
+                .iter()
+                .flat_map(|f| [1.0, -1.0].map(|sg| vec![sg * 0.05 * tq, self.qmin + f * span, (0.1 * span).ln()]))
+                .collect(),
             Kind::Backlash => [0.01, 0.04]
                 .iter()
                 .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.q_rest + side * w * span]))
                 .collect(),
             Kind::Dry => vec![vec![0.02 * tq]],
             Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
-            Kind::Delay => [0.005f64, 0.02].iter().map(|d| vec![d.ln()]).collect(),
+            Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
         }
     }
 
@@ -276,6 +300,7 @@ impl Layout {
         let mut has_weight = false;
         for (c, &b) in self.cols.iter().zip(th.iter().skip(2)) {
             match *c {
+                Col::Qdd => law.j = b,
                 Col::QdAbsQd => law.a += b,
                 Col::Qd => law.b += b,
                 Col::Sgn => law.c += b,
@@ -318,6 +343,7 @@ impl Layout {
                 Kind::CableBelow => law.cables.push(Cable::Below { k: g(0), engage: g(1), width: g(2).exp() }),
                 Kind::CableCubic if self.has(Col::Q) => law.cables.push(Cable::Cubic { k1: 0.0, k3: g(0), qs: g(1) }),
                 Kind::CableCubic => law.cables.push(Cable::Cubic { k1: g(0), k3: g(1), qs: g(2) }),
+                Kind::CableBump => law.cables.push(Cable::Bump { a: g(0), qb: g(1), w: g(2).exp() }),
                 Kind::Backlash => law.backlash = Some((g(0).exp(), g(1))),
                 Kind::Dry => law.c += g(0),
                 Kind::Presliding => law.dahl = Some(law.c.max(0.0) / g(0).exp()),
@@ -336,12 +362,13 @@ impl Layout {
         self.effect_bounds(k).0.len()
     }
 
-    /// The input lag of `θ` with `effects`, s (0 without a delay).
+    /// The input lag of `θ` with `effects`, s (0 without a delay): the joint felt the logged
+    /// input of `lag` seconds earlier (negative: the logged input is late).
     pub fn delay(&self, th: &[f64], effects: &[Kind]) -> f64 {
         let mut off = 2 + self.nb();
         for &k in effects {
             if k == Kind::Delay {
-                return th.get(off).map_or(0.0, |l| l.exp());
+                return th.get(off).copied().unwrap_or(0.0);
             }
             off += self.len(k);
         }
@@ -394,6 +421,9 @@ pub fn refit_values(model: &ModelFile, cols: &[Col], b: &[f64]) -> Vec<(String, 
     let v = |id| model.value(id);
     let mut out = Vec::new();
     let c = |want: Col| cols.iter().position(|x| *x == want).and_then(|k| b.get(k).copied());
+    if let Some(j) = c(Col::Qdd) {
+        out.push(("inertia.j".to_string(), j));
+    }
     if let Some(a) = c(Col::QdAbsQd) {
         out.push(("friction.a".to_string(), a));
     }
