@@ -219,13 +219,31 @@ impl Problem<'_> {
         Some((full(&f.theta), f))
     }
 
-    /// The best fit of `effects` over `starts` (full θ vectors), scored. With more than two
-    /// starts each first gets a few iterations on the last effect's own values (the model's
-    /// terms held), and only the best two (three of a dense grid) go on to the full fit.
+    /// The best fit of `effects` over `starts` (full θ vectors, [`Problem::prefilter`]ed),
+    /// scored.
     pub fn fit(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Option<Fitted> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
-        let starts = match effects.last() {
+        let starts = self.prefilter(effects, free, starts);
+        let mut best: Option<(Vec<f64>, lm::Fit)> = None;
+        for th in starts {
+            if let Some((t, f)) = self.lm(effects, &idx, &th, if effects.is_empty() { 30 } else { 15 }, None, prior) {
+                if best.as_ref().is_none_or(|b| f.cost < b.1.cost) {
+                    best = Some((t, f));
+                }
+            }
+        }
+        let (theta, f) = best?;
+        self.finish(effects.to_vec(), free, theta, Some(f))
+    }
+
+    /// The starts worth a full fit: with more than two, each first gets a few iterations on the
+    /// last effect's own values (the model's terms held) and the best two (three of a dense
+    /// grid) are kept.
+    pub fn prefilter(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        let idx = self.free_idx(effects, free);
+        let prior = free != Free::Start;
+        match effects.last() {
             Some(&last) if starts.len() > 2 => {
                 let len = self.lay.len(last);
                 let own: Vec<usize> =
@@ -243,17 +261,7 @@ impl Problem<'_> {
                 pre.into_iter().take(keep).map(|(t, _)| t).collect()
             }
             _ => starts,
-        };
-        let mut best: Option<(Vec<f64>, lm::Fit)> = None;
-        for th in starts {
-            if let Some((t, f)) = self.lm(effects, &idx, &th, if effects.is_empty() { 30 } else { 15 }, None, prior) {
-                if best.as_ref().is_none_or(|b| f.cost < b.1.cost) {
-                    best = Some((t, f));
-                }
-            }
         }
-        let (theta, f) = best?;
-        self.finish(effects.to_vec(), free, theta, Some(f))
     }
 
     /// Simulates `theta` over the whole window and scores it.

@@ -43,6 +43,8 @@ use crate::prep::Prepared;
 use fits::{Fitted, Free, Prior, Problem};
 use terms::{Kind, Layout};
 
+/// Below this many samples the angle noise is also read from the refit's residual.
+const SHORT_LOG: usize = 300;
 /// Held-out samples the test needs at least.
 const MIN_HELD: usize = 5;
 
@@ -208,6 +210,20 @@ impl<'a> Window<'a> {
                 let held: Vec<f64> = s.iter().zip(&sp.held).filter(|(_, h)| **h).map(|(d, _)| d * d).collect();
                 0.25 * held.iter().sum::<f64>() / held.len().max(1) as f64
             });
+        // On a short log the preparation stage's noise estimate has no spectrum to stand on (it
+        // read up to 3× the encoder's quantisation on a 35-sample oscillation): there the
+        // refit's own training residual, degrees of freedom counted, bounds it from above.
+        let noise = if n < SHORT_LOG {
+            let dof = sp.n_train().saturating_sub(2 + lay.nb());
+            let refit_sd = if dof >= 6 {
+                (p.train_sse * (sp.n_train() as f64 / pb.train_idx.len() as f64) / dof as f64).sqrt()
+            } else {
+                noise
+            };
+            noise.min(refit_sd)
+        } else {
+            noise
+        };
         let floor = (noise * noise + spread_ms).sqrt();
         let se = |k: usize| s.lm.as_ref().and_then(|f| f.std_err(k, noise)).unwrap_or(0.0);
         let start_sd = (pb.prior.sd_q, pb.prior.sd_v, se(0), se(1));
@@ -222,6 +238,7 @@ impl<'a> Window<'a> {
         lap("candidates");
         let mut judged = judge::judge(&lay, &fits, &families, floor, start_sd);
         second_effect(&pb, &mut fits, &mut judged, opts);
+        lap("second effect");
         let ctx = report::Ctx {
             model,
             lay: &lay,
@@ -343,26 +360,45 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>) -> (Vec<Vec<usize>>, Ski
         th.splice(0..0, fits[1].theta[..2].iter().copied());
         th
     };
-    let jobs: Vec<(Kind, Free)> = kinds.iter().flat_map(|&k| [(k, Free::All), (k, Free::Own)]).collect();
-    let work = |(k, free): (Kind, Free)| -> Option<Fitted> {
-        let clock = std::time::Instant::now();
-        let base = if free == Free::All { &refit } else { &file_terms };
-        let starts: Vec<Vec<f64>> = lay
-            .effect_starts(k, c_ref)
+    // The ripple's dense period grid is prefiltered once, on the file's terms, and both
+    // variants start from the periods it keeps.
+    let jobs: Vec<(Kind, Free)> = kinds
+        .iter()
+        .flat_map(|&k| if k == Kind::Ripple { vec![(k, Free::Own)] } else { vec![(k, Free::All), (k, Free::Own)] })
+        .collect();
+    let starts_for = |k: Kind, base: &[f64]| -> Vec<Vec<f64>> {
+        lay.effect_starts(k, c_ref)
             .iter()
             .map(|e| {
-                let mut v = base.clone();
+                let mut v = base.to_vec();
                 v.extend_from_slice(e);
                 v
             })
-            .collect();
-        let f = pb.fit(&[k], free, starts);
+            .collect()
+    };
+    let work = |(k, free): (Kind, Free)| -> Vec<Fitted> {
+        let clock = std::time::Instant::now();
+        let out: Vec<Fitted> = if k == Kind::Ripple {
+            let kept = pb.prefilter(&[k], Free::Own, starts_for(k, &file_terms));
+            let on_refit: Vec<Vec<f64>> = kept
+                .iter()
+                .map(|th| {
+                    let mut v = refit.clone();
+                    v.extend_from_slice(&th[2 + lay.nb()..]);
+                    v
+                })
+                .collect();
+            [pb.fit(&[k], Free::All, on_refit), pb.fit(&[k], Free::Own, kept)].into_iter().flatten().collect()
+        } else {
+            let base = if free == Free::All { &refit } else { &file_terms };
+            pb.fit(&[k], free, starts_for(k, base)).into_iter().collect()
+        };
         if std::env::var_os("DIAG_TIMING").is_some() {
             eprintln!("[trajectory] {k:?} {free:?}: {:.3} s", clock.elapsed().as_secs_f64());
         }
-        f
+        out
     };
-    let mut got = run_parallel(&jobs, work);
+    let mut got: Vec<Option<Fitted>> = run_parallel(&jobs, work).into_iter().flatten().map(Some).collect();
     // Two ripple harmonics, started from the best single one: the second at half its period
     // (the mesh's own harmonic) or at another of the searched periods.
     let best_ripple =
@@ -419,9 +455,9 @@ impl Job for (Kind, Free) {
 
 /// Runs `work` on every job on two threads, the costliest kinds first; results keep the jobs'
 /// order.
-fn run_parallel<J: Job, F>(jobs: &[J], work: F) -> Vec<Option<Fitted>>
+fn run_parallel<J: Job, T: Send, F>(jobs: &[J], work: F) -> Vec<T>
 where
-    F: Fn(J) -> Option<Fitted> + Sync,
+    F: Fn(J) -> T + Sync,
 {
     let cost = |k: Kind| match k {
         Kind::Ripple => 0,
@@ -433,7 +469,7 @@ where
     order.sort_by_key(|&i| cost(jobs[i].kind()));
     let next = std::sync::atomic::AtomicUsize::new(0);
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
-    let mut out: Vec<(usize, Option<Fitted>)> = std::thread::scope(|s| {
+    let mut out: Vec<(usize, T)> = std::thread::scope(|s| {
         let hs: Vec<_> = (0..threads)
             .map(|_| {
                 let (work, next, order) = (&work, &next, &order);
@@ -466,11 +502,12 @@ fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, op
     let base = fits[first.fit].clone();
     let k1 = base.effects[0];
     let c_ref = lay.coulomb(base.base(lay));
-    // each other family's best variant, started from its own fitted values and its shape starts
+    // each other family that explained anything on its own, started from its own fitted values
+    // and from its first shape start
     let others: Vec<(Kind, Vec<f64>)> = j
         .effects
         .iter()
-        .filter(|o| o.name != first.name)
+        .filter(|o| o.name != first.name && o.gain > 0.0)
         .map(|o| (fits[o.fit].effects[0], fits[o.fit].effect_values(lay, 0).to_vec()))
         .filter(|(k, _)| base.theta.len() + lay.len(*k) + 2 <= pb.split.n_train())
         .collect();
@@ -478,7 +515,7 @@ fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, op
     let work = |k: Kind| -> Option<Fitted> {
         let own = others.iter().find(|(kk, _)| *kk == k).map(|(_, e)| e.clone()).unwrap_or_default();
         let starts: Vec<Vec<f64>> = std::iter::once(own)
-            .chain(lay.effect_starts(k, c_ref))
+            .chain(lay.effect_starts(k, c_ref).into_iter().take(1))
             .filter(|e| e.len() == lay.len(k))
             .map(|e| {
                 let mut th = base.theta.clone();

@@ -354,7 +354,8 @@ fn simulate(
 
 /// Sub-steps for one sample interval from state `y`: enough that the fastest mode advances
 /// ≤ 0.05 rad per step (with a factor 1.5 of room for what a fit does to the values it was
-/// planned at), a periodic term at the speed the joint may reach ≤ 0.5, a Dahl state's
+/// planned at), a periodic term at the speed the joint may reach ≤ 1 rad of its phase (a
+/// small torque: its error stays far below the motion's), a Dahl state's
 /// pre-sliding stiffness ≤ 0.5, and at least four where the speed may cross the band's edge (a
 /// kink that costs RK4 its order; the pure sign's zero crossings are located instead); whether
 /// the band is stiff.
@@ -362,7 +363,7 @@ fn choose_sub(law: &Law, inp: &Input, t0: f64, dt: f64, y: Y, banded: bool) -> (
     let acc = accel(law, inp, t0, y, Mode::Smooth).abs();
     let v_bound = y.v.abs() + acc * dt;
     let (omega, kappa) = law.rates();
-    let mut sub = (1.5 * dt * omega.max(law.damping(v_bound)) / 0.05).ceil().max((dt * kappa * v_bound / 0.5).ceil());
+    let mut sub = (1.5 * dt * omega.max(law.damping(v_bound)) / 0.05).ceil().max((dt * kappa * v_bound).ceil());
     if let Some(sigma) = law.dahl {
         sub = sub.max((dt * (sigma.abs() / law.j.max(1e-12)).sqrt() / 0.5).ceil());
     }
