@@ -23,6 +23,8 @@ pub struct Data {
     pub qd: Vec<f64>,
     pub qdd: Vec<f64>,
     pub u: Vec<f64>,
+    /// the measured load (zeros when the log's `tau` is zero)
+    pub tau: Vec<f64>,
     /// `d − rest`, what the linear part explains
     pub y: Vec<f64>,
     pub temp: Option<Vec<f64>>,
@@ -82,15 +84,30 @@ pub enum Col {
     SinSq(f64),
     CosSq(f64),
     Q,
-    DeadZone { q0: f64, w: f64 },
+    DeadZone {
+        q0: f64,
+        w: f64,
+    },
     Const,
     Stribeck(f64),
     AbsSgn,
     LoadSgn,
-    Thermal { a: f64, b: f64, c: f64, src: ThermSrc },
+    Thermal {
+        a: f64,
+        b: f64,
+        c: f64,
+        src: ThermSrc,
+    },
     RipSin(f64),
     RipCos(f64),
-    Cable { engage: f64, width: f64 },
+    Cable {
+        engage: f64,
+        width: f64,
+    },
+    /// the Dahl state in place of `Sgn` (values held by the design, see [`Design::dahl`])
+    Dahl {
+        kappa: f64,
+    },
 }
 
 impl Col {
@@ -131,8 +148,25 @@ impl Col {
             Col::RipSin(p) => (std::f64::consts::TAU * d.q[i] / p).sin(),
             Col::RipCos(p) => (std::f64::consts::TAU * d.q[i] / p).cos(),
             Col::Cable { engage, width } => super::shapes::engaged_spring(1.0, engage, width, d.q[i]),
+            // a state, not a function of the sample: the design holds its values
+            Col::Dahl { .. } => 0.0,
         }
     }
+}
+
+/// The Dahl state z along the log for inverse pre-sliding distance `kappa`, driven by the
+/// travel of the prepared q̇ (trapezoid; at rest q̇ = 0, so encoder noise does not move it).
+/// Each step is the exact solution of dz/dq = κ·(1 − z·sign(dq)) over its travel, so z stays
+/// in [−1, 1] whatever the step; it starts at the expected friction sign of the first sample.
+pub fn dahl_state(d: &Data, kappa: f64) -> Vec<f64> {
+    let mut z = Vec::with_capacity(d.n);
+    let mut s = d.sgn.first().copied().unwrap_or(0.0).clamp(-1.0, 1.0);
+    z.push(s);
+    for i in 1..d.n {
+        s = super::shapes::dahl_step(s, kappa, 0.5 * (d.qd[i] + d.qd[i - 1]) * (d.t[i] - d.t[i - 1]));
+        z.push(s);
+    }
+    z
 }
 
 /// The effect kinds of torque mode, in the spec's vocabulary order.
@@ -147,10 +181,11 @@ pub enum Kind {
     Backlash,
     Delay,
     Dry,
+    Presliding,
 }
 
 impl Kind {
-    pub const ALL: [Kind; 9] = [
+    pub const ALL: [Kind; 10] = [
         Kind::Stribeck,
         Kind::Asymmetric,
         Kind::Load,
@@ -160,6 +195,7 @@ impl Kind {
         Kind::Backlash,
         Kind::Delay,
         Kind::Dry,
+        Kind::Presliding,
     ];
 
     pub fn name(self) -> &'static str {
@@ -173,6 +209,7 @@ impl Kind {
             Kind::Backlash => "backlash",
             Kind::Delay => "delay",
             Kind::Dry => "dry_friction",
+            Kind::Presliding => "presliding_hysteresis",
         }
     }
 }
@@ -201,11 +238,18 @@ pub enum Effect {
     Backlash {
         width: f64,
     },
-    /// lag in samples (fractional)
+    /// a time shift of one logged channel against the others: `lag` samples (whole), positive
+    /// when that channel lags (its value at t belongs to t − lag)
     Delay {
         lag: f64,
+        channel: Channel,
     },
     Dry,
+    /// the Coulomb sign replaced by a Dahl state z ∈ [−1, 1] that moves with travel:
+    /// dz/dq = κ·(1 − z·sign(dq)); κ = σ/c, the inverse pre-sliding distance (rad⁻¹)
+    Presliding {
+        kappa: f64,
+    },
 }
 
 impl Effect {
@@ -220,6 +264,7 @@ impl Effect {
             Effect::Backlash { .. } => Kind::Backlash,
             Effect::Delay { .. } => Kind::Delay,
             Effect::Dry => Kind::Dry,
+            Effect::Presliding { .. } => Kind::Presliding,
         }
     }
 
@@ -232,7 +277,7 @@ impl Effect {
             Effect::Thermal { a, b, c, src } => vec![Col::Thermal { a, b, c, src }],
             Effect::Ripple { period } => vec![Col::RipSin(period), Col::RipCos(period)],
             Effect::Cable { engage, width } => vec![Col::Cable { engage, width }],
-            Effect::Backlash { .. } | Effect::Delay { .. } => vec![],
+            Effect::Backlash { .. } | Effect::Delay { .. } | Effect::Presliding { .. } => vec![],
             Effect::Dry => vec![Col::Sgn],
         }
     }
@@ -245,20 +290,48 @@ pub struct Base {
     pub beta0: Vec<f64>,
 }
 
+/// Which logged channel a delay shifts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// the actuator torque `u` (a reported motor torque that lags, a bus delay)
+    U,
+    /// the measured load `tau` (a filtered load cell)
+    Tau,
+    /// the joint's state (q and its derivatives) against both torques: an encoder or a state
+    /// estimate that lags, or an actuation delay seen the other way
+    State,
+}
+
+impl Channel {
+    pub const ALL: [Channel; 3] = [Channel::U, Channel::Tau, Channel::State];
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::U => "u",
+            Channel::Tau => "tau",
+            Channel::State => "state",
+        }
+    }
+}
+
 /// A full design: base columns (possibly with the spring replaced by a dead zone), the effect
-/// columns, and the lag applied to `u`.
+/// columns, and a time shift of one channel.
 #[derive(Clone, Debug)]
 pub struct Design {
     pub cols: Vec<Col>,
     pub lag: f64,
+    pub channel: Channel,
+    /// the Dahl state's values when a pre-sliding candidate replaces the Coulomb sign
+    pub dahl: Option<std::sync::Arc<Vec<f64>>>,
     /// per effect of the spec: the range of its columns
     pub spans: Vec<(usize, usize)>,
 }
 
 impl Design {
-    pub fn new(base: &Base, effects: &[Effect]) -> Design {
+    pub fn new(d: &Data, base: &Base, effects: &[Effect]) -> Design {
         let mut cols = base.cols.clone();
         let mut lag = 0.0;
+        let mut channel = Channel::U;
+        let mut dahl = None;
         for e in effects {
             match *e {
                 Effect::Backlash { width } => {
@@ -268,7 +341,18 @@ impl Design {
                         }
                     }
                 }
-                Effect::Delay { lag: l } => lag = l,
+                Effect::Delay { lag: l, channel: c } => {
+                    lag = l;
+                    channel = c;
+                }
+                Effect::Presliding { kappa } => {
+                    for c in cols.iter_mut() {
+                        if let Col::Sgn = c {
+                            *c = Col::Dahl { kappa };
+                        }
+                    }
+                    dahl = Some(std::sync::Arc::new(dahl_state(d, kappa)));
+                }
                 _ => {}
             }
         }
@@ -278,7 +362,7 @@ impl Design {
             cols.extend(e.cols());
             spans.push((s, cols.len()));
         }
-        Design { cols, lag, spans }
+        Design { cols, lag, channel, dahl, spans }
     }
 
     /// Fills `x` with the row of sample `i` and returns its target.
@@ -287,29 +371,34 @@ impl Design {
         for (xk, c) in x.iter_mut().zip(&self.cols) {
             *xk = match c {
                 Col::DeadZone { w, .. } => super::shapes::dead_zone(d.q[i] - d.q0, *w),
+                Col::Dahl { .. } => self.dahl.as_ref().map_or(0.0, |z| z[i]),
                 _ => c.eval(d, i),
             };
         }
         self.target(d, i)
     }
 
+    /// The target of sample `i`: `d − rest` with the delayed channel read `lag` samples away.
+    /// A channel that lags holds at `i + lag` what belongs to `i`; the state lagging is both
+    /// torques leading, so they are read `lag` samples back.
     #[inline]
     pub fn target(&self, d: &Data, i: usize) -> f64 {
         if self.lag == 0.0 {
             return d.y[i];
         }
-        // Sensors lag the actuator: the logged state belongs with u at t − lag.
-        let pos = i as f64 - self.lag;
-        let u_then = if pos <= 0.0 {
-            d.u[0]
-        } else {
+        let at = |v: &[f64], off: f64| {
+            let pos = (i as f64 + off).clamp(0.0, (d.n - 1) as f64);
             let k = pos.floor() as usize;
             let f = pos - k as f64;
-            let a = d.u[k.min(d.n - 1)];
-            let b = d.u[(k + 1).min(d.n - 1)];
+            let a = v[k.min(d.n - 1)];
+            let b = v[(k + 1).min(d.n - 1)];
             a + f * (b - a)
         };
-        d.y[i] + u_then - d.u[i]
+        match self.channel {
+            Channel::U => d.y[i] + at(&d.u, self.lag) - d.u[i],
+            Channel::Tau => d.y[i] - at(&d.tau, self.lag) + d.tau[i],
+            Channel::State => d.y[i] + at(&d.u, -self.lag) - d.u[i] - at(&d.tau, -self.lag) + d.tau[i],
+        }
     }
 
     pub fn gram(&self, d: &Data, idx: &[u32]) -> Gram {
@@ -381,7 +470,7 @@ impl<'a> GridCtx<'a> {
     }
 
     fn build(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32], gram: bool) -> GridCtx<'a> {
-        let des = Design::new(base, chosen);
+        let des = Design::new(d, base, chosen);
         let p = des.cols.len();
         let mut x = vec![0.0; idx.len() * p];
         let mut y = Vec::with_capacity(idx.len());
@@ -406,9 +495,16 @@ impl<'a> GridCtx<'a> {
                 let z = || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0, width)).collect();
                 Delta { replace: at.map(|j| (j, z())), extra: Vec::new(), y_alt: None }
             }
-            Effect::Delay { lag } => {
+            Effect::Presliding { kappa } => {
+                let at = self.des.cols.iter().position(|c| matches!(c, Col::Sgn));
+                let z = dahl_state(d, kappa);
+                let rows = || idx.iter().map(|&i| z[i as usize]).collect();
+                Delta { replace: at.map(|j| (j, rows())), extra: Vec::new(), y_alt: None }
+            }
+            Effect::Delay { lag, channel } => {
                 let mut des = self.des.clone();
                 des.lag = lag;
+                des.channel = channel;
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
@@ -525,6 +621,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
     let applicable = match kind {
         Kind::Dry => !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)),
         Kind::Backlash => has(Col::Q),
+        // it replaces the model's own Coulomb sign
+        Kind::Presliding => has(Col::Sgn),
         _ => true,
     };
     if !applicable || chosen.iter().any(|e| e.kind() == kind) {
@@ -554,6 +652,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
         Kind::Asymmetric => Some(Effect::Asymmetric),
         Kind::Load => Some(Effect::Load),
         Kind::Dry => Some(Effect::Dry),
+        // pre-sliding distances c/σ from 20 µrad to 20 mrad
+        Kind::Presliding => Some(log_search(50.0, 5.0e4, 20, &|k| Effect::Presliding { kappa: k })),
         Kind::Thermal => {
             // The shape of the friction that scales: the model's friction refitted first.
             let (beta, _) = ctx.g.solve();
@@ -669,16 +769,52 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
         }
         Kind::Delay => {
-            // Whole-sample lags from two samples up to 100 ms (at most 200 samples). No
-            // fractional lag: interpolating u between two samples averages its noise away,
-            // which scores as a "delay" of half a sample on any log whose u is noisy. No lag of
-            // one sample: a torque held over the sample period (zero-order hold) already puts
-            // the q̈ seen from q half a sample off the logged u, whichever way the logger
-            // stamps it, so one sample is the logging convention, not a delay.
-            let max_lag = ((0.1 / d.dt).round() as usize).clamp(4, 200);
-            let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
-            let b = vals.iter().enumerate().skip(2).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(2);
-            Some(Effect::Delay { lag: b as f64 })
+            // Each channel (u, tau, the state) shifted by whole samples either way, from two
+            // samples up to 100 ms (at most 200 samples). No fractional lag: interpolating a
+            // noisy channel between two samples averages its noise away, which scores as a
+            // "delay" of half a sample on any noisy log. No lag of one sample: a torque held over
+            // the sample period (zero-order hold) already puts the q̈ seen from q half a sample
+            // off the logged u, whichever way the logger stamps it, so one sample is the
+            // logging convention, not a delay. A coarse pass (every other lag) then the best
+            // lag's neighbours.
+            let max_lag = ((0.1 / d.dt).round() as i64).clamp(4, 200);
+            let channels: Vec<Channel> =
+                Channel::ALL.into_iter().filter(|c| *c != Channel::Tau || d.tau.iter().any(|t| *t != 0.0)).collect();
+            let consider = |best: &mut Option<(f64, Effect)>, e: Effect| {
+                let r = rss_of(e);
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    *best = Some((r, e));
+                }
+            };
+            // coarse lags about 15 % apart (every lag up to 8), then every lag around the best
+            let mut coarse: Vec<i64> = (2..=8).collect();
+            while let Some(&l) = coarse.last() {
+                let next = ((l as f64) * 1.15).ceil() as i64;
+                if next > max_lag {
+                    break;
+                }
+                coarse.push(next);
+            }
+            let mut best: Option<(f64, Effect)> = None;
+            for &channel in &channels {
+                for &l in &coarse {
+                    for sgn in [1.0, -1.0] {
+                        consider(&mut best, Effect::Delay { lag: sgn * l as f64, channel });
+                    }
+                }
+            }
+            if let Some((_, Effect::Delay { lag, channel })) = best {
+                let reach = (lag.abs() * 0.15).ceil().max(1.0);
+                let mut off = -reach;
+                while off <= reach {
+                    let l = lag + off;
+                    if off != 0.0 && l.abs() >= 2.0 && l.abs() <= max_lag as f64 {
+                        consider(&mut best, Effect::Delay { lag: l, channel });
+                    }
+                    off += 1.0;
+                }
+            }
+            best.map(|(_, e)| e)
         }
     }
 }

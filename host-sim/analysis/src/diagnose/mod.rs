@@ -353,7 +353,11 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
     if log.len() < 100 {
         return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least 100", log.len())));
     }
+    let clock = std::time::Instant::now();
     let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
+    if std::env::var_os("DIAG_TIMING").is_some() {
+        eprintln!("[diagnose] preparation stage: {:.3} s", clock.elapsed().as_secs_f64());
+    }
     let mut d = match log.mode() {
         LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
         LogMode::Trajectory => trajectory::diagnose(&prep.log, model, &params, opts)?,
@@ -510,6 +514,7 @@ fn torque_mode(
         qd,
         qdd,
         u,
+        tau: tau.clone(),
         y: Vec::new(),
         temp: log.temp.clone(),
         dt,
@@ -529,7 +534,7 @@ fn torque_mode(
     }
     // y = d − rest: the rest is what the model predicts outside its linear terms (gravity table,
     // the core's f32 rounding), the prediction less the linear part at the core's own sign.
-    let des0 = candidates::Design::new(&base, &[]);
+    let des0 = candidates::Design::new(&data, &base, &[]);
     let mut x = vec![0.0; des0.cols.len()];
     let mut y = Vec::with_capacity(n);
     data.y = vec![0.0; n];
@@ -683,8 +688,19 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
                 put("spring_k", s.beta[k]);
             }
         }
-        Effect::Delay { lag } => put("seconds", lag * d.dt),
+        Effect::Delay { lag, channel } => {
+            // how long the channel lags (negative: it leads); `seconds` is that size
+            put(&format!("{}_lag_s", channel.name()), lag * d.dt);
+            put("seconds", lag.abs() * d.dt);
+        }
         Effect::Dry => put("c", beta(0)),
+        Effect::Presliding { kappa } => {
+            // the Dahl column's coefficient is the Coulomb level c; σ = κ·c
+            let c = s.design.cols.iter().position(|c| matches!(c, Col::Dahl { .. })).map_or(0.0, |k| s.beta[k]);
+            put("sigma", kappa * c);
+            put("distance", 1.0 / kappa);
+            put("c", c);
+        }
     }
     let _ = b;
     p
@@ -710,7 +726,9 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
             put("spring", "b", bt);
         }
     }
-    if let Some(c) = coef(s, Col::Sgn) {
+    let coulomb = coef(s, Col::Sgn)
+        .or_else(|| s.design.cols.iter().position(|c| matches!(c, Col::Dahl { .. })).map(|k| s.beta[k]));
+    if let Some(c) = coulomb {
         if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 {
             put("dry_friction", "c", c);
         } else {
@@ -1024,7 +1042,7 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
     for k in 0..fin.effects.len() {
-        let name = fin.effects[k].kind().name();
+        let name = section_name(fin.effects[k].kind());
         if model_text.lines().any(|l| l.trim() == format!("[{name}]")) {
             // The model already carries this term as a section of its own: a second table of
             // the same name would make the file invalid TOML, so the fitted extra is a comment.
@@ -1041,7 +1059,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     use std::fmt::Write as _;
     let p = effect_params(s, k, d);
     let Some(e) = s.effects.get(k) else { return String::new() };
-    let section = e.kind().name();
+    let section = section_name(e.kind());
     // Sections the core also knows as model terms are clamped into its parameter ranges, so the
     // emitted file stays a loadable model (a negative Stribeck level, say, is not one).
     let g = |key: &str| {
@@ -1052,7 +1070,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
         }
     };
     let mut o = String::new();
-    let _ = writeln!(o, "\n[{}]", e.kind().name());
+    let _ = writeln!(o, "\n[{section}]");
     match *e {
         Effect::Stribeck { .. } => {
             let _ = writeln!(o, "level = {:?}\nspeed = {:?}", g("level"), g("speed"));
@@ -1099,8 +1117,20 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
         Effect::Dry => {
             let _ = writeln!(o, "c = {:?}", g("c").max(0.0));
         }
+        Effect::Presliding { .. } => {
+            let _ = writeln!(o, "sigma = {:?}", g("sigma").max(0.0));
+        }
     }
     o
+}
+
+/// The model/plant file section an effect is written as (spec §2; the vocabulary name
+/// otherwise).
+pub(crate) fn section_name(k: candidates::Kind) -> &'static str {
+    match k {
+        candidates::Kind::Presliding => "presliding",
+        _ => k.name(),
+    }
 }
 
 /// Fits `T(t) = t_ambient + rise·(1 − e^(−t/τ))` to the temp column (τ by golden section).

@@ -240,7 +240,7 @@ impl<'a> Round<'a> {
     pub fn fit_and_score(&self, e: Effect, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut effects = self.chosen.clone();
         effects.push(e);
-        let des = Design::new(self.base, &effects);
+        let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
         let (beta, _) = g.solve();
@@ -282,7 +282,7 @@ pub fn fit_and_score(
     bits: &[u32],
     n_regimes: usize,
 ) -> Scored {
-    let des = Design::new(base, effects);
+    let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
     let (beta, _) = g.solve();
@@ -433,7 +433,7 @@ pub fn unphysical(s: &Scored) -> Option<&'static str> {
 /// where two explanations fit equally well, the one with fewer is the verdict.
 pub fn extra_params(k: Kind) -> usize {
     match k {
-        Kind::Asymmetric | Kind::Load | Kind::Backlash | Kind::Delay | Kind::Dry => 1,
+        Kind::Asymmetric | Kind::Load | Kind::Backlash | Kind::Delay | Kind::Dry | Kind::Presliding => 1,
         Kind::Stribeck | Kind::Thermal | Kind::Cable => 2,
         Kind::Ripple => 3,
     }
@@ -709,6 +709,7 @@ mod tests {
             q,
             qd,
             qdd,
+            tau: (0..n).map(|i| 0.3 * (i as f64 * 0.01).sin()).collect(),
             u,
             y,
             dt: 1e-3,
@@ -742,8 +743,11 @@ mod tests {
             Effect::Ripple { period: 0.105 },
             Effect::Cable { engage: 1.3, width: 0.01 },
             Effect::Backlash { width: 0.02 },
-            Effect::Delay { lag: 3.4 },
+            Effect::Delay { lag: 3.0, channel: crate::diagnose::candidates::Channel::U },
+            Effect::Delay { lag: -4.0, channel: crate::diagnose::candidates::Channel::Tau },
+            Effect::Delay { lag: 2.0, channel: crate::diagnose::candidates::Channel::State },
             Effect::Dry,
+            Effect::Presliding { kappa: 900.0 },
         ];
         for chosen in [vec![], vec![Effect::Ripple { period: 0.105 }], vec![Effect::Backlash { width: 0.02 }]] {
             let round = Round::new(&d, &base, &chosen, &fit_idx, &split);

@@ -241,7 +241,13 @@ fn score_traj(
     let len = (n - hold_from).div_ceil(units).max(1);
     let mut s = Scored {
         effects: vec![],
-        design: super::candidates::Design { cols: vec![], lag: 0.0, spans: vec![] },
+        design: super::candidates::Design {
+            cols: vec![],
+            lag: 0.0,
+            channel: super::candidates::Channel::U,
+            dahl: None,
+            spans: vec![],
+        },
         beta: theta,
         sse: 0.0,
         n: n - hold_from,

@@ -126,9 +126,25 @@ pub fn estimate(t: &[f64], x: &[f64], h: usize) -> Estimate {
         gain1: Vec::with_capacity(n),
         gain2: Vec::with_capacity(n),
     };
+    // Evenly stamped (within 1 % of the step): the interior windows all have the same weights,
+    // so the interior is a convolution; only the ends need their own fits.
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    let uniform = m == 2 * h + 1 && t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 0.01 * dt);
+    let interior = if uniform { weights(h, dt) } else { None }.map(|(w1, w2)| {
+        let (g1, g2) = (w1.iter().map(|w| w * w).sum::<f64>(), w2.iter().map(|w| w * w).sum::<f64>());
+        (w1, w2, g1, g2)
+    });
     let mut a = vec![0.0; p * p];
     let mut b = vec![0.0; p];
     for i in 0..n {
+        if let Some((w1, w2, g1, g2)) = interior.as_ref().filter(|_| i >= h && i + h < n) {
+            let win = &x[i - h..=i + h];
+            out.d1.push(w1.iter().zip(win).map(|(w, v)| w * v).sum());
+            out.d2.push(w2.iter().zip(win).map(|(w, v)| w * v).sum());
+            out.gain1.push(*g1);
+            out.gain2.push(*g2);
+            continue;
+        }
         let lo = i.saturating_sub(h).min(n - m);
         let hi = lo + m;
         let scale = ((t[hi - 1] - t[lo]) / 2.0).max(1e-12);

@@ -228,9 +228,40 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         ));
     }
     let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
-    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(resolution_sd(&log.q));
-    let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
+    let quantum = resolution_sd(&log.q);
+    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(quantum);
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
+    let mut q_spec = q_spec;
+    // A coarse encoder's quantisation is not white: a joint moving at v crosses steps of Δ at
+    // v/Δ Hz, tones the spectrum shows as "motion" up to hundreds of Hz, and a window chosen
+    // for that motion is a few samples wide and all noise. Where q is quantised, the motion's
+    // own frequency is checked on q̇ and q̈ seen through a wide window (where the steps average
+    // out): a spectral bandwidth far above it is the encoder, and the derivative sizes are
+    // taken from the wide window's motion instead.
+    if quantum > 0.0 {
+        if let (Some(s), Some(r)) = (q_spec.as_mut(), longest(&segments)) {
+            let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
+            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
+            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+            if v1 > 0.0 && v2 > 0.0 {
+                let w = v2 / v1; // rad/s: the motion's typical angular frequency
+                if s.bandwidth_hz > 5.0 * w / std::f64::consts::TAU {
+                    // a margin of 2 on the frequency for the motion's spread
+                    let w2 = 2.0 * w;
+                    let mut dk = v2;
+                    for k in 2..6 {
+                        s.deriv_rms[k] = dk * w2.powi(k as i32 - 1);
+                        dk = dk.max(0.0);
+                    }
+                    s.deriv_rms[0] = v1;
+                    s.deriv_rms[1] = v2;
+                    s.bandwidth_hz = w2 / std::f64::consts::TAU;
+                }
+            }
+        }
+    }
+    let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
     let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
 
     // q̇ and q̈ from q.
@@ -248,13 +279,22 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let qd_q = Deriv { info: derived_info("derived from q", h1, dt, &s1, bias1), values: v1, noise: s1, bias: bias1 };
     let (v2, s2) = derive(r2, &log.q, &segments);
     let qdd_q = Deriv { info: derived_info("derived from q", h2, dt, &s2, bias2), values: v2, noise: s2, bias: bias2 };
+    // Rest is judged on the joint's own angle: a logged derivative may be a filtered estimate
+    // that smears a stop into the dwell.
+    let still_from_q = (qd_q.values.clone(), qd_q.noise.clone(), qdd_q.values.clone(), qdd_q.noise.clone());
 
     // A logged q̇: checked against q, kept when its error is the smaller.
     let (qd, qd_recipe) = match &log.qd {
         Some(v) => {
             let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
             let noise = diff.max(own_noise(v, &segments, dt));
-            if noise <= qd_q.effective_error() && consistent(scale) {
+            let lag = logged_lag(v, &qd_q.values);
+            if let Some(l) = lag {
+                notes.push(format!(
+                    "the logged qd lags the derivative of q by {l} samples (a filtered estimate): q's is used"
+                ));
+            }
+            if noise <= qd_q.effective_error() && consistent(scale) && lag.is_none() {
                 let info = logged_info(noise, scale);
                 (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
             } else {
@@ -293,7 +333,13 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let best_err = typical(&qdd_best.error());
             let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
             let noise = diff.max(own_noise(a, &segments, dt));
-            if noise <= qdd_best.effective_error() && consistent(scale) {
+            let lag = logged_lag(a, &qdd_best.values);
+            if let Some(l) = lag {
+                notes.push(format!(
+                    "the logged qdd lags the estimate by {l} samples (a filtered estimate): the estimate is used"
+                ));
+            }
+            if noise <= qdd_best.effective_error() && consistent(scale) && lag.is_none() {
                 (Deriv { values: a.clone(), noise: vec![noise; n], bias: 0.0, info: logged_info(noise, scale) }, None)
             } else {
                 notes.push(format!(
@@ -314,7 +360,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // still: q̇ = q̈ = 0 exactly, so a Coulomb term is sign(0) = 0 rather than the sign of
     // the estimate's noise.
     let min_run = ((2.0 * qd.info.half_window_s.max(qdd.info.half_window_s).max(0.01) / dt).round() as usize).max(3);
-    let rest = detect_rest(&qd.values, &qdd.values, &qd.noise, &qdd.noise, min_run, &segments);
+    // still: the q̇ used (the best estimate, possibly a clean logged one) within its noise, and
+    // q's own q̈ within its noise
+    let rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
     // Motion next to a rest is re-estimated from the motion's side only: a window across the
     // start or end of a move mixes the still joint into the moving one (q̈ jumps there), and
     // its smeared q̇ would put the Coulomb sign wrong for a whole window.
@@ -328,12 +376,27 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
                 runs.push((lo..hi, run));
             }
         }
+        // Only the samples within a window of a run's ends change: their fits are redone on
+        // the run's side alone.
         let redo = |d: &mut Deriv, r: Recipe, src: &[f64]| {
+            let reach = 2 * r.h + 2;
             for (window, run) in &runs {
-                let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
-                estimate_deriv(&log.t, src, std::slice::from_ref(window), r, &mut v, &mut s);
-                d.values[run.clone()].copy_from_slice(&v[run.clone()]);
-                d.noise[run.clone()].copy_from_slice(&s[run.clone()]);
+                let parts: Vec<(std::ops::Range<usize>, std::ops::Range<usize>)> = if run.len() <= 3 * reach {
+                    vec![(window.clone(), run.clone())]
+                } else {
+                    vec![
+                        (window.start..run.start + 2 * reach, run.start..run.start + reach),
+                        (run.end - 2 * reach..window.end, run.end - reach..run.end),
+                    ]
+                };
+                for (w, out) in parts {
+                    let e = lpr::estimate(&log.t[w.clone()], &src[w.clone()], r.h);
+                    let (v, g) = if r.second { (&e.d2, &e.gain2) } else { (&e.d1, &e.gain1) };
+                    for i in out {
+                        d.values[i] = v[i - w.start];
+                        d.noise[i] = r.sigma * g[i - w.start].max(0.0).sqrt();
+                    }
+                }
             }
         };
         let qd_logged = qd.values.clone();
@@ -371,7 +434,31 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     if rest_share > 0.0 {
         notes.push(format!("{:.1} % of the samples are at rest (q̇ = q̈ = 0 there)", 100.0 * rest_share));
     }
-    let (qd_err, qdd_err) = (qd.error(), qdd.error());
+    let (mut qd_err, mut qdd_err) = (qd.error(), qdd.error());
+    // The estimator's bias follows the motion: where the motion turns sharply (a stop, a
+    // reversal at speed) it is far above the log's typical figure. Measured locally by
+    // comparing each estimate with the same fit on half the window.
+    if let Some(r) = qd_recipe {
+        local_bias(&log.t, &log.q, &segments, r, &qd.values, &rest, &mut qd_err);
+    }
+    if let Some(r) = qdd_recipe {
+        let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
+        local_bias(&log.t, src, &segments, r, &qdd.values, &rest, &mut qdd_err);
+    }
+    // A quantised q resolves a speed no finer than one step over the window (its error is
+    // not independent from sample to sample, so the noise formula alone is too hopeful there).
+    if quantum > 0.0 {
+        let step = quantum * 12f64.sqrt();
+        if qd.info.source != "logged" {
+            let floor = step / (2.0 * qd.info.half_window_s.max(dt));
+            qd_err.iter_mut().for_each(|e| *e = e.max(floor));
+        }
+        if qdd.info.source == "derived from q" {
+            let w = qdd.info.half_window_s.max(dt);
+            let floor = step / (w * w);
+            qdd_err.iter_mut().for_each(|e| *e = e.max(floor));
+        }
+    }
     // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
     // from q, not at rest): a pure Coulomb sign there is a coin toss.
     let sign_unknown: Vec<bool> =
@@ -409,6 +496,64 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         qdd_noise: qdd.noise,
         report,
     })
+}
+
+/// Raises `err` (per-sample 1σ error of `est`, the recipe's estimate) to the local bias:
+/// the estimate at half the window differs from it by the bias's change plus noise; the squared
+/// difference smoothed over a window, less its noise share, times the factor that turns the
+/// change into the bias (the leading bias grows as h⁴ for q̇ from q and as h² otherwise).
+fn local_bias(
+    t: &[f64],
+    src: &[f64],
+    segments: &[std::ops::Range<usize>],
+    r: Recipe,
+    est: &[f64],
+    rest: &[bool],
+    err: &mut [f64],
+) {
+    let half = Recipe { h: (r.h / 2).max(2), ..r };
+    if half.h == r.h {
+        return;
+    }
+    let n = est.len();
+    let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
+    estimate_deriv(t, src, segments, half, &mut v, &mut s);
+    // the noise of the difference: both estimates share their samples, so its variance is
+    // the half window's less the full one's (the full window's is nested in it to first order)
+    let dt = (t[t.len() - 1] - t[0]) / (t.len().max(2) - 1) as f64;
+    let gain = |h: usize| {
+        lpr::weights(h, dt).map_or(0.0, |(w1, w2)| {
+            let w = if r.second { w2 } else { w1 };
+            w.iter().map(|x| x * x).sum::<f64>()
+        })
+    };
+    let noise_var = r.sigma * r.sigma * (gain(half.h) - gain(r.h)).max(0.0);
+    let grow = if r.from_q && !r.second { 16.0 / 15.0 } else { 4.0 / 3.0 };
+    let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) }).collect();
+    for seg in segments {
+        let mut acc = 0.0;
+        let (lo, hi) = (seg.start, seg.end);
+        let w = r.h;
+        // running sum over ±w inside the segment
+        let mut a = lo;
+        let mut b = lo;
+        for i in lo..hi {
+            let (want_a, want_b) = (i.saturating_sub(w).max(lo), (i + w + 1).min(hi));
+            while b < want_b {
+                acc += d2[b];
+                b += 1;
+            }
+            while a < want_a {
+                acc -= d2[a];
+                a += 1;
+            }
+            let mean = acc.max(0.0) / (b - a).max(1) as f64;
+            let bias = grow * (mean - noise_var).max(0.0).sqrt();
+            if bias > err[i] {
+                err[i] = err[i].hypot(bias);
+            }
+        }
+    }
 }
 
 /// A logged derivative whose scale against the estimate is off by more than 20 % is not the
@@ -851,11 +996,40 @@ fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Resu
     if r.is_empty() {
         return Ok((scale, 0.0));
     }
+    let rms = (r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
     let k = r.len() / 2;
     let (_, m, _) = r.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     let diff_sd = 1.4826 * *m;
     let noise = (diff_sd * diff_sd - e_sd * e_sd).max(0.0).sqrt();
+    // Differences whose RMS is far beyond their typical size sit in a few places (a filtered
+    // column smearing every sudden change): the column's error is that RMS, not its median.
+    let noise =
+        if rms > 3.0 * diff_sd.max(e_sd) { noise.max((rms * rms - e_sd * e_sd).max(0.0).sqrt()) } else { noise };
     Ok((scale, noise))
+}
+
+/// Samples by which a logged column lags (positive) or leads the estimate of the same
+/// quantity, when shifting it explains their difference clearly better (the shift's squared
+/// difference under 70 % of the unshifted one): a drive's filtered estimate. `None`: no shift.
+fn logged_lag(v: &[f64], e: &[f64]) -> Option<i64> {
+    let n = v.len().min(e.len());
+    if n < 100 {
+        return None;
+    }
+    let sse = |lag: i64| -> f64 {
+        let stride = (n / 50_000).max(1);
+        (20..n - 20)
+            .step_by(stride)
+            .map(|i| {
+                let j = (i as i64 - lag) as usize;
+                let d = v[i] - e[j];
+                d * d
+            })
+            .sum()
+    };
+    let s0 = sse(0);
+    let (best, sb) = (-10..=10).map(|l| (l, sse(l))).min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (best != 0 && sb < 0.7 * s0).then_some(best)
 }
 
 #[cfg(test)]
