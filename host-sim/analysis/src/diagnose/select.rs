@@ -44,6 +44,13 @@ pub const AT_FLOOR: f64 = 1.05;
 /// passing for an effect is then mostly not needed, and a wider one hides real effects on long
 /// logs (a 5 ms delay on a 190 000-sample log sat at 1.038 × floor with p ≈ 1e-6).
 pub const AT_FLOOR_EIV: f64 = 1.02;
+/// A candidate that takes at least this share of the held-out MSE (significantly) is judged on
+/// that alone: the floor is an estimate, and a fast effect (a delay, a short ripple, friction
+/// at reversals) raises it, because its structure looks like noise at the smallest lags. The
+/// floor rule is for small gains (coefficient shrinkage, errors in variables).
+pub const CLEAR_GAIN: f64 = 0.1;
+/// A second (third) effect takes at least this share of the held-out MSE still above the floor.
+pub const FURTHER_SHARE: f64 = 0.25;
 
 /// The at-the-floor factor for this log (see [`AT_FLOOR_EIV`]).
 pub fn at_floor_factor(d: &Data) -> f64 {
@@ -442,9 +449,6 @@ pub fn extra_params(k: Kind) -> usize {
 /// A held-out MSE at least this much above the noise floor's (in RMSE: ×1.5) that no
 /// candidate explains is `unexplained`, not `none`.
 pub const UNEXPLAINED: f64 = 1.5;
-/// A second effect is looked for only while the held-out RMSE stays above this factor of the
-/// floor (spec: report two effects when the first leaves more than 1.5× the floor).
-pub const SECOND_EFFECT: f64 = 1.5;
 
 /// Everything the selection found.
 #[derive(Clone, Debug)]
@@ -562,7 +566,7 @@ pub fn select(
     let refit_unphysical = unphysical(&refit_s);
     let refit = Outcome {
         name: "parameters",
-        significant: !at_floor && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
+        significant: (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
         implausible: refit_unphysical,
         scored: refit_s,
         t,
@@ -574,7 +578,7 @@ pub fn select(
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
         let implausible = implausible(&s, d).or_else(|| unphysical(&s));
-        let significant = !at_floor && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
+        let significant = (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
         Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
     let t0 = std::time::Instant::now();
@@ -649,7 +653,7 @@ pub fn select(
         chosen.push(b);
         while chosen.len() < max_effects {
             let Some(cur) = chosen.last() else { break };
-            if cur.scored.rmse() <= SECOND_EFFECT * floor {
+            if !open(&cur.scored) {
                 break;
             }
             let effects = cur.scored.effects.clone();
@@ -658,7 +662,17 @@ pub fn select(
             let round = Round::new(d, base, &effects, &fit_idx, split);
             let next = try_kinds(&kinds, &round, &grid_idx, split, bits, n_regimes);
             let cur_s = cur.scored.clone();
-            let next: Vec<Outcome> = next.into_iter().map(|s| outcome(&cur_s, s)).collect();
+            // A further effect must also take a real share of what is left above the floor
+            // (a quarter of the excess MSE), not only shave a significant sliver off noise.
+            let excess = cur_s.mse() - floor * floor;
+            let next: Vec<Outcome> = next
+                .into_iter()
+                .map(|s| outcome(&cur_s, s))
+                .map(|mut o| {
+                    o.significant &= cur_s.mse() - o.scored.mse() >= FURTHER_SHARE * excess;
+                    o
+                })
+                .collect();
             let best = parsimonious(&next, alpha_each).cloned();
             match best {
                 Some(o) => chosen.push(o),
