@@ -108,12 +108,29 @@ pub enum Col {
     Dahl {
         kappa: f64,
     },
+    /// a Stribeck curve of another exponent than 2
+    StribeckExp {
+        speed: f64,
+        exponent: f64,
+    },
+    /// a cable taut below `engage`: −spring(engage − q)
+    CableBelow {
+        engage: f64,
+        width: f64,
+    },
+    /// (q − centre) and (q − centre)³ of a progressive spring
+    Lin {
+        centre: f64,
+    },
+    Cubic {
+        centre: f64,
+    },
 }
 
 impl Col {
     /// A friction column (velocity-dependent dissipation of the model's own terms).
     pub fn is_friction(&self) -> bool {
-        matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn)
+        matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn | Col::StribeckExp { .. })
     }
 
     #[inline]
@@ -129,7 +146,7 @@ impl Col {
             Col::SinSq(s) => (s * d.q[i]).sin(),
             Col::CosSq(s) => (s * d.q[i]).cos(),
             Col::Q => d.q[i],
-            Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - q0, w),
+            Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - d.q0 - q0, w),
             Col::Const => 1.0,
             Col::Stribeck(v) => {
                 let r = qd / v;
@@ -150,6 +167,10 @@ impl Col {
             Col::Cable { engage, width } => super::shapes::engaged_spring(1.0, engage, width, d.q[i]),
             // a state, not a function of the sample: the design holds its values
             Col::Dahl { .. } => 0.0,
+            Col::StribeckExp { speed, exponent } => (-(qd.abs() / speed).powf(exponent)).exp() * d.sgn[i],
+            Col::CableBelow { engage, width } => -super::shapes::engaged_spring(1.0, -engage, width, -d.q[i]),
+            Col::Lin { centre } => d.q[i] - centre,
+            Col::Cubic { centre } => (d.q[i] - centre).powi(3),
         }
     }
 }
@@ -217,8 +238,11 @@ impl Kind {
 /// A fitted-shape effect (its linear amplitudes come from the joint solve).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Effect {
+    /// `exp(−(|q̇|/speed)^exponent)·sgn`: the classic Gaussian curve is exponent 2, real joints
+    /// show 0.5–2
     Stribeck {
         speed: f64,
+        exponent: f64,
     },
     Asymmetric,
     Load,
@@ -228,15 +252,22 @@ pub enum Effect {
         c: f64,
         src: ThermSrc,
     },
+    /// one or two harmonics of the period
     Ripple {
         period: f64,
+        harmonics: u8,
     },
+    /// a cable or harness taut past `engage` (side +1: above it, −1: below), or with `side`
+    /// 0 a progressive spring `k1·x + k3·x³` about `engage`
     Cable {
         engage: f64,
         width: f64,
+        side: i8,
     },
+    /// the spring's dead zone of `width`, its centre `offset` from the spring's rest angle
     Backlash {
         width: f64,
+        offset: f64,
     },
     /// a time shift of one logged channel against the others: `lag` samples (whole), positive
     /// when that channel lags (its value at t belongs to t − lag)
@@ -271,12 +302,22 @@ impl Effect {
     /// Extra columns (backlash and delay change the base instead).
     pub fn cols(&self) -> Vec<Col> {
         match *self {
-            Effect::Stribeck { speed } => vec![Col::Stribeck(speed)],
+            Effect::Stribeck { speed, exponent } if exponent == 2.0 => vec![Col::Stribeck(speed)],
+            Effect::Stribeck { speed, exponent } => vec![Col::StribeckExp { speed, exponent }],
             Effect::Asymmetric => vec![Col::AbsSgn],
             Effect::Load => vec![Col::LoadSgn],
             Effect::Thermal { a, b, c, src } => vec![Col::Thermal { a, b, c, src }],
-            Effect::Ripple { period } => vec![Col::RipSin(period), Col::RipCos(period)],
-            Effect::Cable { engage, width } => vec![Col::Cable { engage, width }],
+            Effect::Ripple { period, harmonics } => {
+                let mut v = vec![Col::RipSin(period), Col::RipCos(period)];
+                if harmonics >= 2 {
+                    v.extend([Col::RipSin(period / 2.0), Col::RipCos(period / 2.0)]);
+                }
+                v
+            }
+            Effect::Cable { engage, width, side: 1 } => vec![Col::Cable { engage, width }],
+            Effect::Cable { engage, width, side: -1 } => vec![Col::CableBelow { engage, width }],
+            // the cubic first: its stiffening is what the sign rule checks
+            Effect::Cable { engage, .. } => vec![Col::Cubic { centre: engage }, Col::Lin { centre: engage }],
             Effect::Backlash { .. } | Effect::Delay { .. } | Effect::Presliding { .. } => vec![],
             Effect::Dry => vec![Col::Sgn],
         }
@@ -334,10 +375,10 @@ impl Design {
         let mut dahl = None;
         for e in effects {
             match *e {
-                Effect::Backlash { width } => {
+                Effect::Backlash { width, offset } => {
                     for c in cols.iter_mut() {
                         if let Col::Q = c {
-                            *c = Col::DeadZone { q0: 0.0, w: width };
+                            *c = Col::DeadZone { q0: offset, w: width };
                         }
                     }
                 }
@@ -370,7 +411,7 @@ impl Design {
     pub fn row(&self, d: &Data, i: usize, x: &mut [f64]) -> f64 {
         for (xk, c) in x.iter_mut().zip(&self.cols) {
             *xk = match c {
-                Col::DeadZone { w, .. } => super::shapes::dead_zone(d.q[i] - d.q0, *w),
+                Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - d.q0 - q0, *w),
                 Col::Dahl { .. } => self.dahl.as_ref().map_or(0.0, |z| z[i]),
                 _ => c.eval(d, i),
             };
@@ -490,9 +531,10 @@ impl<'a> GridCtx<'a> {
     pub fn delta(&self, e: &Effect) -> Delta {
         let (d, idx) = (self.d, self.idx);
         match *e {
-            Effect::Backlash { width } => {
+            Effect::Backlash { width, offset } => {
                 let at = self.des.cols.iter().position(|c| matches!(c, Col::Q));
-                let z = || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0, width)).collect();
+                let z =
+                    || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0 - offset, width)).collect();
                 Delta { replace: at.map(|j| (j, z())), extra: Vec::new(), y_alt: None }
             }
             Effect::Presliding { kappa } => {
@@ -508,7 +550,7 @@ impl<'a> GridCtx<'a> {
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
-            Effect::Ripple { period } => {
+            Effect::Ripple { period, harmonics: 1 } => {
                 // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
                 let (zs, zc) =
                     idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
@@ -647,7 +689,25 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // A Stribeck curve narrower than the sign band cannot be told from the band itself
             // (and from velocity noise at rest), so the search starts at 1.5 bands.
             let lo = (1.5 * d.band).max(1e-4).min(0.05 * v95);
-            Some(log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v }))
+            // the curve's speed for each exponent of the family (0.5, 1, 2), then the best
+            // exponent refined between its neighbours
+            let mut best: Option<(f64, Effect)> = None;
+            for exponent in [0.5, 1.0, 2.0] {
+                let e = log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v, exponent });
+                let r = rss_of(e);
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            }
+            let (_, e) = best?;
+            let Effect::Stribeck { speed, exponent } = e else { return Some(e) };
+            if exponent == 2.0 {
+                return Some(e);
+            }
+            let (x, _) = golden(exponent.ln() - 0.7, exponent.ln() + 0.7, 12, |le| {
+                rss_of(Effect::Stribeck { speed, exponent: le.exp().clamp(0.3, 3.0) })
+            });
+            Some(Effect::Stribeck { speed, exponent: x.exp().clamp(0.3, 3.0) })
         }
         Kind::Asymmetric => Some(Effect::Asymmetric),
         Kind::Load => Some(Effect::Load),
@@ -662,22 +722,34 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             if a == 0.0 && b == 0.0 && c == 0.0 {
                 return None;
             }
-            match &d.temp {
-                Some(tp) => {
-                    let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
-                    Some(Effect::Thermal { a, b, c, src: ThermSrc::Temp { mean } })
-                }
-                None => {
-                    let (t0, t1) = (d.t[0], d.t[d.n - 1]);
-                    let span = (t1 - t0).max(1e-6);
-                    let mk = |tau: f64| {
-                        let mean = idx.iter().map(|&i| 1.0 - (-(d.t[i as usize] - t0) / tau).exp()).sum::<f64>()
-                            / idx.len().max(1) as f64;
-                        Effect::Thermal { a, b, c, src: ThermSrc::Time { tau, t0, mean } }
-                    };
-                    Some(log_search(0.05 * span, 20.0 * span, 12, &mk))
+            // The drift may scale all of the friction, or its viscous part (oil viscosity) or
+            // its Coulomb part (seals, preload) alone: each is tried, the best kept.
+            let parts = [(a, b, c), (a, b, 0.0), (0.0, 0.0, c)];
+            let parts = parts.into_iter().filter(|(a, b, c)| *a != 0.0 || *b != 0.0 || *c != 0.0);
+            let mut best: Option<(f64, Effect)> = None;
+            for (a, b, c) in parts {
+                let e = match &d.temp {
+                    Some(tp) => {
+                        let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
+                        Effect::Thermal { a, b, c, src: ThermSrc::Temp { mean } }
+                    }
+                    None => {
+                        let (t0, t1) = (d.t[0], d.t[d.n - 1]);
+                        let span = (t1 - t0).max(1e-6);
+                        let mk = |tau: f64| {
+                            let mean = idx.iter().map(|&i| 1.0 - (-(d.t[i as usize] - t0) / tau).exp()).sum::<f64>()
+                                / idx.len().max(1) as f64;
+                            Effect::Thermal { a, b, c, src: ThermSrc::Time { tau, t0, mean } }
+                        };
+                        log_search(0.05 * span, 20.0 * span, 12, &mk)
+                    }
+                };
+                let r = rss_of(e);
+                if best.as_ref().map(|(bst, _)| r < *bst).unwrap_or(true) {
+                    best = Some((r, e));
                 }
             }
+            best.map(|(_, e)| e)
         }
         Kind::Ripple => {
             // Periodogram of the current residual binned over q, then refinement of the best
@@ -743,30 +815,60 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
             let mut best: Option<(f64, f64)> = None;
             for &(f, _) in peaks.iter().take(3) {
-                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f }));
+                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f, harmonics: 1 }));
                 if best.map(|(_, rb)| r < rb).unwrap_or(true) {
                     best = Some((fx, r));
                 }
             }
-            best.map(|(f, _)| Effect::Ripple { period: 1.0 / f })
+            // a second harmonic (a mesh's tooth profile, a cogging shape) when it lowers the
+            // training RSS by more than its two values cost (BIC on the thinned rows)
+            let (f, r1) = best?;
+            let two = Effect::Ripple { period: 1.0 / f, harmonics: 2 };
+            let n = idx.len().max(2) as f64;
+            let r2 = rss_of(two);
+            Some(if n * (r1 / r2).ln() > 2.0 * n.ln() { two } else { Effect::Ripple { period: 1.0 / f, harmonics: 1 } })
         }
         Kind::Cable => {
+            // A harness taut past an angle (either side), or a progressive spring about one.
             let mut sorted: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
             sorted.sort_by(|a, b| a.total_cmp(b));
             let qat = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
             let width = 0.01;
             let k = 40;
             let pts: Vec<f64> = (0..k).map(|j| qat(0.02 + 0.9 * j as f64 / (k - 1) as f64)).collect();
-            let vals: Vec<f64> = pts.iter().map(|&e| rss_of(Effect::Cable { engage: e, width })).collect();
-            let b = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
-            let (lo, hi) = (pts[b.saturating_sub(1)], pts[(b + 1).min(k - 1)]);
-            let (e, _) = golden(lo, hi, 20, |e| rss_of(Effect::Cable { engage: e, width }));
-            Some(Effect::Cable { engage: e, width })
+            let mut best: Option<(f64, Effect)> = None;
+            let mut keep = |e: Effect, r: f64| {
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            };
+            for side in [1i8, -1] {
+                let vals: Vec<f64> = pts.iter().map(|&e| rss_of(Effect::Cable { engage: e, width, side })).collect();
+                let b = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
+                let (lo, hi) = (pts[b.saturating_sub(1)], pts[(b + 1).min(k - 1)]);
+                let (e, r) = golden(lo, hi, 20, |e| rss_of(Effect::Cable { engage: e, width, side }));
+                keep(Effect::Cable { engage: e, width, side }, r);
+            }
+            // progressive: centred on the spring's rest angle when the model has a spring, else
+            // on the middle of the angles travelled
+            let centre = if has(Col::Q) { d.q0 } else { qat(0.5) };
+            let prog = Effect::Cable { engage: centre, width, side: 0 };
+            keep(prog, rss_of(prog));
+            best.map(|(_, e)| e)
         }
         Kind::Backlash => {
             let qs: Vec<f64> = idx.iter().map(|&i| (d.q[i as usize] - d.q0).abs()).collect();
             let reach = quantile(qs, 0.9).max(1e-3);
-            Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
+            // centred on the spring's rest angle, or all on one side of it
+            let mut best: Option<(f64, Effect)> = None;
+            for side in [0.0, 0.5, -0.5] {
+                let e = log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w, offset: side * w });
+                let r = rss_of(e);
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            }
+            best.map(|(_, e)| e)
         }
         Kind::Delay => {
             // Each channel (u, tau, the state) shifted by whole samples either way, from two

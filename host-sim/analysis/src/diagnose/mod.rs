@@ -655,9 +655,10 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
         p.insert(k.to_string(), v);
     };
     match *e {
-        Effect::Stribeck { speed } => {
+        Effect::Stribeck { speed, exponent } => {
             put("level", beta(0));
             put("speed", speed);
+            put("exponent", exponent);
         }
         Effect::Asymmetric => put("delta", beta(0)),
         Effect::Load => put("mu", beta(0)),
@@ -671,19 +672,31 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
                 }
             }
         }
-        Effect::Ripple { period } => {
+        Effect::Ripple { period, harmonics } => {
             let (bs, bc) = (beta(0), beta(1));
             put("amplitude", bs.hypot(bc));
             put("period", period);
             put("phase", bc.atan2(bs));
+            if harmonics >= 2 {
+                let (bs2, bc2) = (beta(2), beta(3));
+                put("amplitude_2", bs2.hypot(bc2));
+                put("phase_2", bc2.atan2(bs2));
+            }
         }
-        Effect::Cable { engage, width } => {
+        Effect::Cable { engage, side: 0, .. } => {
+            put("k3", beta(0));
+            put("k1", beta(1));
+            put("centre", engage);
+        }
+        Effect::Cable { engage, width, side } => {
             put("k", beta(0));
             put("engage", engage);
             put("width", width);
+            put("side", f64::from(side));
         }
-        Effect::Backlash { width } => {
+        Effect::Backlash { width, offset } => {
             put("width", width);
+            put("offset", offset);
             if let Some(k) = s.design.cols.iter().position(|c| matches!(c, Col::DeadZone { .. })) {
                 put("spring_k", s.beta[k]);
             }
@@ -1072,8 +1085,14 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     let mut o = String::new();
     let _ = writeln!(o, "\n[{section}]");
     match *e {
-        Effect::Stribeck { .. } => {
+        Effect::Stribeck { exponent, .. } => {
             let _ = writeln!(o, "level = {:?}\nspeed = {:?}", g("level"), g("speed"));
+            if exponent != 2.0 {
+                let _ = writeln!(
+                    o,
+                    "# fitted exponent {exponent:.2}: the section's curve is exp(−(q̇/speed)²); level and speed are the fit's"
+                );
+            }
         }
         Effect::Asymmetric => {
             let _ = writeln!(o, "delta = {:?}", g("delta"));
@@ -1101,15 +1120,47 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
                 log_temp
             );
         }
-        Effect::Ripple { .. } => {
+        Effect::Ripple { harmonics, .. } => {
             let _ =
                 writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
+            if harmonics >= 2 {
+                let _ = writeln!(
+                    o,
+                    "# second harmonic (period/2), not a section key: amplitude_2 = {:?}, phase_2 = {:?}",
+                    g("amplitude_2"),
+                    g("phase_2")
+                );
+            }
         }
-        Effect::Cable { .. } => {
+        Effect::Cable { side: 1, .. } => {
             let _ = writeln!(o, "k = {:?}\nengage = {:?}\nwidth = {:?}", g("k").max(0.0), g("engage"), g("width"));
+        }
+        Effect::Cable { side, .. } => {
+            // Not a shape the section holds (it is taut above `engage`): written as a comment.
+            o.clear();
+            let _ = if side == 0 {
+                writeln!(
+                    o,
+                    "\n# cable_spring (progressive, k3·x³ + k1·x with x = q − {:?}): k3 = {:?}, k1 = {:?}; no model section holds this shape",
+                    g("centre"),
+                    g("k3"),
+                    g("k1")
+                )
+            } else {
+                writeln!(
+                    o,
+                    "\n# cable_spring taut below engage = {:?} (k = {:?}, width = {:?}); the section holds one taut above its angle",
+                    g("engage"),
+                    g("k"),
+                    g("width")
+                )
+            };
         }
         Effect::Backlash { .. } => {
             let _ = writeln!(o, "width = {:?}", g("width"));
+            if g("offset") != 0.0 {
+                let _ = writeln!(o, "# the dead zone's centre is {:?} rad from the spring's rest angle", g("offset"));
+            }
         }
         Effect::Delay { .. } => {
             let _ = writeln!(o, "seconds = {:?}", g("seconds").clamp(0.0, 1.0));

@@ -438,11 +438,25 @@ pub fn unphysical(s: &Scored) -> Option<&'static str> {
 
 /// How many values a candidate adds to the model's own (its shape parameters and amplitudes):
 /// where two explanations fit equally well, the one with fewer is the verdict.
-pub fn extra_params(k: Kind) -> usize {
-    match k {
-        Kind::Asymmetric | Kind::Load | Kind::Backlash | Kind::Delay | Kind::Dry | Kind::Presliding => 1,
-        Kind::Stribeck | Kind::Thermal | Kind::Cable => 2,
-        Kind::Ripple => 3,
+pub fn extra_params(e: &Effect) -> usize {
+    match *e {
+        Effect::Asymmetric | Effect::Load | Effect::Delay { .. } | Effect::Dry | Effect::Presliding { .. } => 1,
+        Effect::Backlash { offset, .. } => {
+            if offset == 0.0 {
+                1
+            } else {
+                2
+            }
+        }
+        Effect::Thermal { .. } | Effect::Cable { .. } => 2,
+        Effect::Stribeck { exponent, .. } => {
+            if exponent == 2.0 {
+                2
+            } else {
+                3
+            }
+        }
+        Effect::Ripple { harmonics, .. } => 1 + 2 * usize::from(harmonics),
     }
 }
 
@@ -468,7 +482,7 @@ pub struct Selection {
 fn parsimonious(outcomes: &[Outcome], alpha_each: f64) -> Option<&Outcome> {
     let sig: Vec<&Outcome> = outcomes.iter().filter(|o| o.significant).collect();
     let best = *sig.iter().min_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()))?;
-    let size = |o: &Outcome| o.scored.effects.last().map_or(0, |e| extra_params(e.kind()));
+    let size = |o: &Outcome| o.scored.effects.last().map_or(0, extra_params);
     let ties = sig.into_iter().filter(|o| {
         let (_, p, g) = compare(&o.scored, &best.scored);
         !(p < alpha_each && g >= MIN_GAIN)
@@ -566,7 +580,10 @@ pub fn select(
     let refit_unphysical = unphysical(&refit_s);
     let refit = Outcome {
         name: "parameters",
-        significant: (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
+        significant: (!at_floor || gain >= CLEAR_GAIN)
+            && p < alpha_each
+            && gain >= MIN_GAIN
+            && refit_unphysical.is_none(),
         implausible: refit_unphysical,
         scored: refit_s,
         t,
@@ -578,7 +595,8 @@ pub fn select(
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
         let implausible = implausible(&s, d).or_else(|| unphysical(&s));
-        let significant = (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
+        let significant =
+            (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
         Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
     let t0 = std::time::Instant::now();
@@ -749,21 +767,29 @@ mod tests {
         let bits = vec![0b101u32; d.n];
         let fit_idx = crate::diagnose::candidates::thin_idx(&split.train, 8000);
         let candidates = [
-            Effect::Stribeck { speed: 0.05 },
+            Effect::Stribeck { speed: 0.05, exponent: 2.0 },
+            Effect::Stribeck { speed: 0.05, exponent: 0.7 },
             Effect::Asymmetric,
             Effect::Load,
             Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Temp { mean: 30.0 } },
             Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Time { tau: 3.0, t0: 0.0, mean: 0.5 } },
-            Effect::Ripple { period: 0.105 },
-            Effect::Cable { engage: 1.3, width: 0.01 },
-            Effect::Backlash { width: 0.02 },
+            Effect::Ripple { period: 0.105, harmonics: 1 },
+            Effect::Ripple { period: 0.105, harmonics: 2 },
+            Effect::Cable { engage: 1.3, width: 0.01, side: 1 },
+            Effect::Cable { engage: 0.7, width: 0.01, side: -1 },
+            Effect::Cable { engage: 1.0, width: 0.01, side: 0 },
+            Effect::Backlash { width: 0.02, offset: 0.01 },
             Effect::Delay { lag: 3.0, channel: crate::diagnose::candidates::Channel::U },
             Effect::Delay { lag: -4.0, channel: crate::diagnose::candidates::Channel::Tau },
             Effect::Delay { lag: 2.0, channel: crate::diagnose::candidates::Channel::State },
             Effect::Dry,
             Effect::Presliding { kappa: 900.0 },
         ];
-        for chosen in [vec![], vec![Effect::Ripple { period: 0.105 }], vec![Effect::Backlash { width: 0.02 }]] {
+        for chosen in [
+            vec![],
+            vec![Effect::Ripple { period: 0.105, harmonics: 1 }],
+            vec![Effect::Backlash { width: 0.02, offset: 0.0 }],
+        ] {
             let round = Round::new(&d, &base, &chosen, &fit_idx, &split);
             let refit = round.refit(&split, &bits, 3);
             let full = fit_and_score(&d, &base, &chosen, &fit_idx, &split, &bits, 3);
