@@ -52,6 +52,39 @@ impl Gram {
 
     /// Least-squares coefficients and the residual sum of squares. Columns that are all zero on
     /// these rows get a zero coefficient instead of a failure.
+    /// Least squares with the coefficients marked in `nonneg` kept ≥ 0 (active set: the most
+    /// negative is held at 0 and the rest refitted, until none is negative). A physical joint
+    /// has no negative inertia or friction; the bounded fit is the best physical one.
+    pub fn solve_nonneg(&self, nonneg: &[bool]) -> (Vec<f64>, f64) {
+        let p = self.p;
+        let mut fixed = vec![false; p];
+        loop {
+            let free: Vec<usize> = (0..p).filter(|&i| !fixed[i]).collect();
+            let mut sub = Gram::new(free.len());
+            for (a, &i) in free.iter().enumerate() {
+                for (b, &j) in free.iter().enumerate() {
+                    let (lo, hi) = if i <= j { (i, j) } else { (j, i) };
+                    sub.g[a * free.len() + b] = self.g[lo * p + hi];
+                }
+                sub.b[a] = self.b[i];
+            }
+            sub.yy = self.yy;
+            sub.n = self.n;
+            let (z, rss) = sub.solve();
+            let mut beta = vec![0.0; p];
+            for (a, &i) in free.iter().enumerate() {
+                beta[i] = z[a];
+            }
+            let worst = (0..p)
+                .filter(|&i| !fixed[i] && nonneg.get(i).copied().unwrap_or(false) && beta[i] < 0.0)
+                .min_by(|&a, &b| beta[a].total_cmp(&beta[b]));
+            match worst {
+                Some(i) => fixed[i] = true,
+                None => return (beta, rss),
+            }
+        }
+    }
+
     pub fn solve(&self) -> (Vec<f64>, f64) {
         let p = self.p;
         if p == 0 {

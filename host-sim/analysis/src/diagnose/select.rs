@@ -239,7 +239,7 @@ impl<'a> Round<'a> {
     pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut g = self.fit.g.clone();
         eiv_correct(&mut g, &self.fit.des, self.d);
-        let (beta, _) = g.solve();
+        let (beta, _) = g.solve_nonneg(&physical_signs(&self.fit.des));
         self.score_current(beta, split, bits, n_regimes)
     }
 
@@ -250,7 +250,7 @@ impl<'a> Round<'a> {
         let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
-        let (beta, _) = g.solve();
+        let (beta, _) = g.solve_nonneg(&physical_signs(&des));
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
         acc.into_scored(effects, des, beta)
     }
@@ -292,8 +292,27 @@ pub fn fit_and_score(
     let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
-    let (beta, _) = g.solve();
+    let (beta, _) = g.solve_nonneg(&physical_signs(&des));
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
+}
+
+/// The model's own terms that no joint has negative (inertia, friction, a spring's stiffness,
+/// the Coulomb level a Dahl state carries): every final fit keeps them ≥ 0, so a fit that
+/// would need them negative is the best physical one instead, and scores what it scores.
+pub fn physical_signs(des: &Design) -> Vec<bool> {
+    use super::candidates::Col;
+    let base_end = des.spans.first().map_or(des.cols.len(), |s| s.0);
+    des.cols
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            k < base_end
+                && matches!(
+                    c,
+                    Col::Qdd | Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Q | Col::DeadZone { .. } | Col::Dahl { .. }
+                )
+        })
+        .collect()
 }
 
 /// Errors in variables: white noise of variance σ² on the logged q̈ adds n·σ² to the q̈
