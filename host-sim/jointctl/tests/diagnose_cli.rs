@@ -186,7 +186,7 @@ fn trajectory_mode_leaves_out_a_trailing_rest_and_finds_backlash() {
         scenarios: vec![ScenarioKind::Free],
         seconds: 4.0,
         rate: Some(1000.0),
-        range: Some((-0.5236, 0.5236)),
+        range: Some((-std::f64::consts::FRAC_PI_6, std::f64::consts::FRAC_PI_6)),
         torque_columns: false,
         ..SimConfig::default()
     };

@@ -302,7 +302,7 @@ impl Effect {
     /// Extra columns (backlash and delay change the base instead).
     pub fn cols(&self) -> Vec<Col> {
         match *self {
-            Effect::Stribeck { speed, exponent } if exponent == 2.0 => vec![Col::Stribeck(speed)],
+            Effect::Stribeck { speed, exponent: 2.0 } => vec![Col::Stribeck(speed)],
             Effect::Stribeck { speed, exponent } => vec![Col::StribeckExp { speed, exponent }],
             Effect::Asymmetric => vec![Col::AbsSgn],
             Effect::Load => vec![Col::LoadSgn],

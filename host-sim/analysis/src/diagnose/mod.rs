@@ -93,6 +93,15 @@ pub struct Gap {
     /// whose variance the fits remove from the inertia's normal equation
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_noise_sd: Option<f64>,
+    /// optional: the samples `rmse` and the regimes are computed on, when some are left out of
+    /// fits and scores (samples whose direction of motion is unknown; with a pure Coulomb sign
+    /// also the rests and their edges, where the model's friction is set-valued)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scored_samples: Option<usize>,
+    /// optional (pure Coulomb sign): samples inside rests taken for a creep below the q̇
+    /// resolution (left out, see [`rest_creep`])
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rest_creep_samples: Option<usize>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -564,23 +573,48 @@ fn torque_mode(
     split.leave_out(&prep.ambiguous);
     // With a pure Coulomb sign (no band in the file) a sample whose direction the data cannot
     // tell predicts ±c by a coin toss: it says nothing about the model and is left out too.
-    if band == 0.0 && base.cols.contains(&Col::Sgn) {
+    let pure_sign = band == 0.0 && base.cols.contains(&Col::Sgn);
+    if pure_sign {
         split.leave_out(&prep.sign_unknown);
+        split.leave_out(&prep.rest_edge);
     }
     if split.train.len() < 30 || split.holdout.len() < 30 {
         return Err(DiagError::Input("too few samples for a training/held-out split".into()));
     }
     let floor = torque_floor(&r0, &data, &base, prep);
+    // A pure sign jumps to ±c at any motion, however slow: inside a rest, a creep below the
+    // q̇ resolution shows as the residual stepping by ±c. Those samples' direction is unknown.
+    let creep = if pure_sign {
+        let c = base.cols.iter().position(|x| *x == Col::Sgn).map_or(0.0, |k| base.beta0[k].abs());
+        let creep = rest_creep(&r0, &prep.rest, c, floor);
+        let k = creep.iter().filter(|&&b| b).count();
+        split.leave_out(&creep);
+        (k > 0).then_some(k)
+    } else {
+        None
+    };
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
     lap("candidates and forward selection");
-    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, log);
+    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, log);
     lap("report");
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let emitted_model = emit_model(model, &base, final_s, &data);
     let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     Ok(Diagnosis { report, emitted_model, plots })
+}
+
+/// The rest samples whose residual `r0` stands at ±`c` (within a quarter of `c` or 3 floors,
+/// the larger), where the model predicts 0: the step a pure Coulomb sign makes when the joint
+/// creeps at a speed no estimate resolves (or rests at its breakaway, where a creep is as
+/// likely). Nothing is marked when `c` is under 4 floors (the step is then lost in the noise).
+pub fn rest_creep(r0: &[f64], rest: &[bool], c: f64, floor: f64) -> Vec<bool> {
+    if !(c > 4.0 * floor) {
+        return vec![false; r0.len()];
+    }
+    let tol = (0.25 * c).max(3.0 * floor);
+    r0.iter().zip(rest).map(|(&r, &still)| still && r.abs() > 0.5 * c && (r.abs() - c).abs() < tol).collect()
 }
 
 /// The torque-mode noise floor ([`floor`]): the measurement noise in the file's residual (any
@@ -591,12 +625,14 @@ fn torque_floor(r0: &[f64], d: &Data, base: &Base, prep: &crate::prep::Prepared)
     let (noise, _) = floor::variogram_noise(r0);
     let coef = |c: Col| base.cols.iter().position(|x| *x == c).map_or(0.0, |k| base.beta0[k]);
     let (j, a, b, c) = (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
-    let derived = |i: &crate::prep::DerivInfo| i.source != "logged";
+    // white noise on a logged column is already in the residual's noise; an estimate's or a
+    // filter's error follows the motion and is not
+    let derived = |i: &crate::prep::DerivInfo| !i.white;
     let (dv, da) = (derived(&prep.report.qd), derived(&prep.report.qdd));
     let n = d.n.max(1) as f64;
     let pure_sign = d.band == 0.0;
     let prop2: f64 = (0..d.n)
-        .filter(|&i| !(prep.ambiguous[i] || pure_sign && prep.sign_unknown[i]))
+        .filter(|&i| !(prep.ambiguous[i] || pure_sign && (prep.sign_unknown[i] || prep.rest_edge[i])))
         .map(|i| {
             let slope = b + 2.0 * a * d.qd[i].abs();
             let sv = if dv { prep.qd_err[i] } else { 0.0 };
@@ -872,13 +908,19 @@ fn build_report(
     sel: &Selection,
     r0: &[f64],
     floor: f64,
+    creep: Option<usize>,
     log: &JointLog,
 ) -> Report {
     let nreg = regimes.defs.len();
     let mut sse = vec![0.0; nreg];
     let mut cnt = vec![0usize; nreg];
     let mut total = 0.0;
+    let mut scored = 0usize;
     for (i, r) in r0.iter().enumerate() {
+        if split.left_out.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        scored += 1;
         let r2 = r * r;
         total += r2;
         let mut b = regimes.bits[i];
@@ -978,12 +1020,14 @@ fn build_report(
             rest_tail: None,
         },
         gap: Gap {
-            rmse: (total / d.n as f64).sqrt(),
+            rmse: (total / scored.max(1) as f64).sqrt(),
             holdout_rmse: before,
             noise_floor: floor,
             unit: "N·m",
             at_noise_floor: final_rmse <= select::at_floor_factor(d) * floor,
             qdd_noise_sd: (d.qdd_noise_var > 0.0).then(|| d.qdd_noise_var.sqrt()),
+            scored_samples: (scored < d.n).then_some(scored),
+            rest_creep_samples: creep,
         },
         regimes: regimes_out,
         effects,

@@ -32,18 +32,20 @@ pub struct Split {
     pub n_units: usize,
     pub blocks: usize,
     pub guard: usize,
+    /// the samples left out of fits and scores alike ([`Split::leave_out`])
+    pub left_out: Vec<bool>,
 }
 
 pub const ALPHA: f64 = 0.05;
 pub const MIN_GAIN: f64 = 0.02;
 /// A reference whose held-out RMSE is within this factor of the noise floor has nothing left
 /// to explain: no candidate against it is called significant.
-pub const AT_FLOOR: f64 = 1.05;
+pub const AT_FLOOR: f64 = 1.1;
 /// The same when the log's own q̈ column carries measurable white noise and the final fits
 /// correct for it ([`Data::qdd_noise_var`]): the margin that kept coefficient shrinkage from
 /// passing for an effect is then mostly not needed, and a wider one hides real effects on long
 /// logs (a 5 ms delay on a 190 000-sample log sat at 1.038 × floor with p ≈ 1e-6).
-pub const AT_FLOOR_EIV: f64 = 1.02;
+pub const AT_FLOOR_EIV: f64 = 1.1;
 /// A candidate that takes at least this share of the held-out MSE (significantly) is judged on
 /// that alone: the floor is an estimate, and a fast effect (a delay, a short ripple, friction
 /// at reversals) raises it, because its structure looks like noise at the smallest lags. The
@@ -94,7 +96,7 @@ pub fn make_split(n: usize) -> Split {
         }
     }
     let n_units = if holdout.is_empty() { 0 } else { unit_of_block + subs };
-    Split { train, holdout, unit, n_units, blocks, guard }
+    Split { train, holdout, unit, n_units, blocks, guard, left_out: vec![false; n] }
 }
 
 impl Split {
@@ -111,6 +113,9 @@ impl Split {
         }
         self.holdout = h;
         self.unit = u;
+        for (l, &o) in self.left_out.iter_mut().zip(out) {
+            *l |= o;
+        }
     }
 }
 
@@ -599,10 +604,9 @@ pub fn select(
     let refit_unphysical = unphysical(&refit_s);
     let refit = Outcome {
         name: "parameters",
-        significant: (!at_floor || gain >= CLEAR_GAIN)
-            && p < alpha_each
-            && gain >= MIN_GAIN
-            && refit_unphysical.is_none(),
+        // The refit never overrides the floor: what it takes from a residual at the floor is
+        // the structure of the q̇/q̈ estimates' errors, absorbed by collinear terms.
+        significant: !at_floor && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
         implausible: refit_unphysical,
         scored: refit_s,
         t,

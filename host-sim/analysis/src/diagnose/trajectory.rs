@@ -838,6 +838,8 @@ impl<'a> Window<'a> {
                 unit: "rad",
                 at_noise_floor: vafter <= AT_FLOOR * self.floor,
                 qdd_noise_sd: None,
+                scored_samples: None,
+                rest_creep_samples: None,
             },
             regimes,
             effects,

@@ -73,6 +73,10 @@ pub struct DerivInfo {
     /// the logged column against the derivative of the signal below it (1 = consistent)
     #[serde(skip_serializing_if = "Option::is_none")]
     pub logged_scale: Option<f64>,
+    /// the error is white noise (a logged column whose own high-frequency noise accounts for
+    /// its difference from the estimate); otherwise it follows the motion (an estimator's
+    /// smoothing, a logger's filter) and no noise estimate of the residual will see it
+    pub white: bool,
 }
 
 /// What the preparation did, for the reports (optional fields of identification and
@@ -115,6 +119,9 @@ pub struct Prepared {
     /// samples where the sign of q̇ is not known: within 3σ of zero, not at rest, no direction
     /// from the way q goes (a reversal, or a near stop the data cannot resolve)
     pub sign_unknown: Vec<bool>,
+    /// the ends of each rest (up to a quarter of it): the joint may still creep there below
+    /// any estimate's resolution
+    pub rest_edge: Vec<bool>,
     /// per sample: the 1σ error (noise and bias) of the q̇ and q̈ used
     pub qd_err: Vec<f64>,
     pub qdd_err: Vec<f64>,
@@ -287,7 +294,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let (qd, qd_recipe) = match &log.qd {
         Some(v) => {
             let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
-            let noise = diff.max(own_noise(v, &segments, dt));
+            let own = own_noise(v, &segments, dt);
+            let noise = diff.max(own);
             let lag = logged_lag(v, &qd_q.values);
             if let Some(l) = lag {
                 notes.push(format!(
@@ -295,7 +303,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
                 ));
             }
             if noise <= qd_q.effective_error() && consistent(scale) && lag.is_none() {
-                let info = logged_info(noise, scale);
+                let info = logged_info(noise, scale, own >= 0.5 * diff);
                 (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
             } else {
                 notes.push(format!(
@@ -332,7 +340,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         Some(a) => {
             let best_err = typical(&qdd_best.error());
             let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
-            let noise = diff.max(own_noise(a, &segments, dt));
+            let own = own_noise(a, &segments, dt);
+            let noise = diff.max(own);
             let lag = logged_lag(a, &qdd_best.values);
             if let Some(l) = lag {
                 notes.push(format!(
@@ -340,7 +349,15 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
                 ));
             }
             if noise <= qdd_best.effective_error() && consistent(scale) && lag.is_none() {
-                (Deriv { values: a.clone(), noise: vec![noise; n], bias: 0.0, info: logged_info(noise, scale) }, None)
+                (
+                    Deriv {
+                        values: a.clone(),
+                        noise: vec![noise; n],
+                        bias: 0.0,
+                        info: logged_info(noise, scale, own >= 0.5 * diff),
+                    },
+                    None,
+                )
             } else {
                 notes.push(format!(
                     "the logged qdd is noisier than the estimate ({noise:.3e} vs {best_err:.3e} rad/s²): the estimate is used"
@@ -430,6 +447,10 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             100.0 * ambiguous_share
         ));
     }
+    // A stop's last creep and a start's first creep sit below every estimate's resolution:
+    // the ends of each rest may still be motion. Marked, so an analysis whose model jumps at
+    // q̇ = 0 (a pure Coulomb sign) can leave them out.
+    let rest_edge = rest_edges(&rest, &segments, &qd.values, hold, hold.max((0.1 / dt).round() as usize));
     let rest_share = share(&rest);
     if rest_share > 0.0 {
         notes.push(format!("{:.1} % of the samples are at rest (q̇ = q̈ = 0 there)", 100.0 * rest_share));
@@ -491,6 +512,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         direction,
         ambiguous,
         sign_unknown,
+        rest_edge,
         qd_err,
         qdd_err,
         qdd_noise: qdd.noise,
@@ -587,10 +609,11 @@ fn derived_info(source: &'static str, h: usize, dt: f64, noise: &[f64], bias: f6
         noise_sd: nsd,
         logged_noise_sd: None,
         logged_scale: None,
+        white: false,
     }
 }
 
-fn logged_info(noise: f64, scale: f64) -> DerivInfo {
+fn logged_info(noise: f64, scale: f64, white: bool) -> DerivInfo {
     DerivInfo {
         source: "logged",
         half_window_s: 0.0,
@@ -598,6 +621,7 @@ fn logged_info(noise: f64, scale: f64) -> DerivInfo {
         noise_sd: noise,
         logged_noise_sd: Some(noise),
         logged_scale: Some(scale),
+        white,
     }
 }
 
@@ -667,6 +691,52 @@ const GAUSS_HERMITE_20: [(f64, f64); 20] = [
     (4.603682449550744, 4.399340992273181e-10),
     (5.387480890011233, 2.229393645534151e-13),
 ];
+
+/// The first and last samples of every rest run that may still be a stop's creep or a start's
+/// first creep: at least `reach`, and as long as the adjacent move's own slow-down says it
+/// takes to stop (a smooth approach's q̇ falls like the square of the time left, so from q̇ and
+/// its slope over `span` samples the time left is 2·q̇/q̇'); at most a quarter of the run.
+fn rest_edges(rest: &[bool], segments: &[std::ops::Range<usize>], qd: &[f64], span: usize, reach: usize) -> Vec<bool> {
+    // samples a move next to a rest at `edge` (its last or first moving sample) takes to stop,
+    // going from `edge` away from `inner` (the sample `span` further into the move)
+    let creep = |edge: usize, inner: usize| -> usize {
+        let (v, w) = (qd[edge].abs(), qd[inner].abs());
+        if w <= v || qd[edge] * qd[inner] <= 0.0 {
+            return 0; // not a slow-down into the rest: an abrupt stop or start
+        }
+        let steps = 2.0 * v / ((w - v) / span as f64);
+        if steps.is_finite() {
+            steps.round().min(usize::MAX as f64 / 2.0) as usize
+        } else {
+            0
+        }
+    };
+    let mut edge = vec![false; rest.len()];
+    for seg in segments {
+        let mut i = seg.start;
+        while i < seg.end {
+            if !rest[i] {
+                i += 1;
+                continue;
+            }
+            let j = (i..seg.end).find(|&k| !rest[k]).unwrap_or(seg.end);
+            let quarter = (j - i) / 4;
+            // a rest that starts or ends the segment has no move on that side
+            if i > seg.start {
+                let inner = (i - 1).saturating_sub(span).max(seg.start);
+                let m = reach.max(creep(i - 1, inner)).min(quarter);
+                edge[i..i + m].iter_mut().for_each(|e| *e = true);
+            }
+            if j < seg.end {
+                let inner = (j + span).min(seg.end - 1);
+                let m = reach.max(creep(j, inner)).min(quarter);
+                edge[j - m..j].iter_mut().for_each(|e| *e = true);
+            }
+            i = j;
+        }
+    }
+    edge
+}
 
 /// The runs of samples not at rest inside `seg`.
 fn motion_runs(rest: &[bool], seg: std::ops::Range<usize>) -> Vec<std::ops::Range<usize>> {

@@ -108,6 +108,15 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
         r.gap.holdout_rmse,
         r.gap.noise_floor
     );
+    if let Some(k) = r.gap.scored_samples {
+        say!(o, "  (RMSE and regimes on the {k} samples scored; the others say nothing about the model: their direction of motion is unknown)");
+    }
+    if let Some(k) = r.gap.rest_creep_samples {
+        say!(
+            o,
+            "  {k} samples inside rests step by the model's ±c: a creep below the q̇ resolution (direction unknown, left out)"
+        );
+    }
     if let Some(sd) = r.gap.qdd_noise_sd {
         say!(o, "  the log's q̈ carries white noise of ≈ {sd:.3} rad/s²: removed from the inertia's fit (errors in variables)");
     }
