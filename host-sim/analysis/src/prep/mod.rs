@@ -468,16 +468,20 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     }
     // A quantised q resolves a speed no finer than one step over the window (its error is
     // not independent from sample to sample, so the noise formula alone is too hopeful there).
+    // A faster move crosses k steps inside the window and the staircase's error averages down
+    // as 1/k: the floor holds near zero speed, where it matters, and fades with speed.
     if quantum > 0.0 {
         let step = quantum * 12f64.sqrt();
+        let crossed = |i: usize, w: f64| (qd.values[i].abs() * 2.0 * w / step).max(1.0);
         if qd.info.source != "logged" {
-            let floor = step / (2.0 * qd.info.half_window_s.max(dt));
-            qd_err.iter_mut().for_each(|e| *e = e.max(floor));
+            let w = qd.info.half_window_s.max(dt);
+            let floor = step / (2.0 * w);
+            qd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
         }
         if qdd.info.source == "derived from q" {
             let w = qdd.info.half_window_s.max(dt);
             let floor = step / (w * w);
-            qdd_err.iter_mut().for_each(|e| *e = e.max(floor));
+            qdd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
         }
     }
     // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
