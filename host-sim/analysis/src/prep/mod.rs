@@ -293,7 +293,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // A logged q̇: checked against q, kept when its error is the smaller.
     let (qd, qd_recipe) = match &log.qd {
         Some(v) => {
-            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
+            let short = || derive(Recipe { h: (r1.h / 4).max(2), ..r1 }, &log.q, &segments).0;
+            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), &short, "qd", "q")?;
             let own = own_noise(v, &segments, dt);
             let noise = diff.max(own);
             let lag = logged_lag(v, &qd_q.values);
@@ -339,7 +340,13 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let (qdd, qdd_recipe) = match &log.qdd {
         Some(a) => {
             let best_err = typical(&qdd_best.error());
-            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
+            let short = || match qdd_recipe {
+                Some(r) => {
+                    derive(Recipe { h: (r.h / 4).max(2), ..r }, if r.from_q { &log.q } else { &qd.values }, &segments).0
+                }
+                None => qdd_best.values.clone(),
+            };
+            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, &short, "qdd", "qd")?;
             let own = own_noise(a, &segments, dt);
             let noise = diff.max(own);
             let lag = logged_lag(a, &qdd_best.values);
@@ -460,11 +467,12 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // reversal at speed) it is far above the log's typical figure. Measured locally by
     // comparing each estimate with the same fit on half the window.
     if let Some(r) = qd_recipe {
-        local_bias(&log.t, &log.q, &segments, r, &qd.values, &rest, &mut qd_err);
+        local_bias(&log.t, &log.q, &segments, r, &qd.values, &rest, (quantum, &qd.values), &mut qd_err);
     }
     if let Some(r) = qdd_recipe {
         let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
-        local_bias(&log.t, src, &segments, r, &qdd.values, &rest, &mut qdd_err);
+        let q_quantum = if r.from_q { quantum } else { 0.0 };
+        local_bias(&log.t, src, &segments, r, &qdd.values, &rest, (q_quantum, &qd.values), &mut qdd_err);
     }
     // A quantised q resolves a speed no finer than one step over the window (its error is
     // not independent from sample to sample, so the noise formula alone is too hopeful there).
@@ -482,6 +490,13 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let w = qdd.info.half_window_s.max(dt);
             let floor = step / (w * w);
             qdd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
+        }
+    }
+    // At rest q̇ = q̈ = 0 is taken, not estimated: no estimation error there.
+    for (i, &still) in rest.iter().enumerate() {
+        if still {
+            qd_err[i] = 0.0;
+            qdd_err[i] = 0.0;
         }
     }
     // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
@@ -528,6 +543,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
 /// the estimate at half the window differs from it by the bias's change plus noise; the squared
 /// difference smoothed over a window, less its noise share, times the factor that turns the
 /// change into the bias (the leading bias grows as h⁴ for q̇ from q and as h² otherwise).
+#[allow(clippy::too_many_arguments)] // the estimate, its recipe and its source, each needed
 fn local_bias(
     t: &[f64],
     src: &[f64],
@@ -535,6 +551,7 @@ fn local_bias(
     r: Recipe,
     est: &[f64],
     rest: &[bool],
+    (quantum, speed): (f64, &[f64]),
     err: &mut [f64],
 ) {
     let half = Recipe { h: (r.h / 2).max(2), ..r };
@@ -555,7 +572,20 @@ fn local_bias(
     };
     let noise_var = r.sigma * r.sigma * (gain(half.h) - gain(r.h)).max(0.0);
     let grow = if r.from_q && !r.second { 16.0 / 15.0 } else { 4.0 / 3.0 };
-    let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) }).collect();
+    // A quantised source's staircase error is not white either: on the half window it is up to
+    // one step over the window, less as the move crosses more steps (as the error floor after
+    // this); that too is no bias.
+    let step = quantum * 12f64.sqrt();
+    let w_half = half.h as f64 * dt;
+    let stair_var = |i: usize| {
+        if step <= 0.0 || w_half <= 0.0 {
+            return 0.0;
+        }
+        let crossed = (speed[i].abs() * 2.0 * w_half / step).max(1.0);
+        let f = if r.second { step / (w_half * w_half) } else { step / (2.0 * w_half) } / crossed;
+        f * f
+    };
+    let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) - stair_var(i) }).collect();
     for seg in segments {
         let mut acc = 0.0;
         let (lo, hi) = (seg.start, seg.end);
@@ -1046,7 +1076,14 @@ const FACTORS: [(f64, &str); 9] = [
 /// The logged column `v` against the estimate `e` (error `e_sd`): its scale (least squares
 /// slope where the estimate is well above its error) and its noise. A scale at a unit factor
 /// refuses the log naming it.
-fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Result<(f64, f64), PrepError> {
+fn compare_logged(
+    v: &[f64],
+    e: &[f64],
+    e_sd: f64,
+    short: &dyn Fn() -> Vec<f64>,
+    name: &str,
+    of: &str,
+) -> Result<(f64, f64), PrepError> {
     let strong: Vec<(f64, f64)> =
         v.iter().zip(e).filter(|(_, e)| e.abs() > 5.0 * e_sd).map(|(a, b)| (*a, *b)).collect();
     let mut scale = 1.0;
@@ -1075,10 +1112,23 @@ fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Resu
     let (_, m, _) = r.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     let diff_sd = 1.4826 * *m;
     let noise = (diff_sd * diff_sd - e_sd * e_sd).max(0.0).sqrt();
-    // Differences whose RMS is far beyond their typical size sit in a few places (a filtered
-    // column smearing every sudden change): the column's error is that RMS, not its median.
-    let noise =
-        if rms > 3.0 * diff_sd.max(e_sd) { noise.max((rms * rms - e_sd * e_sd).max(0.0).sqrt()) } else { noise };
+    // Differences whose RMS is far beyond their typical size sit in a few places, where one of
+    // the two smears every sudden change: a filtered column, or the estimate's own window. The
+    // one that does is the one farther there from an estimate on a quarter of the window (less
+    // bias, more noise); if that is the column, its error is that RMS, not its median.
+    let concentrated = rms > 3.0 * diff_sd.max(e_sd);
+    let column_smears = concentrated && {
+        let s = short();
+        let (mut col, mut est) = (0.0, 0.0);
+        for ((a, b), c) in v.iter().zip(e).zip(&s) {
+            if (a - b).abs() > 3.0 * diff_sd.max(e_sd) {
+                col += (a - c) * (a - c);
+                est += (b - c) * (b - c);
+            }
+        }
+        col >= est
+    };
+    let noise = if column_smears { noise.max((rms * rms - e_sd * e_sd).max(0.0).sqrt()) } else { noise };
     Ok((scale, noise))
 }
 
