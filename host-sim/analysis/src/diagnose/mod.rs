@@ -16,6 +16,7 @@
 #![allow(clippy::indexing_slicing)]
 
 pub mod candidates;
+pub mod evidence;
 pub mod fit;
 pub mod floor;
 pub mod regimes;
@@ -336,6 +337,8 @@ pub struct PlotData {
     pub held: Vec<bool>,
     pub unit: &'static str,
     pub measured_label: &'static str,
+    /// the verdict's evidence in each named effect's coordinate (empty for `none`)
+    pub evidence: Vec<evidence::Evidence>,
 }
 
 /// A diagnosis: the report, the model text `--emit-model` writes, and plot data.
@@ -601,7 +604,8 @@ fn torque_mode(
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let emitted_model = emit_model(model, &base, final_s, &data);
-    let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
+    let mut plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
+    plots.evidence = torque_evidence(&data, &sel.m0, final_s, &split, &report.verdict.effects);
     Ok(Diagnosis { report, emitted_model, plots })
 }
 
@@ -1046,6 +1050,40 @@ fn build_report(
         warnings,
         prep: None,
     }
+}
+
+/// The verdict's evidence plots ([`evidence`]) on the held-out samples (at most 200 000).
+fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[String]) -> Vec<evidence::Evidence> {
+    use evidence::Coord;
+    let named: Vec<&String> = names.iter().filter(|n| !matches!(n.as_str(), "none" | "unexplained")).collect();
+    if named.is_empty() {
+        return Vec::new();
+    }
+    let stride = (split.holdout.len() / 200_000).max(1);
+    let idx: Vec<usize> = split.holdout.iter().step_by(stride).map(|&i| i as usize).collect();
+    let (mut before, mut after) = (vec![f64::NAN; d.n], vec![f64::NAN; d.n]);
+    let mut x0 = vec![0.0; m0.design.cols.len()];
+    let mut x1 = vec![0.0; fin.design.cols.len()];
+    for &i in &idx {
+        before[i] = select::residual_at(d, &m0.design, &m0.beta, i, &mut x0);
+        after[i] = select::residual_at(d, &fin.design, &fin.beta, i, &mut x1);
+    }
+    let rate = evidence::rate(&d.u, &d.t);
+    named
+        .iter()
+        .filter_map(|name| {
+            let c = Coord::of(name, d.temp.is_some());
+            let x: &[f64] = match c {
+                Coord::Velocity => &d.qd,
+                Coord::Position => &d.q,
+                Coord::Time => &d.t,
+                Coord::Temperature => d.temp.as_deref().unwrap_or(&d.t),
+                Coord::Load => &d.load,
+                Coord::TorqueRate => &rate,
+            };
+            evidence::binned(name, &c.label("N·m"), x, &before, &after, &idx, 30)
+        })
+        .collect()
 }
 
 fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Split) -> PlotData {
