@@ -15,7 +15,6 @@
 //! segments are left out too; plateaus stay (they carry q̈ ≈ 0 and pin ΔC_0). With
 //! `--window START:END:motion` only the given stretches are used.
 
-use super::filter;
 use super::robust::{self, t_quantile_975};
 use super::segments::{Prepared, SegKind, Segment};
 
@@ -46,18 +45,12 @@ pub fn data(logs: &[(&Prepared, &[Segment])], model: &dyn Fn(f64, f64) -> f64, c
     let mut tmp = Vec::new();
     for (p, segs) in logs {
         let n = p.len();
-        let acc = match &p.qdd_logged {
-            Some(a) => filter::filtfilt(a, cutoff, p.fs),
-            None => {
-                filter::filtfilt_into(&p.qd, cutoff, p.fs, &mut tmp);
-                filter::derivative(&p.t, &tmp)
-            }
-        };
+        let acc = p.lowpass(&p.qdd, cutoff);
         let (y, mask) = match &p.d {
             Some(d) => {
                 tmp.clear();
                 tmp.extend((0..n).map(|i| d[i] - model(p.q[i], p.qd_f[i])));
-                let y = filter::filtfilt(&tmp, cutoff, p.fs);
+                let y = p.lowpass(&tmp, cutoff);
                 // Mask: moving, away from low-speed samples by half a filter period, not static.
                 let h = ((0.5 * p.fs / cutoff).ceil() as usize).max(1);
                 let slow: Vec<u32> = p.qd_f.iter().map(|v| u32::from(v.abs() < v_min)).collect();
@@ -162,7 +155,6 @@ pub fn joint_ls(logs: &[&Prepared], band: f64, cutoff: f64, keep: &dyn Fn(usize,
     let mut cols: [Vec<f64>; 7] = Default::default();
     let mut y = Vec::new();
     let mut tmp = Vec::new();
-    let mut buf = Vec::new();
     let mut fs_min = f64::INFINITY;
     for (li, p) in logs.iter().enumerate() {
         let Some(d) = &p.d else { continue };
@@ -171,13 +163,7 @@ pub fn joint_ls(logs: &[&Prepared], band: f64, cutoff: f64, keep: &dyn Fn(usize,
         // Leave out the first and last half filter period (edge transients).
         let h = ((0.5 * p.fs / cutoff).ceil() as usize).min(n / 4);
         let sel: Vec<usize> = (h..n.saturating_sub(h)).filter(|&i| keep(li, i)).collect();
-        let acc = match &p.qdd_logged {
-            Some(a) => filter::filtfilt(a, cutoff, p.fs),
-            None => {
-                filter::filtfilt_into(&p.qd, cutoff, p.fs, &mut tmp);
-                filter::derivative(&p.t, &tmp)
-            }
-        };
+        let acc = p.lowpass(&p.qdd, cutoff);
         let raw: [Box<dyn Fn(usize) -> f64>; 6] = [
             Box::new(|i| p.qd[i] * p.qd[i].abs()),
             Box::new(|i| p.qd[i]),
@@ -190,10 +176,10 @@ pub fn joint_ls(logs: &[&Prepared], band: f64, cutoff: f64, keep: &dyn Fn(usize,
         for (k, f) in raw.iter().enumerate() {
             tmp.clear();
             tmp.extend((0..n).map(f));
-            filter::filtfilt_into(&tmp, cutoff, p.fs, &mut buf);
+            let buf = p.lowpass(&tmp, cutoff);
             cols[k + 1].extend(sel.iter().map(|&i| buf[i]));
         }
-        filter::filtfilt_into(d, cutoff, p.fs, &mut buf);
+        let buf = p.lowpass(d, cutoff);
         y.extend(sel.iter().map(|&i| buf[i]));
     }
     if y.len() < 50 {

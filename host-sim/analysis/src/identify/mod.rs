@@ -140,6 +140,9 @@ pub enum IdentifyError {
     Term { term: &'static str, msg: String },
     #[error("the identified model is not a valid parameter set: {0}")]
     Invalid(String),
+    /// the shared preparation stage refused a log (units, rate, too few samples)
+    #[error("log {log}: {msg}")]
+    Prep { log: usize, msg: String },
 }
 
 fn term_err(term: &'static str, msg: impl Into<String>) -> IdentifyError {
@@ -173,6 +176,9 @@ pub struct Identified {
     pub v_band: f64,
     /// segments found per log
     pub segments: Vec<Vec<Segment>>,
+    /// what the shared preparation stage did to each log (the smoother, its windows, stale
+    /// rows, gaps)
+    pub preparation: Vec<crate::prep::PrepReport>,
     pub notes: Vec<String>,
 }
 
@@ -193,10 +199,17 @@ pub struct Data {
 }
 
 impl Data {
-    pub fn new(logs: &[JointLog], opts: &Options) -> Data {
-        let prepared: Vec<Prepared> = logs.iter().map(|l| Prepared::new(l, &opts.segments)).collect();
+    /// Prepares and segments every log; a log the preparation stage refuses (units, rate) is
+    /// refused here with its reason.
+    pub fn new(logs: &[JointLog], opts: &Options) -> Result<Data, IdentifyError> {
+        let mut prepared = Vec::with_capacity(logs.len());
+        for (li, l) in logs.iter().enumerate() {
+            let p = Prepared::new(l, &opts.segments)
+                .map_err(|e| IdentifyError::Prep { log: li + 1, msg: e.to_string() })?;
+            prepared.push(p);
+        }
         let segments = prepared.iter().map(|p| segments::find(p, &opts.segments, &opts.windows)).collect();
-        Data { prepared, segments }
+        Ok(Data { prepared, segments })
     }
 
     fn pairs(&self) -> Vec<(&Prepared, &[Segment])> {
@@ -272,6 +285,7 @@ pub fn identify_data(
         c0: None,
         v_band: band,
         segments: data.segments.clone(),
+        preparation: data.prepared.iter().map(|p| p.prep.clone()).collect(),
         notes: Vec::new(),
     };
     let torque_terms = [Term::Friction, Term::Weight, Term::Inertia, Term::Offset];
@@ -563,7 +577,7 @@ pub fn identify(
     opts: &Options,
     progress: &dyn Progress,
 ) -> Result<(Data, Identified), IdentifyError> {
-    let data = Data::new(logs, opts);
+    let data = Data::new(logs, opts)?;
     let id = identify_data(&data, opts, &|_, _| true, progress)?;
     Ok((data, id))
 }

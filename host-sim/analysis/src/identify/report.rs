@@ -191,9 +191,9 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             let (mut meas_f, mut pred_f) = (Vec::new(), Vec::new());
             for (li, p) in data.prepared.iter().enumerate() {
                 let Some(d) = &p.d else { continue };
-                let df = super::filter::filtfilt(d, opts.accel_cutoff, p.fs);
+                let df = p.lowpass(d, opts.accel_cutoff);
                 let pr: Vec<f64> = (0..p.len()).map(|i| predict(r, data, Some(&dat.acc), li, i)).collect();
-                let pf = super::filter::filtfilt(&pr, opts.accel_cutoff, p.fs);
+                let pf = p.lowpass(&pr, opts.accel_cutoff);
                 for i in 0..p.len() {
                     if held_out(data, li, p.t[i]) {
                         meas_f.push(df[i]);
@@ -254,6 +254,50 @@ fn free_stretch<'a>(
     let s = p.t.partition_point(|&t| t < f.t0);
     let e = p.t.partition_point(|&t| t <= f.t1);
     (e > s).then_some((p, (s, e)))
+}
+
+/// How each log's q̇ and q̈ were obtained, in a line or two per log.
+pub fn preparation_text(id: &Identified, cutoff_hz: f64) -> String {
+    let mut s = String::new();
+    let what = |d: &crate::prep::DerivInfo| {
+        if d.source == "logged" {
+            format!("logged (noise {:.2e})", d.error_sd)
+        } else {
+            format!("{}, local cubic ±{:.1} ms (error {:.2e})", d.source, 1e3 * d.half_window_s, d.error_sd)
+        }
+    };
+    for (k, p) in id.preparation.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "log {}: {} of {} samples, {:.1} Hz, {} stretch(es); q̇ {} rad/s; q̈ {} rad/s²",
+            k + 1,
+            p.samples,
+            p.samples_in,
+            p.median_rate_hz,
+            p.segments.len(),
+            what(&p.qd),
+            what(&p.qdd)
+        );
+        for n in &p.notes {
+            let _ = writeln!(s, "       {n}");
+        }
+        if p.rest_share > 0.0 || p.ambiguous_share > 0.0 {
+            let _ = writeln!(
+                s,
+                "       identification evaluates the local cubic over whole stretches and keeps every sample (a \
+                 swing's turning points can pass the rest test; q̈ = 0 there would bias J)"
+            );
+        }
+    }
+    if let Some(p) = id.preparation.first() {
+        let _ = writeln!(
+            s,
+            "smoother: {} (joint_analysis::prep); the fits then low-pass both sides of their equations with \
+             the same zero-phase 2nd-order Butterworth at {cutoff_hz} Hz",
+            p.smoother
+        );
+    }
+    s
 }
 
 /// Human summary of the identified terms (and the scores).

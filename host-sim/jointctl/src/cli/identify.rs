@@ -161,6 +161,7 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
         let v = serde_json::json!({ "model": a.out.display().to_string(), "identified": id, "report": rep });
         say!(o, "{}", serde_json::to_string_pretty(&v)?);
     } else {
+        say_raw!(o, "{}", identify::report::preparation_text(&id, opts.accel_cutoff));
         say_raw!(o, "{}", identify::report::summary_text(&id, rep.as_ref()));
         say!(o, "wrote {}", a.out.display());
         if let Some(d) = &a.report {
