@@ -14,15 +14,18 @@
 
 #![allow(clippy::indexing_slicing)] // numerical kernels: every index is bounded by the loop range or a length checked just before
 
+pub mod decide;
 pub mod filter;
 pub mod friction;
 pub mod gravity_table;
 pub mod inertia;
+pub mod joint_ls;
 pub mod nls;
 pub mod report;
 pub mod robust;
 pub mod segments;
 pub mod spring;
+pub mod status;
 pub mod weight;
 
 use joint_core::params::ParamId;
@@ -30,6 +33,7 @@ use joint_core::params::ParamId;
 use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
 use segments::{Prepared, SegKind, Segment, SegmentCfg, Window};
+use status::{ParamStatus, Status};
 
 /// A model term identification can produce.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -68,13 +72,19 @@ impl Term {
     }
 }
 
+/// The rigid joint's terms (torque mode), found by the papers' procedures or the regression.
+pub const RIGID_TERMS: [Term; 4] = [Term::Friction, Term::Weight, Term::Inertia, Term::Offset];
+
 /// How the rigid-joint terms are found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
+    /// the papers' procedures where the log holds their tests (± constant-velocity plateaus,
+    /// static poses, a free oscillation), the whole-log regression where it holds none
+    #[default]
+    Auto,
     /// the papers' procedures: friction from plateaus, weight from poses, inertia and offset
     /// from motion with both known
-    #[default]
     Papers,
     /// one least-squares fit of all rigid terms on every sample (for logs without plateaus or
     /// poses, e.g. a swing-up run); the weight's s is fixed at 1
@@ -83,7 +93,12 @@ pub enum Method {
 
 impl Method {
     /// Every method with its name (as in the JSON) and a line saying what it does.
-    pub const NAMES: [(&'static str, Method, &'static str); 2] = [
+    pub const NAMES: [(&'static str, Method, &'static str); 3] = [
+        (
+            "auto",
+            Method::Auto,
+            "the papers' procedures where the log holds their tests (plateaus, poses, a free oscillation), the whole-log regression (joint-ls) where it holds none; the choice and its reason are reported",
+        ),
         (
             "papers",
             Method::Papers,
@@ -95,6 +110,10 @@ impl Method {
             "one least-squares fit of all rigid terms on every sample (for logs without plateaus or poses, e.g. a swing-up run); the weight's s is fixed at 1",
         ),
     ];
+
+    pub fn name(self) -> &'static str {
+        Method::NAMES.iter().find(|(_, m, _)| *m == self).map_or("?", |(n, _, _)| n)
+    }
 }
 
 /// Settings of a run.
@@ -118,7 +137,7 @@ pub struct Options {
 impl Default for Options {
     fn default() -> Self {
         Options {
-            method: Method::Papers,
+            method: Method::Auto,
             terms: Vec::new(),
             windows: Vec::new(),
             segments: SegmentCfg::default(),
@@ -163,23 +182,42 @@ pub struct SpringResult {
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Identified {
     pub terms: Vec<Term>,
+    /// the method that ran (`auto` resolved to `papers` or `joint-ls`) and why
+    pub method: Method,
+    pub method_why: String,
     pub friction: Option<friction::FrictionFit>,
     pub weight: Option<weight::WeightFit>,
     pub poses: Vec<weight::Pose>,
     pub inertia: Option<inertia::InertiaFit>,
+    /// the whole-log regression, when it ran
+    pub joint_ls: Option<inertia::JointLsFit>,
     pub spring: Option<SpringResult>,
     pub table: Option<gravity_table::TableFit>,
     /// fusion clamp k written with a table that has σ_m
     pub table_clamp_k: f64,
-    /// final offset C_0 written to the model
+    /// the offset C_0 found (written when determined)
     pub c0: Option<f64>,
     pub v_band: f64,
+    /// every parameter with its CI and status; only the determined ones are written
+    pub status: Vec<status::ParamStatus>,
     /// segments found per log
     pub segments: Vec<Vec<Segment>>,
     /// what the shared preparation stage did to each log (the smoother, its windows, stale
     /// rows, gaps)
     pub preparation: Vec<crate::prep::PrepReport>,
     pub notes: Vec<String>,
+}
+
+impl Identified {
+    /// The status of `term.param`, if identification judged it.
+    pub fn status_of(&self, term: &str, param: &str) -> Option<&status::ParamStatus> {
+        self.status.iter().find(|p| p.term == term && p.param == param)
+    }
+
+    /// True when `term.param` is determined (and so written).
+    pub fn determined(&self, term: &str, param: &str) -> bool {
+        self.status_of(term, param).is_some_and(|p| p.determined())
+    }
 }
 
 /// Progress events for a front end (the CLI draws a bar from them).
@@ -212,7 +250,8 @@ impl Data {
         Ok(Data { prepared, segments })
     }
 
-    fn pairs(&self) -> Vec<(&Prepared, &[Segment])> {
+    /// Each prepared log with its segments.
+    pub fn pairs(&self) -> Vec<(&Prepared, &[Segment])> {
         self.prepared.iter().zip(&self.segments).map(|(p, s)| (p, s.as_slice())).collect()
     }
 
@@ -242,6 +281,10 @@ pub fn friction_torque(f: &friction::FrictionFit, v: f64, band: f64) -> f64 {
 
 /// Identifies the terms from all logs. `keep(log, t)` selects the data a fit may use (the
 /// full run keeps everything; the report's refit keeps the training blocks).
+///
+/// A term the log holds no test for is not an error: it gets the status `not excited` with the
+/// test that would pin it, and is not written. Errors are left for what no log could fix here:
+/// no log, torque terms asked of a log without torque, a log the preparation refuses.
 pub fn identify_data(
     data: &Data,
     opts: &Options,
@@ -260,8 +303,10 @@ pub fn identify_data(
     } else {
         opts.terms.clone()
     };
-    let has = |t: Term| terms.contains(&t);
-    let pairs = data.pairs();
+    let rigid = terms.iter().any(|t| RIGID_TERMS.contains(t));
+    if rigid && !data.has_torque() {
+        return Err(term_err("friction/weight/inertia/offset", "need a torque-mode log (columns u and tau)"));
+    }
     // Segments filtered by `keep` (by their start time).
     let kept: Vec<Vec<Segment>> = data
         .prepared
@@ -272,33 +317,136 @@ pub fn identify_data(
         .collect();
     let kept_pairs: Vec<(&Prepared, &[Segment])> =
         data.prepared.iter().zip(&kept).map(|(p, s)| (p, s.as_slice())).collect();
-    let band = opts.v_band;
     let mut out = Identified {
         terms: terms.clone(),
+        method: Method::Papers,
+        method_why: String::new(),
         friction: None,
         weight: None,
         poses: Vec::new(),
         inertia: None,
+        joint_ls: None,
         spring: None,
         table: None,
         table_clamp_k: TABLE_CLAMP_K,
         c0: None,
-        v_band: band,
+        v_band: opts.v_band,
+        status: Vec::new(),
         segments: data.segments.clone(),
         preparation: data.prepared.iter().map(|p| p.prep.clone()).collect(),
         notes: Vec::new(),
     };
-    let torque_terms = [Term::Friction, Term::Weight, Term::Inertia, Term::Offset];
-    if terms.iter().any(|t| torque_terms.contains(t)) && !data.has_torque() {
-        return Err(term_err("friction/weight/inertia/offset", "need a torque-mode log (columns u and tau)"));
+    let total = 2 + u64::from(terms.contains(&Term::Spring));
+    if rigid {
+        let (method, why) = resolve_method(opts, &terms, &kept_pairs);
+        out.method = method;
+        out.method_why = why;
+        match method {
+            Method::JointLs => joint_ls_terms(data, opts, keep, &mut out)?,
+            _ => papers_terms(data, &kept_pairs, opts, keep, progress, &mut out),
+        }
+        // `auto` took the papers' tests, and they pinned nothing: the regression may still.
+        if opts.method == Method::Auto && method == Method::Papers && !out.status.iter().any(|p| p.determined()) {
+            let found: Vec<String> = out.status.iter().map(|p| format!("{}: {}", p.name(), p.why)).collect();
+            out.status.clear();
+            out.friction = None;
+            out.weight = None;
+            out.inertia = None;
+            out.c0 = None;
+            out.poses.clear();
+            out.method = Method::JointLs;
+            out.method_why = format!(
+                "the papers' tests in this log determine nothing ({}): the whole-log regression (joint-ls) instead",
+                found.first().map_or("", String::as_str)
+            );
+            joint_ls_terms(data, opts, keep, &mut out)?;
+        }
+    } else {
+        out.method_why = "the papers' procedures (elastic joint: static slope and free oscillation)".into();
     }
-    if opts.method == Method::JointLs && terms.iter().any(|t| torque_terms.contains(t)) {
-        joint_ls_terms(data, opts, keep, &mut out)?;
+    if terms.contains(&Term::GravityTable) {
+        table_term(data, &kept_pairs, &mut out);
     }
+    if terms.contains(&Term::Spring) {
+        progress.stage("spring", 2, total);
+        spring_terms(data, &kept_pairs, opts, &mut out);
+    }
+    progress.stage("done", total, total);
+    Ok(out)
+}
+
+/// Static poses needed for the weight fit (one more than its unknowns).
+fn poses_needed(terms: &[Term]) -> usize {
+    if terms.contains(&Term::Offset) {
+        5
+    } else {
+        4
+    }
+}
+
+/// `auto` → the papers' procedures when the log holds the tests of the friction and weight
+/// asked for (at least one of them: the missing one is then `not excited`), the whole-log
+/// regression when it holds neither. A forced method is taken as it is.
+fn resolve_method(opts: &Options, terms: &[Term], pairs: &[(&Prepared, &[Segment])]) -> (Method, String) {
+    let strict = (opts.segments.a_strict, opts.segments.a_strict_rel);
+    let want_f = terms.contains(&Term::Friction);
+    let want_w = terms.contains(&Term::Weight);
+    let points = if want_f { friction::points(pairs, None, strict).len() } else { 0 };
+    let poses = if want_w { weight::poses(pairs, &|_| 0.0).len() } else { 0 };
+    let need = poses_needed(terms);
+    let (f_ok, w_ok) = (points >= 4, poses >= need);
+    let found = format!(
+        "{points} friction points from matched ± constant-velocity plateaus (4 needed), {poses} static poses ({need} needed)"
+    );
+    match opts.method {
+        Method::JointLs => {
+            (Method::JointLs, "asked for (--method joint-ls): one least-squares fit on every sample".into())
+        }
+        Method::Papers => (Method::Papers, format!("asked for (--method papers); the log holds {found}")),
+        Method::Auto => {
+            let any_test = (want_f && f_ok) || (want_w && w_ok);
+            let all_tests = (!want_f || f_ok) && (!want_w || w_ok);
+            if all_tests && (want_f || want_w) || any_test {
+                let mut why = format!("the log holds the papers' tests: {found}");
+                if !all_tests {
+                    why.push_str(
+                        "; the term without its test is not identified (`--method joint-ls` fits every term from the \
+                         whole log instead, as well as the log's motion allows)",
+                    );
+                }
+                (Method::Papers, why)
+            } else if !want_f && !want_w {
+                (Method::Papers, "inertia and offset from motion (trunk §3.4)".into())
+            } else {
+                (
+                    Method::JointLs,
+                    format!(
+                        "no test of the papers' procedures in the log ({found}): the whole-log regression (joint-ls)"
+                    ),
+                )
+            }
+        }
+    }
+}
+
+/// The papers' procedures: friction (§3.2), weight (§3.3), inertia and offset (§3.4), then a
+/// second round with `J·q̈` taken off the plateaus and poses. Every term gets its status.
+fn papers_terms(
+    data: &Data,
+    kept_pairs: &[(&Prepared, &[Segment])],
+    opts: &Options,
+    keep: &dyn Fn(usize, f64) -> bool,
+    progress: &dyn Progress,
+    out: &mut Identified,
+) {
+    let terms = out.terms.clone();
+    let has = |t: Term| terms.contains(&t);
+    let band = opts.v_band;
+    let pairs = data.pairs();
     let total = 2 + u64::from(has(Term::Spring));
-    let papers = opts.method == Method::Papers;
-    let has = |t: Term| terms.contains(&t) && (papers || t == Term::Spring);
     let mut inertia_acc: Option<(Vec<Vec<f64>>, f64)> = None;
+    let mut f_status = Vec::new();
+    let mut inertia_data = None;
     for round in 0..2u64 {
         progress.stage(
             if round == 0 { "friction, weight, inertia" } else { "second round (J·q̈ removed)" },
@@ -307,23 +455,14 @@ pub fn identify_data(
         );
         if has(Term::Friction) {
             let accel = inertia_acc.as_ref().map(|(a, j)| (a.as_slice(), *j));
-            let pts = friction::points(&kept_pairs, accel, (opts.segments.a_strict, opts.segments.a_strict_rel));
-            let fit = friction::fit(&pts).ok_or_else(|| {
-                term_err(
-                    "friction",
-                    format!(
-                        "{} friction points from matched ± constant-velocity plateaus; at least 4 needed \
-                         (run a speed sweep, or give --window START:END:plateau)",
-                        pts.len()
-                    ),
-                )
-            })?;
-            out.friction = Some(fit);
+            let pts = friction::points(kept_pairs, accel, (opts.segments.a_strict, opts.segments.a_strict_rel));
+            out.friction = friction::fit(&pts);
+            f_status = friction_status(out.friction.as_ref(), pts.len());
         }
         let fr = out.friction.clone();
         let ffun = |v: f64| fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band));
         if has(Term::Weight) || (has(Term::Offset) && !has(Term::Inertia)) {
-            let mut poses = weight::poses(&kept_pairs, &ffun);
+            let mut poses = weight::poses(kept_pairs, &ffun);
             if let Some((acc, j)) = &inertia_acc {
                 // Take J·q̈ off too (a pose still settling accelerates a little).
                 for pose in &mut poses {
@@ -335,80 +474,345 @@ pub fn identify_data(
                 }
             }
             if has(Term::Weight) {
-                let fit = weight::fit(&poses, has(Term::Offset)).ok_or_else(|| {
-                    term_err(
-                        "weight",
-                        format!(
-                            "{} static poses found; at least {} needed (hold the joint still at several angles, \
-                             or give --window START:END:static)",
-                            poses.len(),
-                            if has(Term::Offset) { 5 } else { 4 }
-                        ),
-                    )
-                })?;
-                out.weight = Some(fit);
+                out.weight = weight::fit(&poses, has(Term::Offset));
             } else if !poses.is_empty() {
-                let c0 = poses.iter().map(|p| p.d).sum::<f64>() / poses.len() as f64;
-                out.c0 = Some(c0);
+                out.c0 = Some(poses.iter().map(|p| p.d).sum::<f64>() / poses.len() as f64);
             }
             out.poses = poses;
         }
-        if has(Term::Inertia) {
+        // §3.4 subtracts friction and weight: without them (asked for, not found) J would
+        // absorb their torque.
+        let known = friction_weight_known(out, &terms);
+        if has(Term::Inertia) && known {
             let w = out.weight.clone();
             let c0s = out.c0.unwrap_or(0.0);
             let model = |q: f64, v: f64| ffun(v) + w.as_ref().map_or(c0s, |w| w.curve(q));
             let dat = inertia::data(&pairs, &model, opts.accel_cutoff, opts.v_min_inertia);
             let fs = data.prepared.first().map_or(1000.0, |p| p.fs);
             let keep_i = |li: usize, i: usize| keep(li, data.prepared[li].t[i]);
-            let fit = inertia::fit(&dat, fs, opts.accel_cutoff, &keep_i).ok_or_else(|| {
-                term_err("inertia", "too few moving samples (|q̇| above the threshold, not static) in torque-mode logs")
-            })?;
-            if !(fit.j > 0.0) {
-                return Err(term_err(
-                    "inertia",
-                    format!("the fit gives J = {:.4} kg·m² (not positive): the log has too little acceleration", fit.j),
-                ));
+            out.inertia = inertia::fit(&dat, fs, opts.accel_cutoff, &keep_i);
+            if let Some(fit) = out.inertia.as_ref().filter(|f| f.j > 0.0) {
+                inertia_acc = Some((dat.acc.clone(), fit.j));
             }
-            inertia_acc = Some((dat.acc, fit.j));
-            out.inertia = Some(fit);
+            inertia_data = Some(dat);
         }
-        if !(has(Term::Inertia) && has(Term::Friction)) {
+        if !(has(Term::Inertia) && has(Term::Friction) && inertia_acc.is_some()) {
             break;
         }
     }
+    if has(Term::Friction) {
+        out.status.extend(f_status);
+    }
+    if has(Term::Weight) {
+        let st = weight_status(out.weight.as_ref(), &out.poses, poses_needed(&terms));
+        out.status.extend(st);
+    }
+    if has(Term::Inertia) {
+        let known = friction_weight_known(out, &terms);
+        let exc = inertia_data.as_ref().map(|d| acc_excitation(data, d, opts.accel_cutoff, keep));
+        out.status.push(inertia_status(out.inertia.as_ref(), known, exc));
+    }
     if has(Term::Offset) {
-        let stat = out.weight.as_ref().filter(|w| w.fitted_offset).map(|w| w.c0).or(out.c0);
-        let dyn_c0 = out.inertia.as_ref().map(|i| i.dc0);
-        out.c0 = match (stat, dyn_c0) {
-            (Some(s), Some(d)) => Some(s + d),
-            (Some(s), None) => Some(s),
-            (None, Some(d)) => Some(d),
-            (None, None) => return Err(term_err("offset", "needs static poses or moving samples with torque")),
-        };
+        let (c0, s) = offset_papers(out, has(Term::Inertia));
+        out.c0 = c0;
+        out.status.push(s);
     }
-    if terms.contains(&Term::GravityTable) {
-        let fr = out.friction.clone();
-        let c0 = out.c0.unwrap_or(0.0);
-        let w = out.weight.clone();
-        let st = |li: usize, i: usize| {
-            let p = &data.prepared[li];
-            let d = p.d.as_ref().map_or(0.0, |d| d[i]);
-            d - fr.as_ref().map_or(0.0, |f| friction_torque(f, p.qd_f[i], band)) - c0
-        };
-        let model = |li: usize, i: usize| w.as_ref().map_or(0.0, |w| w.weight(data.prepared[li].q[i]));
-        let m: Option<&dyn Fn(usize, usize) -> f64> = if out.weight.is_some() { Some(&model) } else { None };
-        let fit = gravity_table::fit(&kept_pairs, &st, m).map_err(|e| term_err("gravity_table", e))?;
-        out.table = Some(fit);
-    }
-    if has(Term::Spring) {
-        progress.stage("spring", 2, total);
-        out.spring = Some(identify_spring(data, &kept_pairs, &ffun_none, opts, &mut out.notes)?);
-        out.poses = weight::poses(&kept_pairs, &ffun_none);
-    }
-    progress.stage("done", total, total);
-    Ok(out)
 }
 
+/// Friction and weight known for eq. 5: found when asked for (a friction fit with at least one
+/// coefficient, a weight curve).
+fn friction_weight_known(out: &Identified, terms: &[Term]) -> bool {
+    let f = out.friction.as_ref().is_some_and(|f| f.free.iter().any(|x| *x));
+    (!terms.contains(&Term::Friction) || f) && (!terms.contains(&Term::Weight) || out.weight.is_some())
+}
+
+/// RMS of the filtered q̈ on the inertia fit's samples against its noise in the fit's band.
+fn acc_excitation(
+    data: &Data,
+    dat: &inertia::InertiaData,
+    cutoff: f64,
+    keep: &dyn Fn(usize, f64) -> bool,
+) -> (f64, f64) {
+    let (mut s2, mut n2, mut n) = (0.0, 0.0, 0usize);
+    for (li, (acc, mask)) in dat.acc.iter().zip(&dat.mask).enumerate() {
+        let p = &data.prepared[li];
+        let noise = inertia::acc_noise_in_band(p, cutoff);
+        for i in 0..acc.len() {
+            if mask[i] && keep(li, p.t[i]) {
+                s2 += acc[i] * acc[i];
+                n2 += noise * noise;
+                n += 1;
+            }
+        }
+    }
+    let m = n.max(1) as f64;
+    ((s2 / m).sqrt(), (n2 / m).sqrt())
+}
+
+const FRICTION_KEYS: [&str; 3] = ["a", "b", "c"];
+
+/// The friction coefficients' statuses from the plateau fit: the curve as a whole is judged
+/// by its 95 % CI at the slowest, the median and the fastest point's speed (a, b and c of one
+/// curve trade off while the curve is pinned); a coefficient left out for a negative value or
+/// too few distinct speeds says so.
+fn friction_status(fit: Option<&friction::FrictionFit>, n_points: usize) -> Vec<ParamStatus> {
+    let test = status::TEST_FRICTION;
+    let Some(f) = fit else {
+        let why = format!("{n_points} friction points from matched ± constant-velocity plateaus; at least 4 needed");
+        return FRICTION_KEYS.iter().map(|k| ParamStatus::not_excited("friction", k, why.clone(), test)).collect();
+    };
+    let speeds = friction::distinct_speeds(&f.points);
+    let mut v: Vec<f64> = f.points.iter().map(|p| p.v).collect();
+    v.sort_by(f64::total_cmp);
+    let at = [
+        v.first().copied().unwrap_or(0.0),
+        v.get(v.len() / 2).copied().unwrap_or(0.0),
+        v.last().copied().unwrap_or(0.0),
+    ];
+    let tq = robust::t_quantile_975((f.points.len() as f64 - f.free.iter().filter(|x| **x).count() as f64).max(1.0));
+    let (term, why) = if !f.free.iter().any(|x| *x) {
+        (
+            Status::WeaklyDetermined,
+            "every coefficient came out negative: the ± plateau pairs do not cancel the other torques (another \
+             joint's motion, a load, a plateau still accelerating)"
+                .to_string(),
+        )
+    } else {
+        let mut res = (Status::Determined, String::new());
+        let mut parts = Vec::new();
+        for &x in &at {
+            let (val, half) = f.curve_ci(x, tq);
+            parts.push(format!("{val:.4} ± {half:.4} N·m at {x:.3} rad/s"));
+            if 2.0 * half > val.abs() {
+                res = (
+                    Status::WeaklyDetermined,
+                    format!(
+                        "the curve's 95 % CI at {x:.3} rad/s (±{half:.4} N·m) is wider than its value {val:.4} N·m"
+                    ),
+                );
+                break;
+            }
+        }
+        if res.0 == Status::Determined {
+            res.1 = format!("the curve from {} points at {speeds} speed(s): {}", f.points.len(), parts.join(", "));
+        }
+        res
+    };
+    let vals = [f.a, f.b, f.c];
+    let mut first = true;
+    (0..3)
+        .map(|k| {
+            let key = FRICTION_KEYS[k];
+            if f.negative[k] && f.free.iter().any(|x| *x) {
+                ParamStatus::negative("friction", key, "friction cannot feed energy in", test)
+            } else if !f.free[k] && !f.negative[k] {
+                ParamStatus::not_excited(
+                    "friction",
+                    key,
+                    format!("the friction points lie at {speeds} distinct speed(s); {} needed for it", 3 - k.min(2)),
+                    test,
+                )
+            } else {
+                let why = if first { why.clone() } else { "with the curve".to_string() };
+                first = false;
+                let t = (term != Status::Determined).then_some(test);
+                ParamStatus {
+                    term: "friction",
+                    param: key,
+                    value: Some(vals[k]),
+                    ci95: Some(f.ci95[k]),
+                    status: term,
+                    why,
+                    test: t,
+                }
+            }
+        })
+        .collect()
+}
+
+/// The weight as a whole (amplitude, s, φ), from the static poses: determined when the fitted
+/// curve's swing over the poses stands well above their scatter.
+fn weight_status(fit: Option<&weight::WeightFit>, poses: &[weight::Pose], need: usize) -> Vec<ParamStatus> {
+    let Some(w) = fit else {
+        let why = format!("{} static poses; at least {need} needed", poses.len());
+        return ["amplitude", "phi", "s"]
+            .iter()
+            .map(|k| ParamStatus::not_excited("weight", k, why.clone(), status::TEST_WEIGHT))
+            .collect();
+    };
+    let (lo, hi) = poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
+    let (cmin, cmax) =
+        poses.iter().map(|p| w.weight(p.q)).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let swing = cmax - cmin;
+    let tq = robust::t_quantile_975(poses.len().saturating_sub(w.se.len()).max(1) as f64);
+    let ci = |k: usize, v: f64| {
+        let se = w.se.get(k).copied().unwrap_or(f64::NAN);
+        (v - tq * se, v + tq * se)
+    };
+    let (status, why) = if hi - lo < 0.1 {
+        (Status::NotExcited, format!("the poses cover only {:.3} rad", hi - lo))
+    } else if swing > 4.0 * w.rms {
+        let mut why = format!(
+            "the static curve from {} poses over q ∈ [{lo:.3}, {hi:.3}] rad swings {swing:.4} N·m, residual RMS {:.4} N·m",
+            poses.len(),
+            w.rms
+        );
+        let (alo, ahi) = ci(0, w.amplitude);
+        if ahi - alo > w.amplitude {
+            why.push_str(
+                "; amplitude, s, φ and the offset trade off over this arc (wide CIs): the curve, not each of them, is \
+                 determined, and only over the covered angles",
+            );
+        }
+        (Status::Determined, why)
+    } else {
+        (
+            Status::WeaklyDetermined,
+            format!(
+                "the poses' torque varies by {swing:.4} N·m over q ∈ [{lo:.3}, {hi:.3}] rad, not well above their scatter \
+                 (RMS {:.4} N·m)",
+                w.rms
+            ),
+        )
+    };
+    let test = (status != Status::Determined).then_some(status::TEST_WEIGHT);
+    let mut v = vec![
+        ParamStatus {
+            term: "weight",
+            param: "amplitude",
+            value: Some(w.amplitude),
+            ci95: Some(ci(0, w.amplitude)),
+            status,
+            why: why.clone(),
+            test,
+        },
+        ParamStatus {
+            term: "weight",
+            param: "phi",
+            value: Some(w.phi),
+            ci95: Some(ci(2, w.phi)),
+            status,
+            why: "with the amplitude".into(),
+            test,
+        },
+    ];
+    let s_why = if w.s_fixed {
+        "fixed at 1 (the arc is too short to determine it)".to_string()
+    } else {
+        "with the amplitude".into()
+    };
+    v.push(ParamStatus {
+        term: "weight",
+        param: "s",
+        value: Some(w.s),
+        ci95: (!w.s_fixed).then(|| ci(1, w.s)),
+        status,
+        why: s_why,
+        test,
+    });
+    v
+}
+
+fn inertia_status(fit: Option<&inertia::InertiaFit>, known: bool, exc: Option<(f64, f64)>) -> ParamStatus {
+    let test = status::TEST_INERTIA;
+    if !known {
+        return ParamStatus::not_excited(
+            "inertia",
+            "j",
+            "eq. 5 needs friction and weight known first, and the log does not give them (see above)",
+            test,
+        );
+    }
+    let Some(f) = fit else {
+        return ParamStatus::not_excited(
+            "inertia",
+            "j",
+            "too few moving samples (|q̇| above 0.05 rad/s, not static)",
+            test,
+        );
+    };
+    if let Some((rms, noise)) = exc {
+        if rms < status::ACC_EXCITATION * noise {
+            return ParamStatus {
+                value: Some(f.j),
+                ci95: Some(f.ci95[0]),
+                ..ParamStatus::not_excited(
+                    "inertia",
+                    "j",
+                    format!("the filtered q̈ (RMS {rms:.3} rad/s²) does not stand above its noise ({noise:.3} rad/s²)"),
+                    test,
+                )
+            };
+        }
+    }
+    if !(f.j > 0.0) {
+        return ParamStatus {
+            value: Some(f.j),
+            ci95: Some(f.ci95[0]),
+            status: Status::WeaklyDetermined,
+            why: format!("the fit gives J = {:.4} kg·m², not positive: the log's torque holds no J·q̈ it can see", f.j),
+            test: Some(test),
+            term: "inertia",
+            param: "j",
+        };
+    }
+    ParamStatus::from_ci("inertia", "j", f.j, f.ci95[0], None, test)
+}
+
+/// C_0 of the papers: the static curve's constant plus the motion fit's ΔC_0 (or the mean of
+/// the poses when there is no inertia fit), with its CI.
+fn offset_papers(out: &Identified, with_inertia: bool) -> (Option<f64>, ParamStatus) {
+    let w = out.weight.as_ref().filter(|w| w.fitted_offset);
+    let stat = w.map(|w| w.c0).or(out.c0.filter(|_| !with_inertia || out.weight.is_none()));
+    let tq_w = robust::t_quantile_975(out.poses.len().saturating_sub(4).max(1) as f64);
+    let stat_half = match w {
+        Some(w) => w.se.get(3).map_or(f64::NAN, |se| tq_w * se),
+        None if !out.poses.is_empty() => {
+            let n = out.poses.len() as f64;
+            let m = out.poses.iter().map(|p| p.d).sum::<f64>() / n;
+            let sd = (out.poses.iter().map(|p| (p.d - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+            robust::t_quantile_975((n - 1.0).max(1.0)) * sd / n.sqrt()
+        }
+        None => f64::NAN,
+    };
+    let dynamic = out.inertia.as_ref().filter(|i| i.j > 0.0).map(|i| (i.dc0, 0.5 * (i.ci95[1].1 - i.ci95[1].0)));
+    let (c0, half) = match (stat, dynamic) {
+        (Some(s), Some((d, h))) => (s + d, stat_half.hypot(h)),
+        (Some(s), None) => (s, stat_half),
+        (None, Some((d, h))) => (d, h),
+        (None, None) => {
+            return (
+                None,
+                ParamStatus::not_excited(
+                    "offset",
+                    "c0",
+                    "no static poses and no usable motion fit",
+                    status::TEST_OFFSET,
+                ),
+            )
+        }
+    };
+    let ci = (c0 - half, c0 + half);
+    // With the weight fitted together with a constant, the poses determine their sum (the static
+    // curve), not how it splits: the constant is judged with the curve, not on its own CI.
+    let curve = out.status.iter().find(|p| p.term == "weight" && p.param == "amplitude");
+    if let (Some(_), Some(cs)) = (w, curve) {
+        let mut st = ParamStatus::from_ci("offset", "c0", c0, ci, None, status::TEST_OFFSET);
+        st.status = cs.status;
+        st.test = (cs.status != Status::Determined).then_some(status::TEST_OFFSET);
+        st.why = format!(
+            "the static curve's constant{}, judged with the weight: the poses determine weight + offset together \
+             (95 % CI of the constant alone [{:.4}, {:.4}])",
+            if dynamic.is_some() { " plus ΔC_0 from motion" } else { "" },
+            ci.0,
+            ci.1
+        );
+        return (Some(c0), st);
+    }
+    (Some(c0), ParamStatus::from_ci("offset", "c0", c0, ci, None, status::TEST_OFFSET))
+}
+
+/// The whole-log regression and its statuses (the determined terms keep the full fit's values).
 fn joint_ls_terms(
     data: &Data,
     opts: &Options,
@@ -419,9 +823,11 @@ fn joint_ls_terms(
     let keep_i = |li: usize, i: usize| keep(li, data.prepared[li].t[i]);
     let f = inertia::joint_ls(&logs, opts.v_band, opts.accel_cutoff, &keep_i)
         .ok_or_else(|| term_err("joint-ls", "too few torque-mode samples (or a singular regression)"))?;
+    let fs = data.prepared[0].fs;
+    out.status.extend(joint_ls::statuses(&f, fs, &out.terms));
+    out.notes.extend(joint_ls::ratio_note(&f));
     let has = |t: Term| out.terms.contains(&t);
-    let tq = robust::t_quantile_975(f.n as f64 * (2.0 * f.cutoff_hz / data.prepared[0].fs).min(1.0) - 7.0);
-    let ci = |k: usize, v: f64| (v - tq * f.se[k], v + tq * f.se[k]);
+    let ci = |k: usize, v: f64| joint_ls::ci(&f, fs, k, v);
     if has(Term::Friction) {
         out.friction = Some(friction::FrictionFit {
             a: f.a,
@@ -432,17 +838,20 @@ fn joint_ls_terms(
             sigma: f.rms,
             points: Vec::new(),
             weights: Vec::new(),
+            free: [f.free[1], f.free[2], f.free[3]],
+            negative: [f.negative[1], f.negative[2], f.negative[3]],
+            cov: [1, 2, 3].map(|i| [1, 2, 3].map(|j| f.cov[i][j])),
         });
     }
     if has(Term::Weight) {
-        let amp = f.alpha.hypot(f.beta);
+        let (amp, phi, se_amp, se_phi) = joint_ls::amplitude_phase(&f);
         out.weight = Some(weight::WeightFit {
             amplitude: amp,
             s: 1.0,
-            phi: f.beta.atan2(f.alpha),
+            phi,
             c0: 0.0,
             fitted_offset: false,
-            se: vec![f.se[4].hypot(f.se[5]), 0.0, f.se[4].hypot(f.se[5]) / amp.max(1e-12)],
+            se: vec![se_amp, 0.0, se_phi],
             rms: f.rms,
             s_fixed: true,
         });
@@ -465,6 +874,7 @@ fn joint_ls_terms(
         "joint least squares on {} filtered samples ({} Hz): RMS {:.4} N·m, r² {:.4}",
         f.n, f.cutoff_hz, f.rms, f.r2
     ));
+    out.joint_ls = Some(f);
     Ok(())
 }
 
@@ -472,21 +882,43 @@ fn ffun_none(_: f64) -> f64 {
     0.0
 }
 
-fn identify_spring(
-    data: &Data,
-    kept_pairs: &[(&Prepared, &[Segment])],
-    friction: &dyn Fn(f64) -> f64,
-    opts: &Options,
-    notes: &mut Vec<String>,
-) -> Result<SpringResult, IdentifyError> {
-    let poses = weight::poses(kept_pairs, friction);
-    let stat = spring::static_fit(&poses);
-    if stat.is_none() {
-        notes.push(format!(
-            "spring: {} static poses with torque, no torque–angle branch with 2 poses: K not identified",
-            poses.len()
-        ));
+/// The gravity table over q and the other joints' angles from static samples.
+fn table_term(data: &Data, kept_pairs: &[(&Prepared, &[Segment])], out: &mut Identified) {
+    let fr = out.friction.clone();
+    let band = out.v_band;
+    let c0 = out.c0.unwrap_or(0.0);
+    let w = out.weight.clone();
+    let st = |li: usize, i: usize| {
+        let p = &data.prepared[li];
+        let d = p.d.as_ref().map_or(0.0, |d| d[i]);
+        d - fr.as_ref().map_or(0.0, |f| friction_torque(f, p.qd_f[i], band)) - c0
+    };
+    let model = |li: usize, i: usize| w.as_ref().map_or(0.0, |w| w.weight(data.prepared[li].q[i]));
+    let m: Option<&dyn Fn(usize, usize) -> f64> = if out.weight.is_some() { Some(&model) } else { None };
+    match gravity_table::fit(kept_pairs, &st, m) {
+        Ok(fit) => {
+            out.status.push(ParamStatus {
+                term: "gravity_table",
+                param: "torque",
+                value: None,
+                ci95: None,
+                status: Status::Determined,
+                why: format!(
+                    "{} static samples, RMS {:.4} N·m, {} cells without data (filled smoothly)",
+                    fit.samples, fit.rms, fit.empty_cells
+                ),
+                test: None,
+            });
+            out.table = Some(fit);
+        }
+        Err(e) => out.status.push(ParamStatus::not_excited("gravity_table", "torque", e, status::TEST_TABLE)),
     }
+}
+
+/// The elastic joint: K from static poses, J and B from the free oscillation with K.
+fn spring_terms(data: &Data, kept_pairs: &[(&Prepared, &[Segment])], opts: &Options, out: &mut Identified) {
+    let poses = weight::poses(kept_pairs, &ffun_none);
+    let stat = spring::static_fit(&poses);
     // The free oscillation: trajectory-mode logs, or any log with a `free` window.
     let has_free_window = opts.windows.iter().any(|w| w.kind == SegKind::Free);
     let mut free = None;
@@ -502,9 +934,6 @@ fn identify_spring(
             }
         }
     }
-    if free.is_none() {
-        notes.push("spring: no free oscillation found (a trajectory-mode log, or --window START:END:free): J and B not identified".into());
-    }
     let k = stat.as_ref().map(|s| s.k);
     let (j, b) = match (k, &free) {
         (Some(k), Some(f)) => {
@@ -513,39 +942,117 @@ fn identify_spring(
         }
         _ => (None, None),
     };
-    if k.is_none() && free.is_none() {
-        return Err(term_err("spring", "neither static torque–angle poses nor a free oscillation found"));
+    out.status.extend(spring_status(stat.as_ref(), free.as_ref(), poses.len(), j, b));
+    if let Some(f) = &free {
+        out.notes.push(format!(
+            "free oscillation: ω_n = {:.4} rad/s, ζ = {:.4} (J = K/ω_n², B = 2ζω_n·J need K)",
+            f.omega_n, f.zeta
+        ));
     }
-    if k.is_none() {
-        notes.push(
-            "spring: without K only ω_n and ζ of the free oscillation are known (J = K/ω_n², B = 2ζω_n·J)".into(),
-        );
-    }
-    Ok(SpringResult { stat, free, k, j, b })
+    out.spring = Some(SpringResult { stat, free, k, j, b });
+    out.poses = poses;
 }
 
-/// The model file for the identified terms (only identified sections are written).
+fn spring_status(
+    stat: Option<&spring::StaticSpring>,
+    free: Option<&spring::FreeFit>,
+    n_poses: usize,
+    j: Option<f64>,
+    b: Option<f64>,
+) -> Vec<ParamStatus> {
+    let mut v = Vec::new();
+    match stat {
+        Some(s) => {
+            let why = format!(
+                "static torque–angle slope of {} + {} poses (paper: mean of the two branches)",
+                s.poses_pos, s.poses_neg
+            );
+            let two = s.poses_pos >= 2 && s.poses_neg >= 2;
+            let status = if two { Status::Determined } else { Status::WeaklyDetermined };
+            let why = if two { why } else { format!("{why}; one torque branch only") };
+            let test = (!two).then_some(status::TEST_SPRING_K);
+            for (param, value) in [("k", s.k), ("q0", s.q0)] {
+                v.push(ParamStatus {
+                    term: "spring",
+                    param,
+                    value: Some(value),
+                    ci95: None,
+                    status,
+                    why: why.clone(),
+                    test,
+                });
+            }
+        }
+        None => {
+            let why = format!("{n_poses} static poses with torque, no torque–angle branch of 2 poses");
+            for p in ["k", "q0"] {
+                v.push(ParamStatus::not_excited("spring", p, why.clone(), status::TEST_SPRING_K));
+            }
+        }
+    }
+    let k_ok = v.first().is_some_and(|p| p.determined());
+    for (term, param, value) in [("spring", "b", b), ("inertia", "j", j)] {
+        v.push(match (free, value) {
+            (Some(f), Some(x)) if k_ok => ParamStatus {
+                term,
+                param,
+                value: Some(x),
+                ci95: None,
+                status: Status::Determined,
+                why: format!("free oscillation ω_n = {:.4} rad/s, ζ = {:.4} with K", f.omega_n, f.zeta),
+                test: None,
+            },
+            (Some(f), _) => ParamStatus::not_excited(
+                term,
+                param,
+                format!(
+                    "the free oscillation gives ω_n = {:.4} rad/s and ζ = {:.4} only; J = K/ω_n² and B = 2ζω_n·J need K",
+                    f.omega_n, f.zeta
+                ),
+                status::TEST_SPRING_K,
+            ),
+            (None, _) => ParamStatus::not_excited(
+                term,
+                param,
+                "no free oscillation (a trajectory-mode log, or --window START:END:free)",
+                status::TEST_SPRING_JB,
+            ),
+        });
+    }
+    v
+}
+
+/// The model file for the identified terms: only the determined parameters are written (a
+/// missing key or section is a term the model does not have, spec §2).
 pub fn model_file(id: &Identified, name: Option<&str>) -> Result<ModelFile, IdentifyError> {
     let mut mf = ModelFile::empty("(identified)");
     mf.name = name.map(str::to_string);
+    let det = |t: &str, p: &str| id.determined(t, p);
     if let Some(f) = &id.friction {
-        mf.set(ParamId::FrictionA, f.a, None);
-        mf.set(ParamId::FrictionB, f.b, None);
-        mf.set(ParamId::FrictionC, f.c, None);
-        mf.set(ParamId::FrictionVBand, id.v_band, None);
+        let ids = [ParamId::FrictionA, ParamId::FrictionB, ParamId::FrictionC];
+        let mut any = false;
+        for (k, (pid, v)) in ids.iter().zip([f.a, f.b, f.c]).enumerate() {
+            if det("friction", FRICTION_KEYS[k]) {
+                mf.set(*pid, v, None);
+                any = true;
+            }
+        }
+        if any {
+            mf.set(ParamId::FrictionVBand, id.v_band, None);
+        }
     }
-    if let Some(w) = &id.weight {
+    if let Some(w) = id.weight.as_ref().filter(|_| det("weight", "amplitude")) {
         mf.set(ParamId::WeightAmplitude, w.amplitude, None);
         mf.set(ParamId::WeightS, w.s, None);
         mf.set(ParamId::WeightPhi, w.phi, None);
     }
-    if let Some(i) = &id.inertia {
+    if let Some(i) = id.inertia.as_ref().filter(|_| det("inertia", "j")) {
         mf.set(ParamId::InertiaJ, i.j, None);
     }
-    if let Some(c0) = id.c0 {
+    if let Some(c0) = id.c0.filter(|_| det("offset", "c0")) {
         mf.set(ParamId::OffsetC0, c0, None);
     }
-    if let Some(t) = &id.table {
+    if let Some(t) = id.table.as_ref().filter(|_| det("gravity_table", "torque")) {
         mf.table = Some(t.spec());
         match t.sigma_model {
             Some(sm) if sm > 0.0 => {
@@ -556,14 +1063,14 @@ pub fn model_file(id: &Identified, name: Option<&str>) -> Result<ModelFile, Iden
         }
     }
     if let Some(s) = &id.spring {
-        if let Some(k) = s.k {
+        if let Some(k) = s.k.filter(|_| det("spring", "k")) {
             mf.set(ParamId::SpringK, k, None);
             mf.set(ParamId::SpringQ0, s.stat.as_ref().map_or(0.0, |s| s.q0), None);
         }
-        if let Some(b) = s.b {
+        if let Some(b) = s.b.filter(|_| det("spring", "b")) {
             mf.set(ParamId::SpringB, b, None);
         }
-        if let Some(j) = s.j {
+        if let Some(j) = s.j.filter(|_| det("inertia", "j")) {
             mf.set(ParamId::InertiaJ, j, None);
         }
     }
