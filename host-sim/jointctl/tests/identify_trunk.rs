@@ -286,3 +286,50 @@ fn derived_velocity_and_acceleration_suffice() {
         assert!(worst < 0.03 && e.static_rms < 0.1 && e.j_rel < 0.03);
     }
 }
+
+/// The preparation stage's refusals are identification's: a log in milliseconds and a `qd` in
+/// degrees per second are refused with the reason, nothing is written; a good log's output
+/// names the smoother.
+#[test]
+fn cli_refuses_what_the_preparation_refuses_and_names_the_smoother() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_jointctl");
+    let write_log = |name: &str, ms: bool, deg: bool| {
+        let mut s = String::from("t,q,qd,u,tau\n");
+        for i in 0..3000 {
+            let t = i as f64 * 1e-3;
+            let (q, qd) = ((2.0 * t).sin(), 2.0 * (2.0 * t).cos());
+            let qd = if deg { qd.to_degrees() } else { qd };
+            s += &format!("{},{q},{qd},{},0\n", if ms { t * 1000.0 } else { t }, 3.0 * q.sin());
+        }
+        let p = dir.path().join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    };
+    for (name, ms, deg, why) in [("ms.csv", true, false, "milliseconds"), ("deg.csv", false, true, "degrees")] {
+        let log = write_log(name, ms, deg);
+        let model = dir.path().join("m.toml");
+        let o = std::process::Command::new(bin)
+            .args(["identify", "--log"])
+            .arg(&log)
+            .arg("--out")
+            .arg(&model)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(why), "{name}: {err}");
+        assert!(!model.exists());
+    }
+    let (log, _) = simulate("right", 3);
+    let path = dir.path().join("trunk.csv");
+    log.write_file(&path).unwrap();
+    let o = std::process::Command::new(bin)
+        .args(["identify", "--log"])
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.path().join("m.toml"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("smoother: local cubic") && out.contains("method: papers"), "{out}");
+}

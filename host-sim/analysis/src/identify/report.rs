@@ -144,51 +144,75 @@ pub fn skill(meas: &[f64], pred: &[f64]) -> f64 {
 
 /// Model prediction of d at sample i of log `li` (friction at the filtered velocity, q̈ from
 /// the inertia data's filtered acceleration).
-/// The prediction is the written model's: determined parameters only.
-fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i: usize) -> f64 {
+/// The model that would be written: the determined parameters of an identification, looked up
+/// once (the prediction runs per sample).
+struct Written<'a> {
+    id: &'a Identified,
+    friction: [f64; 3],
+    c0: f64,
+    weight: Option<&'a super::weight::WeightFit>,
+    table: Option<&'a super::gravity_table::TableFit>,
+    j: Option<f64>,
+    spring_k: Option<(f64, f64, f64)>,
+    spring_b: Option<f64>,
+}
+
+impl<'a> Written<'a> {
+    fn of(id: &'a Identified) -> Written<'a> {
+        let det = |t: &str, k: &str| id.determined(t, k);
+        let f = id.friction.as_ref();
+        let coef = |k: usize, v: f64| if det("friction", ["a", "b", "c"][k]) { v } else { 0.0 };
+        let spring = id.spring.as_ref();
+        Written {
+            id,
+            friction: f.map_or([0.0; 3], |f| [coef(0, f.a), coef(1, f.b), coef(2, f.c)]),
+            c0: id.c0.filter(|_| det("offset", "c0")).unwrap_or(0.0),
+            weight: id.weight.as_ref().filter(|_| det("weight", "amplitude")),
+            table: id.table.as_ref().filter(|_| det("gravity_table", "torque")),
+            j: id.inertia.as_ref().filter(|_| det("inertia", "j")).map(|i| i.j),
+            spring_k: spring.and_then(|s| {
+                let st = s.stat.as_ref()?;
+                s.k.filter(|_| det("spring", "k")).map(|k| (k, st.q0, 0.5 * st.dead_zone))
+            }),
+            spring_b: spring.and_then(|s| s.b).filter(|_| det("spring", "b")),
+        }
+    }
+}
+
+/// The written model's prediction of d at sample i of log `li` (friction at the filtered
+/// velocity, q̈ from the inertia data's filtered acceleration).
+fn predict(w: &Written, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i: usize) -> f64 {
     let p = &data.prepared[li];
     let (q, v) = (p.q[i], p.qd_f[i]);
-    let det = |t: &str, k: &str| id.determined(t, k);
-    let mut d = id.c0.filter(|_| det("offset", "c0")).unwrap_or(0.0);
-    if let Some(f) = &id.friction {
-        let mut f = f.clone();
-        for (k, x) in [(0, &mut f.a), (1, &mut f.b), (2, &mut f.c)] {
-            if !det("friction", ["a", "b", "c"][k]) {
-                *x = 0.0;
-            }
-        }
-        d += friction_torque(&f, v, id.v_band);
-    }
-    let w = id.weight.as_ref().filter(|_| det("weight", "amplitude")).map_or(0.0, |w| w.weight(q));
-    match id.table.as_ref().filter(|_| det("gravity_table", "torque")) {
+    let [a, b, c] = w.friction;
+    let mut d = w.c0 + a * v * v.abs() + b * v + c * super::sign_band(v, w.id.v_band);
+    let wq = w.weight.map_or(0.0, |wf| wf.weight(q));
+    match w.table {
         Some(t) => {
             let x: Vec<f64> = t
                 .axes
                 .iter()
                 .map(|a| if a == "q" { q } else { p.others.iter().find(|(n, _)| n == a).map_or(0.0, |(_, c)| c[i]) })
                 .collect();
-            d += t.gravity(w, &x, id.table_clamp_k);
+            d += t.gravity(wq, &x, w.id.table_clamp_k);
         }
-        None => d += w,
+        None => d += wq,
     }
-    if let (Some(inr), Some(acc)) = (id.inertia.as_ref().filter(|_| det("inertia", "j")), acc) {
-        d += inr.j * acc[li][i];
+    if let (Some(j), Some(acc)) = (w.j, acc) {
+        d += j * acc[li][i];
     }
-    if let Some(s) = &id.spring {
-        if let (Some(k), Some(st)) = (s.k.filter(|_| det("spring", "k")), &s.stat) {
-            let h = 0.5 * st.dead_zone;
-            let x = q - st.q0;
-            d += k * if x > h {
-                x - h
-            } else if x < -h {
-                x + h
-            } else {
-                0.0
-            };
-        }
-        if let Some(b) = s.b.filter(|_| det("spring", "b")) {
-            d += b * p.qd[i];
-        }
+    if let Some((k, q0, h)) = w.spring_k {
+        let x = q - q0;
+        d += k * if x > h {
+            x - h
+        } else if x < -h {
+            x + h
+        } else {
+            0.0
+        };
+    }
+    if let Some(b) = w.spring_b {
+        d += b * p.qd[i];
     }
     d
 }
@@ -242,13 +266,14 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             push_score(&mut rep.scores, "inertia (filtered eq. 5 residual torque)", &meas, &pred, "N·m", true);
         }
         if data.has_torque() {
+            let written = Written::of(r);
             let (mut meas, mut pred) = (Vec::new(), Vec::new());
             for (li, p) in data.prepared.iter().enumerate() {
                 let Some(d) = &p.d else { continue };
                 for i in 0..p.len() {
                     if held_out(data, li, p.t[i]) {
                         meas.push(d[i]);
-                        pred.push(predict(r, data, Some(&dat.acc), li, i));
+                        pred.push(predict(&written, data, Some(&dat.acc), li, i));
                     }
                 }
             }
@@ -259,7 +284,7 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             for (li, p) in data.prepared.iter().enumerate() {
                 let Some(d) = &p.d else { continue };
                 let df = p.lowpass(d, opts.accel_cutoff);
-                let pr: Vec<f64> = (0..p.len()).map(|i| predict(r, data, Some(&dat.acc), li, i)).collect();
+                let pr: Vec<f64> = (0..p.len()).map(|i| predict(&written, data, Some(&dat.acc), li, i)).collect();
                 let pf = p.lowpass(&pr, opts.accel_cutoff);
                 for i in 0..p.len() {
                     if held_out(data, li, p.t[i]) {
@@ -757,8 +782,9 @@ fn overall_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
             let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
             let idx: Vec<usize> = subsample(&(0..p.len()).collect::<Vec<_>>(), 4000);
             let meas: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], d[i])).collect();
+            let written = Written::of(id);
             let pred: Vec<(f64, f64)> =
-                idx.iter().map(|&i| (p.t[i], predict(id, data, Some(&dat.acc), li, i))).collect();
+                idx.iter().map(|&i| (p.t[i], predict(&written, data, Some(&dat.acc), li, i))).collect();
             plots.push((
                 "overall.svg",
                 svg_plot(

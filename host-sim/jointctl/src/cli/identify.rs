@@ -26,6 +26,12 @@ pub const REPORT: FolderKind = FolderKind {
 /// offset from moving samples (zero-phase filtered, eq. 5); spring K from the static
 /// torque–angle slope, J and B from a free oscillation; a gravity table over q and the other
 /// joints' angles from static samples. Segments are found from the data; --window overrides.
+/// A log without plateaus or poses gets the whole-log regression (--method auto).
+///
+/// Every parameter is reported with its 95 % CI and a status (determined, weakly determined,
+/// not excited, with the test that would pin it); only determined ones are written, and only
+/// when the held-out R² is at least 0.5 and the model passes the plausibility gate (--force
+/// overrides those two). Otherwise nothing is written and the exit status is 1.
 ///
 /// Example:
 ///   jointctl simulate --plant examples/plants/trunk-right.toml \
