@@ -938,18 +938,21 @@ fn spring_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
 /// report.md up to the plots: the summary and the score table.
 fn report_md(rep: &Report, id: &Identified) -> String {
     let mut md = String::from("# Identification report\n\n```\n");
+    let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
+    md.push_str(&preparation_text(id, cutoff));
     md.push_str(&summary_text(id, Some(rep)));
     md.push_str("```\n\n");
     let _ = writeln!(md, "Hold-out: every 4th block of {BLOCK_S} s (or an eighth of a shorter log) is left out of a refit and used to score it.\n");
-    md.push_str("| score | n | RMSE | r² | data |\n|---|---|---|---|---|\n");
+    md.push_str("| score | n | RMSE | R² | Pearson r² | data |\n|---|---|---|---|---|---|\n");
     for s in &rep.scores {
         let _ = writeln!(
             md,
-            "| {} | {} | {:.4} {} | {:.4} | {} |",
+            "| {} | {} | {:.4} {} | {:.4} | {:.4} | {} |",
             s.what,
             s.n,
             s.rmse,
             s.unit,
+            s.skill,
             s.r2,
             if s.held_out { "held-out" } else { "in-sample" }
         );
