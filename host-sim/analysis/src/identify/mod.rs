@@ -352,7 +352,10 @@ pub fn identify_data(
         }
         // `auto` took the papers' tests, and they pinned nothing: the regression may still.
         if opts.method == Method::Auto && method == Method::Papers && !out.status.iter().any(|p| p.determined()) {
-            let found: Vec<String> = out.status.iter().map(|p| format!("{}: {}", p.name(), p.why)).collect();
+            // The Coulomb level's reason says most (it is the coefficient every friction has).
+            let mut found: Vec<&ParamStatus> = out.status.iter().collect();
+            found.sort_by_key(|p| !(p.term == "friction" && p.param == "c"));
+            let found: Vec<String> = found.iter().map(|p| format!("{}: {}", p.name(), p.why)).collect();
             out.status.clear();
             out.friction = None;
             out.weight = None;
