@@ -84,9 +84,9 @@ fn dfki_sysid_run_determines_only_the_ratio_of_inertia_and_weight() {
     eprintln!("authors' parameters on the same filtered data: r² {r2_authors:.3}; the regression's {:.3}", f.r2);
     assert!(f.r2 > r2_authors, "ours {} vs authors {r2_authors}", f.r2);
 
-    // A higher cut-off keeps more noise on the regressor q̈, and least squares shrinks J and m·c
-    // together (errors in variables) along the collinear direction; the published pair lies on
-    // that curve (see docs/identification.md).
+    // The cut-off of q̈'s low-pass moves J and m·c along the collinear direction, never across
+    // it: at 12 Hz as at 5 Hz their ratio is g/0.5 m (the preparation stage's own window, chosen
+    // from the log's noise, already sets q̈'s bandwidth near 6 Hz, so the pair barely moves).
     let opts12 = Options { accel_cutoff: 12.0, method: Method::JointLs, ..opts };
     let (_, id12) = identify::identify(std::slice::from_ref(&log), &opts12, &Quiet).unwrap();
     let f12: &inertia::JointLsFit = id12.joint_ls.as_ref().unwrap();
@@ -96,7 +96,8 @@ fn dfki_sysid_run_determines_only_the_ratio_of_inertia_and_weight() {
         f12.j,
         0.1022 * 9.81
     );
-    assert!(f.j > 1.5 * f12.j && amp > 1.5 * amp12, "5 Hz: J {}, m·c·g {amp}; 12 Hz: {}, {amp12}", f.j, f12.j);
+    let ratio12 = amp12 / f12.j;
+    assert!((ratio12 / ratio - 1.0).abs() < 0.1, "A/J at 5 Hz {ratio}, at 12 Hz {ratio12}");
 }
 
 /// DFKI pendulum moved by hand under gravity compensation: the torque is the controller's
@@ -111,7 +112,7 @@ fn dfki_gravity_compensation_run_gives_the_commanded_weight() {
     else {
         return;
     };
-    let (_, id, _, d) = run(&log, &Options::default());
+    let (_, id, rep, d) = run(&log, &Options::default());
     assert_eq!(id.method, Method::Papers, "{}", id.method_why);
     let w = id.weight.as_ref().unwrap();
     let mgl = 0.6755 * 9.81 * 0.5;
@@ -121,8 +122,15 @@ fn dfki_gravity_compensation_run_gives_the_commanded_weight() {
     assert_eq!(status(&id, "inertia", "j"), Status::NotExcited);
     assert_eq!(status(&id, "friction", "c"), Status::NotExcited);
     assert!(d.written && d.params.contains(&"weight.amplitude".to_string()), "{d:?}");
-    // the held-out blocks take poses away: the quality is not measured, and said so
-    assert!(d.warnings.iter().any(|w| w.contains("not measured")), "{:?}", d.warnings);
+    // where the held-out blocks take every pose away the quality is not measured, and said so;
+    // where some poses are held out, it is measured and must pass
+    match rep.quality.value {
+        None => assert!(d.warnings.iter().any(|w| w.contains("not measured")), "{:?}", d.warnings),
+        Some(q) => {
+            eprintln!("held-out quality {q:.3} ({}: {})", rep.quality.metric, rep.quality.why);
+            assert!(q >= 0.5, "held-out quality {q}");
+        }
+    }
 }
 
 /// The two energy-shaping swing-ups (20 s, torque limited to ±1.5 N·m), without and with a 1 kg
@@ -140,7 +148,12 @@ fn dfki_energy_shaping_runs_are_refused_and_the_payload_shows() {
         assert_eq!(status(&id, "weight", "amplitude"), Status::WeaklyDetermined);
         let q = rep.quality.value.unwrap();
         eprintln!("{rel}: held-out R² {q:.3}; refused: {:?}", d.refused);
-        assert!(q < 0.5 && !d.written && d.refused[0].contains("below 0.5"), "{:?}", d.refused);
+        assert!(q < 0.5 && !d.written, "{:?}", d.refused);
+        assert!(
+            d.refused.iter().any(|r| r.contains("0.5")),
+            "the refusal does not name the threshold: {:?}",
+            d.refused
+        );
         let amp = id.weight.as_ref().unwrap().amplitude;
         let c = id.friction.as_ref().unwrap().c;
         found.push((amp, c));

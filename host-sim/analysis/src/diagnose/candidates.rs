@@ -488,6 +488,40 @@ pub struct GridCtx<'a> {
     /// the design's target at `idx`
     pub(crate) y: Vec<f64>,
     pub(crate) g: Gram,
+    /// the Dahl state's steps to these rows (built on first use, see [`dahl_plan`])
+    dahl: std::sync::OnceLock<(f64, Vec<(f64, bool)>)>,
+    /// grid searches evaluate the Dahl state from the compressed plan (equal to the sample-by-
+    /// sample state but for rounding); fits and scores keep the exact state
+    pub(crate) compose_dahl: bool,
+}
+
+/// The Dahl state's travel compressed for the rows `idx` (ascending): the starting state and
+/// the steps, each the summed travel of a run of samples moving one way, marked where a row's
+/// value is to be read. Steps one way compose exactly (`exp(−κa)·exp(−κb) = exp(−κ(a+b))`),
+/// so evaluating the state at the rows costs one step per row and per reversal, not per sample.
+fn dahl_plan(d: &Data, idx: &[u32]) -> (f64, Vec<(f64, bool)>) {
+    let z0 = d.sgn.first().copied().unwrap_or(0.0).clamp(-1.0, 1.0);
+    let mut plan = Vec::with_capacity(2 * idx.len() + 16);
+    let mut k = 0;
+    while k < idx.len() && idx[k] == 0 {
+        plan.push((0.0, true));
+        k += 1;
+    }
+    let mut acc = 0.0;
+    for i in 1..d.n {
+        let dq = 0.5 * (d.qd[i] + d.qd[i - 1]) * (d.t[i] - d.t[i - 1]);
+        if dq != 0.0 && acc != 0.0 && (dq > 0.0) != (acc > 0.0) {
+            plan.push((acc, false));
+            acc = 0.0;
+        }
+        acc += dq;
+        while k < idx.len() && idx[k] as usize == i {
+            plan.push((acc, true));
+            acc = 0.0;
+            k += 1;
+        }
+    }
+    (z0, plan)
 }
 
 /// How a candidate changes the current design (see [`GridCtx::delta`]).
@@ -524,7 +558,7 @@ impl<'a> GridCtx<'a> {
             }
             y.push(yi);
         }
-        GridCtx { d, idx, des, p, x, y, g }
+        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false }
     }
 
     /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
@@ -539,8 +573,24 @@ impl<'a> GridCtx<'a> {
             }
             Effect::Presliding { kappa } => {
                 let at = self.des.cols.iter().position(|c| matches!(c, Col::Sgn));
-                let z = dahl_state(d, kappa);
-                let rows = || idx.iter().map(|&i| z[i as usize]).collect();
+                let (z0, plan) =
+                    self.dahl.get_or_init(|| if self.compose_dahl { dahl_plan(d, idx) } else { (0.0, Vec::new()) });
+                let rows = || {
+                    if !self.compose_dahl || plan.iter().filter(|s| s.1).count() != idx.len() {
+                        // rows not in ascending order: the state sample by sample
+                        let z = dahl_state(d, kappa);
+                        return idx.iter().map(|&i| z[i as usize]).collect();
+                    }
+                    let mut z = *z0;
+                    let mut out = Vec::with_capacity(idx.len());
+                    for &(dq, read) in plan {
+                        z = super::shapes::dahl_step(z, kappa, dq);
+                        if read {
+                            out.push(z);
+                        }
+                    }
+                    out
+                };
                 Delta { replace: at.map(|j| (j, rows())), extra: Vec::new(), y_alt: None }
             }
             Effect::Delay { lag, channel } => {
@@ -652,7 +702,9 @@ impl<'a> GridCtx<'a> {
 /// already chosen; `None` when the effect cannot apply to this model/log (dry friction in a
 /// model that has a Coulomb term, backlash without a spring, thermal drift without friction).
 pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32]) -> Option<Effect> {
-    search_in(kind, &GridCtx::new(d, base, chosen, idx), base, chosen)
+    let mut grid = GridCtx::new(d, base, chosen, idx);
+    grid.compose_dahl = true;
+    search_in(kind, &grid, base, chosen)
 }
 
 /// [`search`] on a grid context already built for `chosen` (one per round, shared by every

@@ -489,6 +489,7 @@ fn torque_mode(
     let (qd, qdd) = (prep.qd().to_vec(), prep.qdd().to_vec());
     let pred0 = joint_formats::predict::predicted(log, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
+    lap("the model's prediction");
     let (u, tau) = match (&log.u, &log.tau) {
         (Some(u), Some(t)) => (u.clone(), t),
         _ => return Err(DiagError::Input("torque mode needs `u` and `tau`".into())),
@@ -571,7 +572,9 @@ fn torque_mode(
         non_friction.push(data.u[i] - tau[i] - data.y[i] + lin - fric);
     }
     data.load = transmitted_load(tau, &data.u, &non_friction);
+    lap("expected sign, design, file residual");
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
+    lap("regimes");
     let mut split = select::make_split(n);
     split.leave_out(&prep.ambiguous);
     // With a pure Coulomb sign (no band in the file) a sample whose direction the data cannot

@@ -282,9 +282,13 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     };
     let r1 = Recipe { from_q: true, second: false, h: h1, sigma: q_noise };
     let r2 = Recipe { from_q: true, second: true, h: h2, sigma: q_noise };
-    let (v1, s1) = derive(r1, &log.q, &segments);
+    // q̇ and q̈ are independent fits: one on each core
+    let ((v1, s1), (v2, s2)) = std::thread::scope(|sc| {
+        let second = sc.spawn(|| derive(r2, &log.q, &segments));
+        let first = derive(r1, &log.q, &segments);
+        (first, second.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+    });
     let qd_q = Deriv { info: derived_info("derived from q", h1, dt, &s1, bias1), values: v1, noise: s1, bias: bias1 };
-    let (v2, s2) = derive(r2, &log.q, &segments);
     let qdd_q = Deriv { info: derived_info("derived from q", h2, dt, &s2, bias2), values: v2, noise: s2, bias: bias2 };
     // Rest is judged on the joint's own angle: a logged derivative may be a filtered estimate
     // that smears a stop into the dwell.
@@ -424,12 +428,18 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             }
         };
         let qd_logged = qd.values.clone();
-        if let Some(r) = qd_recipe {
-            redo(&mut qd, r, &log.q);
-        }
-        if let Some(r) = qdd_recipe {
-            redo(&mut qdd, r, if r.from_q { &log.q } else { &qd_logged });
-        }
+        std::thread::scope(|sc| {
+            let (qd, qdd, redo, qd_logged, q) = (&mut qd, &mut qdd, &redo, &qd_logged, &log.q);
+            let h = sc.spawn(move || {
+                if let Some(r) = qdd_recipe {
+                    redo(qdd, r, if r.from_q { q } else { qd_logged });
+                }
+            });
+            if let Some(r) = qd_recipe {
+                redo(qd, r, q);
+            }
+            h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        });
         for (i, &still) in rest.iter().enumerate() {
             if still {
                 qd.values[i] = 0.0;
@@ -466,14 +476,21 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // The estimator's bias follows the motion: where the motion turns sharply (a stop, a
     // reversal at speed) it is far above the log's typical figure. Measured locally by
     // comparing each estimate with the same fit on half the window.
-    if let Some(r) = qd_recipe {
-        local_bias(&log.t, &log.q, &segments, r, &qd.values, &rest, (quantum, &qd.values), &mut qd_err);
-    }
-    if let Some(r) = qdd_recipe {
-        let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
-        let q_quantum = if r.from_q { quantum } else { 0.0 };
-        local_bias(&log.t, src, &segments, r, &qdd.values, &rest, (q_quantum, &qd.values), &mut qdd_err);
-    }
+    std::thread::scope(|sc| {
+        let (qd_err, qdd_err, log, segments, rest, qd, qdd) =
+            (&mut qd_err, &mut qdd_err, &log, &segments, &rest, &qd, &qdd);
+        let h = sc.spawn(move || {
+            if let Some(r) = qdd_recipe {
+                let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
+                let q_quantum = if r.from_q { quantum } else { 0.0 };
+                local_bias(&log.t, src, segments, r, &qdd.values, rest, (q_quantum, &qd.values), qdd_err);
+            }
+        });
+        if let Some(r) = qd_recipe {
+            local_bias(&log.t, &log.q, segments, r, &qd.values, rest, (quantum, &qd.values), qd_err);
+        }
+        h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+    });
     // A quantised q resolves a speed no finer than one step over the window (its error is
     // not independent from sample to sample, so the noise formula alone is too hopeful there).
     // A faster move crosses k steps inside the window and the staircase's error averages down
@@ -664,7 +681,8 @@ fn logged_info(noise: f64, scale: f64, white: bool) -> DerivInfo {
 /// estimated velocity. Far from rest it is the plain sign; at rest (v̂ ≈ 0 within its error)
 /// it is ≈ 0, as the spec's `sign(0) = 0`, instead of a random ±1 from the estimate's noise.
 pub fn expected_sign(v: f64, band: f64, sd: f64) -> f64 {
-    if !(sd > 0.0) {
+    // 8σ beyond the band the error can no longer reach it (the tail is below 1e-15)
+    if !(sd > 0.0) || v.abs() > band.max(0.0) + 8.0 * sd {
         return crate::diagnose::sgn_band(v, band);
     }
     if !(band > 0.0) {
@@ -1043,8 +1061,8 @@ fn resolution_sd(x: &[f64]) -> f64 {
     if steps.len() < 20 {
         return 0.0;
     }
-    steps.sort_by(|a, b| a.total_cmp(b));
-    let smallest = steps[steps.len() / 100];
+    let k = steps.len() / 100;
+    let (_, &mut smallest, _) = steps.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     // Quantised: most changes are whole multiples of the smallest.
     let on_grid = steps
         .iter()
