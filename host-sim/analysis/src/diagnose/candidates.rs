@@ -365,6 +365,9 @@ pub struct Design {
     pub dahl: Option<std::sync::Arc<Vec<f64>>>,
     /// per effect of the spec: the range of its columns
     pub spans: Vec<(usize, usize)>,
+    /// per column, the value a fit keeps where the rows do not determine it: the file's value
+    /// for the model's own terms (also where an effect replaced the column), 0 for an effect's
+    pub prior: Vec<f64>,
 }
 
 impl Design {
@@ -403,7 +406,9 @@ impl Design {
             cols.extend(e.cols());
             spans.push((s, cols.len()));
         }
-        Design { cols, lag, channel, dahl, spans }
+        let mut prior = base.beta0.clone();
+        prior.resize(cols.len(), 0.0);
+        Design { cols, lag, channel, dahl, spans, prior }
     }
 
     /// Fills `x` with the row of sample `i` and returns its target.
@@ -445,6 +450,7 @@ impl Design {
     pub fn gram(&self, d: &Data, idx: &[u32]) -> Gram {
         let p = self.cols.len();
         let mut g = Gram::new(p);
+        g.prior.clone_from(&self.prior);
         let mut x = vec![0.0; p];
         for &i in idx {
             let y = self.row(d, i as usize, &mut x);
@@ -550,6 +556,7 @@ impl<'a> GridCtx<'a> {
         let mut x = vec![0.0; idx.len() * p];
         let mut y = Vec::with_capacity(idx.len());
         let mut g = Gram::new(p);
+        g.prior.clone_from(&des.prior);
         for (r, &i) in idx.iter().enumerate() {
             let row = &mut x[r * p..(r + 1) * p];
             let yi = des.row(d, i as usize, row);
@@ -624,6 +631,7 @@ impl<'a> GridCtx<'a> {
                 g.g[a * q + b] = self.g.g[a * p + b];
             }
             g.b[a] = self.g.b[a];
+            g.prior[a] = self.g.prior.get(a).copied().unwrap_or(0.0);
         }
         g.yy = self.g.yy;
         let n = self.idx.len();
@@ -744,9 +752,13 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // the curve's speed for each exponent of the family (0.5, 1, 2), then the best
             // exponent refined between its neighbours
             let mut best: Option<(f64, Effect)> = None;
-            for exponent in [0.5, 1.0, 2.0] {
+            let mut classic: Option<(f64, Effect)> = None;
+            for exponent in [2.0, 1.0, 0.5] {
                 let e = log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v, exponent });
                 let r = rss_of(e);
+                if exponent == 2.0 {
+                    classic = Some((r, e));
+                }
                 if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
                     best = Some((r, e));
                 }
@@ -756,9 +768,17 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             if exponent == 2.0 {
                 return Some(e);
             }
-            let (x, _) = golden(exponent.ln() - 0.7, exponent.ln() + 0.7, 12, |le| {
+            let (x, r) = golden(exponent.ln() - 0.7, exponent.ln() + 0.7, 12, |le| {
                 rss_of(Effect::Stribeck { speed, exponent: le.exp().clamp(0.3, 3.0) })
             });
+            // The exponent is one more value to defend: the classic curve (exponent 2) stays
+            // unless another takes at least a twentieth of what the curve explains on top of it.
+            if let Some((r2, e2)) = classic {
+                let explained = ctx.g.solve().1 - r2;
+                if r2 - r < 0.05 * explained.max(0.0) {
+                    return Some(e2);
+                }
+            }
             Some(Effect::Stribeck { speed, exponent: x.exp().clamp(0.3, 3.0) })
         }
         Kind::Asymmetric => Some(Effect::Asymmetric),

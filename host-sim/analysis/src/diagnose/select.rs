@@ -50,7 +50,7 @@ pub const AT_FLOOR_EIV: f64 = 1.1;
 /// that alone: the floor is an estimate, and a fast effect (a delay, a short ripple, friction
 /// at reversals) raises it, because its structure looks like noise at the smallest lags. The
 /// floor rule is for small gains (coefficient shrinkage, errors in variables).
-pub const CLEAR_GAIN: f64 = 0.1;
+pub const CLEAR_GAIN: f64 = 0.15;
 /// A second (third) effect takes at least this share of the held-out MSE still above the floor.
 pub const FURTHER_SHARE: f64 = 0.25;
 
@@ -460,6 +460,33 @@ pub fn unphysical(s: &Scored) -> Option<&'static str> {
     None
 }
 
+/// A fit whose terms cancel each other: one column's contribution over the log more than ten
+/// times the whole torque it is to explain, held in check by another (collinear columns: a
+/// weight of hundreds of N·m against an offset, on a joint that sees a few). However well it
+/// scores, such a fit is no joint, and a model written from it would be absurd.
+pub fn cancelling(s: &Scored, d: &Data) -> Option<&'static str> {
+    let p = s.design.cols.len();
+    if p == 0 || s.beta.len() < p || d.n == 0 {
+        return None;
+    }
+    let stride = (d.n / 4000).max(1);
+    let mut x = vec![0.0; p];
+    let (mut col_ss, mut y_ss, mut k) = (vec![0.0; p], 0.0, 0.0);
+    for i in (0..d.n).step_by(stride) {
+        let y = s.design.row(d, i, &mut x);
+        y_ss += y * y;
+        k += 1.0;
+        for ((c, &xj), &bj) in col_ss.iter_mut().zip(&x).zip(&s.beta) {
+            *c += (xj * bj) * (xj * bj);
+        }
+    }
+    let y_rms = (y_ss / k).sqrt();
+    col_ss
+        .iter()
+        .any(|&c| (c / k).sqrt() > 10.0 * y_rms.max(1e-12))
+        .then_some("the fit's terms cancel each other: one is over ten times the torque it explains (collinear terms)")
+}
+
 /// How many values a candidate adds to the model's own (its shape parameters and amplitudes):
 /// where two explanations fit equally well, the one with fewer is the verdict.
 pub fn extra_params(e: &Effect) -> usize {
@@ -602,7 +629,7 @@ pub fn select(
     let (t, p, gain) = compare(&m0, &refit_s);
     let open = |r: &Scored| r.rmse() > at_floor_factor(d) * floor;
     let at_floor = !open(&m0);
-    let refit_unphysical = unphysical(&refit_s);
+    let refit_unphysical = unphysical(&refit_s).or_else(|| cancelling(&refit_s, d));
     let refit = Outcome {
         name: "parameters",
         // The refit never overrides the floor: what it takes from a residual at the floor is
@@ -618,7 +645,7 @@ pub fn select(
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
-        let implausible = implausible(&s, d).or_else(|| unphysical(&s));
+        let implausible = implausible(&s, d).or_else(|| unphysical(&s)).or_else(|| cancelling(&s, d));
         let significant =
             (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
         Outcome { name, scored: s, t, p, gain, significant, implausible }
@@ -669,7 +696,7 @@ pub fn select(
                         compare(&a.scored, &pair),
                         compare(&b.scored, &pair),
                     ];
-                    if implausible(&pair, d).is_none()
+                    if implausible(&pair, d).or_else(|| unphysical(&pair)).or_else(|| cancelling(&pair, d)).is_none()
                         && tests.iter().all(|&(_, p, g)| p < pair_alpha && g >= MIN_GAIN)
                         && best_pair.as_ref().map(|(_, bp)| pair.mse() < bp.scored.mse()).unwrap_or(true)
                     {

@@ -247,6 +247,7 @@ fn score_traj(
             channel: super::candidates::Channel::U,
             dahl: None,
             spans: vec![],
+            prior: vec![],
         },
         beta: theta,
         sse: 0.0,
