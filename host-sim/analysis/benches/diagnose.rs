@@ -16,7 +16,7 @@ use host_sim::sim::{simulate, SimConfig};
 use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
 
-const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
+const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\nv_band = 0.01\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 
 fn vm_hwm_mb() -> f64 {
     let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();

@@ -27,17 +27,19 @@ fn main() {
             }
         };
         if std::env::var_os("PREP_DUMP").is_some() {
-            let mut out = String::from("t,qd,qdd,rest,amb,dir,qd_err\n");
+            let mut out = String::from("t,qd,qdd,rest,amb,dir,qd_err,excl,qdd_err\n");
             for i in 0..p.log.len() {
                 out.push_str(&format!(
-                    "{},{},{},{},{},{},{}\n",
+                    "{},{},{},{},{},{},{},{},{}\n",
                     p.log.t[i],
                     p.qd()[i],
                     p.qdd()[i],
                     u8::from(p.rest[i]),
                     u8::from(p.ambiguous[i]),
                     p.direction[i],
-                    p.qd_err[i]
+                    p.qd_err[i],
+                    u8::from(p.ambiguous[i] || p.sign_unknown[i] || p.rest_edge[i]),
+                    p.qdd_err[i]
                 ));
             }
             std::fs::write(format!("{dir}/prep.csv"), out).unwrap();

@@ -3,6 +3,7 @@
 //! - [`identify`]: the papers' identification procedures (friction from constant-velocity
 //!   plateaus, weight from static poses, inertia and offset from motion, the elastic joint's
 //!   free oscillation, gravity tables) and the whole-log regression;
+//! - [`plausible`]: the physics gate every model passes before it is written or pushed;
 //! - [`diagnose`]: the sim-to-real gap: where it lies, which effect of the vocabulary (spec §3)
 //!   causes it, how far it shrinks, scored on held-out data.
 //!
@@ -25,6 +26,7 @@
 
 pub mod diagnose;
 pub mod identify;
+pub mod plausible;
 pub mod prep;
 
 pub use joint_formats::{import, log, model_file, predict};

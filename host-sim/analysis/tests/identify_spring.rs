@@ -47,8 +47,11 @@ fn elastic_joint_with_dead_zone_recovered() {
     let (_, id) = identify::identify(&[poses], &opts, &Quiet).unwrap();
     let st = id.spring.as_ref().unwrap().stat.clone().unwrap();
     assert!((st.dead_zone - 0.03).abs() < 0.006, "dead zone {}", st.dead_zone);
-    // Without a free oscillation J and B are not claimed.
-    assert!(id.spring.as_ref().unwrap().j.is_none() && !id.notes.is_empty());
+    // Without a free oscillation J and B are not claimed: not excited, with the test.
+    assert!(id.spring.as_ref().unwrap().j.is_none());
+    let j = id.status_of("inertia", "j").unwrap();
+    assert!(j.status == identify::status::Status::NotExcited && j.test.unwrap().contains("release"), "{j:?}");
+    assert!(id.determined("spring", "k"));
 }
 
 #[test]

@@ -10,6 +10,11 @@
 //! - `panda-gaz`: the Franka Panda exciting trajectory (`time_s, q1..q7, dq1..dq7, tau1..tau7`),
 //!   one joint per log (`joint` 1..=7): `q, qd` of that joint, `u = tau_j` (link-side torque
 //!   sensor), `tau = 0`, and the other joints' angles as `q_j<k>` columns.
+//! - `dfki-double-pendulum`: the DFKI double pendulum's sys-id record (`time, pos_meas1/2,
+//!   vel_meas1/2, tau_meas1/2, …`), one joint per log (`joint` 1 or 2): `q, qd` of that joint,
+//!   `u = tau_meas` (the motor's current-based torque), `tau = 0`, and the other joint's angle
+//!   as a `q_j<k>` column. A two-link arm: each joint's torque also depends on the other joint's
+//!   angle and acceleration, which a single-joint model does not have.
 //! - `ur5e-friction`: the UR5e factory friction table (one row per joint and speed, torque on
 //!   the motor side). Each steady-state row becomes a stretch of constant velocity at the
 //!   log rate, rows of equal |speed| as an out-and-back pair (+v, then −v over the same angles,
@@ -24,6 +29,7 @@ use crate::log::JointLog;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     DfkiPendulum,
+    DfkiDoublePendulum,
     JensenFreeSwing,
     PandaGaz,
     Ur5eFriction,
@@ -31,8 +37,9 @@ pub enum Format {
 
 impl Format {
     /// Every format with the name a command line or a script gives it.
-    pub const NAMES: [(&'static str, Format); 4] = [
+    pub const NAMES: [(&'static str, Format); 5] = [
         ("dfki-pendulum", Format::DfkiPendulum),
+        ("dfki-double-pendulum", Format::DfkiDoublePendulum),
         ("jensen-free-swing", Format::JensenFreeSwing),
         ("panda-gaz", Format::PandaGaz),
         ("ur5e-friction", Format::Ur5eFriction),
@@ -42,7 +49,7 @@ impl Format {
 /// Options some formats need.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImportOpts {
-    /// Panda: 1..=7; UR5e: 0..=5
+    /// Panda: 1..=7; UR5e: 0..=5; DFKI double pendulum: 1..=2
     pub joint: Option<usize>,
     /// UR5e: motor-to-joint torque ratio
     pub gear_ratio: f64,
@@ -140,6 +147,24 @@ pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result
                 qd: Some(pick(tab.col("velocity", file)?, &idx)),
                 tau: Some(vec![0.0; u.len()]),
                 u: Some(u),
+                ..JointLog::default()
+            }
+        }
+        Format::DfkiDoublePendulum => {
+            let j = o.joint.filter(|j| (1..=2).contains(j)).ok_or("dfki-double-pendulum needs --joint 1..=2")?;
+            let (idx, dropped) = increasing(tab.col("time", file)?);
+            if dropped > 0 {
+                notes.push(format!("dropped {dropped} rows whose time did not increase"));
+            }
+            let k = 3 - j;
+            let u = pick(tab.col(&format!("tau_meas{j}"), file)?, &idx);
+            JointLog {
+                t: pick(tab.col("time", file)?, &idx),
+                q: pick(tab.col(&format!("pos_meas{j}"), file)?, &idx),
+                qd: Some(pick(tab.col(&format!("vel_meas{j}"), file)?, &idx)),
+                tau: Some(vec![0.0; u.len()]),
+                u: Some(u),
+                others: vec![(format!("q_j{k}"), pick(tab.col(&format!("pos_meas{k}"), file)?, &idx))],
                 ..JointLog::default()
             }
         }
@@ -258,6 +283,18 @@ mod tests {
         assert!(e.contains("line 2") && e.contains("`velocity`"), "{e}");
         let e = convert(Format::DfkiPendulum, "time,position\n0,1\n", "x.csv", &ImportOpts::default()).unwrap_err();
         assert!(e.contains("line 1") && e.contains("is missing"), "{e}");
+    }
+
+    #[test]
+    fn double_pendulum_joint_takes_its_columns_and_the_other_angle() {
+        let text = "time,pos_meas1,pos_meas2,vel_meas1,vel_meas2,tau_meas1,tau_meas2\n0,0.1,0.2,1,2,0.5,0.6\n0.002,0.11,0.22,1,2,0.4,0.7\n";
+        let o = ImportOpts { joint: Some(2), ..ImportOpts::default() };
+        let im = convert(Format::DfkiDoublePendulum, text, "d.csv", &o).unwrap();
+        assert_eq!(im.log.q, vec![0.2, 0.22]);
+        assert_eq!(im.log.u.as_deref(), Some(&[0.6, 0.7][..]));
+        assert_eq!(im.log.others, vec![("q_j1".to_string(), vec![0.1, 0.11])]);
+        let o = ImportOpts { joint: Some(3), ..ImportOpts::default() };
+        assert!(convert(Format::DfkiDoublePendulum, text, "d.csv", &o).unwrap_err().contains("1..=2"));
     }
 
     #[test]

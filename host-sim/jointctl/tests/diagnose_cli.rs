@@ -76,9 +76,9 @@ fn torque_mode_json_names_stribeck_and_the_emitted_model_runs() {
     assert!((speed_share - 1.0).abs() < 1e-9);
     assert!(regimes.iter().any(|r| r["name"] == "reversal") && regimes.iter().all(|r| r["where"].is_string()));
     let effects = v["effects"].as_array().unwrap();
-    // parameters + 7 effects; dry friction (the model has c) and backlash (no spring) are not
-    // applicable and say why.
-    assert_eq!(effects.len(), 8, "{effects:?}");
+    // parameters + 8 effects (pre-sliding among them); dry friction (the model has c) and
+    // backlash (no spring) are not applicable and say why.
+    assert_eq!(effects.len(), 9, "{effects:?}");
     let na: Vec<&str> = v["not_applicable"].as_array().unwrap().iter().map(|e| e["effect"].as_str().unwrap()).collect();
     assert!(na.contains(&"dry_friction") && na.contains(&"backlash") && na.contains(&"initial_state"), "{na:?}");
     for e in effects {
@@ -186,7 +186,7 @@ fn trajectory_mode_leaves_out_a_trailing_rest_and_finds_backlash() {
         scenarios: vec![ScenarioKind::Free],
         seconds: 4.0,
         rate: Some(1000.0),
-        range: Some((-0.5236, 0.5236)),
+        range: Some((-std::f64::consts::FRAC_PI_6, std::f64::consts::FRAC_PI_6)),
         torque_columns: false,
         ..SimConfig::default()
     };

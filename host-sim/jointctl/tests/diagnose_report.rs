@@ -83,12 +83,18 @@ fn report_renders_in_headless_chromium_with_all_plots() {
         "autocorrelation",
         "crosscorrelation",
         "ranking",
+        "evidence-0",
     ] {
         assert!(dom.contains(&format!("<svg class=\"plot\" id=\"{id}\"")), "plot {id} missing from the rendered DOM");
     }
     assert!(dom.matches("<circle").count() > 3 * 2000, "scatter points missing");
     assert!(dom.matches("<polyline").count() >= 6, "curves missing");
     assert!(dom.contains("id=\"verdict\"") && dom.contains("position_ripple"));
+    // the verdict's evidence lives in its own coordinate: a ripple over q
+    assert!(
+        dom.contains("evidence for position_ripple: held-out residual binned over q (rad)"),
+        "the evidence plot does not name the ripple's coordinate"
+    );
     let png = dir.path().join("shot.png");
     let shot = Command::new(&browser)
         .args(common)

@@ -195,13 +195,11 @@ fn cli_refuses_a_bad_log_naming_row_and_column_and_writes_nothing() {
     assert!(!model.exists());
 }
 
-#[test]
-fn a_log_without_plateaus_is_refused_with_the_reason() {
-    let (log, _) = simulate("right", 2);
+fn hand_only(log: &JointLog) -> JointLog {
     // Keep only the hand motion (the last third): no matched ± plateaus, no held poses.
     let n = log.len();
     let cut = |v: &Vec<f64>| v[2 * n / 3..].to_vec();
-    let hand = JointLog {
+    JointLog {
         t: cut(&log.t),
         q: cut(&log.q),
         qd: log.qd.as_ref().map(cut),
@@ -209,10 +207,42 @@ fn a_log_without_plateaus_is_refused_with_the_reason() {
         u: log.u.as_ref().map(cut),
         tau: log.tau.as_ref().map(cut),
         ..JointLog::default()
-    };
-    let opts = Options { terms: vec![identify::Term::Friction], ..Options::default() };
-    let err = identify::identify(&[hand], &opts, &Quiet).unwrap_err().to_string();
-    assert!(err.contains("friction") && err.contains("plateau"), "{err}");
+    }
+}
+
+/// `--method papers` on a log without plateaus: friction is `not excited`, with the test that
+/// would pin it, and nothing is written (the decision names `--method joint-ls`).
+#[test]
+fn a_log_without_plateaus_gets_friction_not_excited_and_the_test() {
+    use joint_analysis::identify::status::Status;
+    let (log, _) = simulate("right", 2);
+    let hand = hand_only(&log);
+    let opts =
+        Options { terms: vec![identify::Term::Friction], method: identify::Method::Papers, ..Options::default() };
+    let (data, id) = identify::identify(&[hand], &opts, &Quiet).unwrap();
+    let c = id.status_of("friction", "c").unwrap();
+    assert_eq!(c.status, Status::NotExcited, "{c:?}");
+    assert!(c.why.contains("plateau") && c.test.unwrap().contains("plateaus"), "{c:?}");
+    let rep = identify::report::validate(&data, &opts, &id).unwrap();
+    let d = identify::decide::decide(&data, &id, &rep.quality, None, true).unwrap();
+    assert!(!d.written && d.refused[0].contains("--method joint-ls"), "{:?}", d.refused);
+}
+
+/// `--method auto` on the same log chooses the whole-log regression and says why; the hand
+/// motion (torque off in the scenario? no: the plant's controller runs) pins friction there.
+#[test]
+fn auto_chooses_the_regression_for_a_log_without_tests_and_names_it() {
+    let (log, truth) = simulate("right", 2);
+    let hand = hand_only(&log);
+    let (_, id) = identify::identify(&[hand], &Options::default(), &Quiet).unwrap();
+    assert_eq!(id.method, identify::Method::JointLs);
+    assert!(id.method_why.contains("no test of the papers' procedures"), "{}", id.method_why);
+    let j = id.status_of("inertia", "j").unwrap();
+    eprintln!("hand motion only, joint-ls: {}", identify::status::text(&id.status));
+    if j.determined() {
+        let rel = j.value.unwrap() / truth.value(ParamId::InertiaJ) - 1.0;
+        assert!(rel.abs() < 0.05, "J off by {:.1} %", 100.0 * rel);
+    }
 }
 
 /// `--window START:END:motion` restricts the inertia fit to the hand-moved third (the paper's
@@ -255,4 +285,51 @@ fn derived_velocity_and_acceleration_suffice() {
         );
         assert!(worst < 0.03 && e.static_rms < 0.1 && e.j_rel < 0.03);
     }
+}
+
+/// The preparation stage's refusals are identification's: a log in milliseconds and a `qd` in
+/// degrees per second are refused with the reason, nothing is written; a good log's output
+/// names the smoother.
+#[test]
+fn cli_refuses_what_the_preparation_refuses_and_names_the_smoother() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_jointctl");
+    let write_log = |name: &str, ms: bool, deg: bool| {
+        let mut s = String::from("t,q,qd,u,tau\n");
+        for i in 0..3000 {
+            let t = i as f64 * 1e-3;
+            let (q, qd) = ((2.0 * t).sin(), 2.0 * (2.0 * t).cos());
+            let qd = if deg { qd.to_degrees() } else { qd };
+            s += &format!("{},{q},{qd},{},0\n", if ms { t * 1000.0 } else { t }, 3.0 * q.sin());
+        }
+        let p = dir.path().join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    };
+    for (name, ms, deg, why) in [("ms.csv", true, false, "milliseconds"), ("deg.csv", false, true, "degrees")] {
+        let log = write_log(name, ms, deg);
+        let model = dir.path().join("m.toml");
+        let o = std::process::Command::new(bin)
+            .args(["identify", "--log"])
+            .arg(&log)
+            .arg("--out")
+            .arg(&model)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(why), "{name}: {err}");
+        assert!(!model.exists());
+    }
+    let (log, _) = simulate("right", 3);
+    let path = dir.path().join("trunk.csv");
+    log.write_file(&path).unwrap();
+    let o = std::process::Command::new(bin)
+        .args(["identify", "--log"])
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.path().join("m.toml"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("smoother: local cubic") && out.contains("method: papers"), "{out}");
 }

@@ -23,6 +23,8 @@ pub struct Data {
     pub qd: Vec<f64>,
     pub qdd: Vec<f64>,
     pub u: Vec<f64>,
+    /// the measured load (zeros when the log's `tau` is zero)
+    pub tau: Vec<f64>,
     /// `d − rest`, what the linear part explains
     pub y: Vec<f64>,
     pub temp: Option<Vec<f64>>,
@@ -82,21 +84,53 @@ pub enum Col {
     SinSq(f64),
     CosSq(f64),
     Q,
-    DeadZone { q0: f64, w: f64 },
+    DeadZone {
+        q0: f64,
+        w: f64,
+    },
     Const,
     Stribeck(f64),
     AbsSgn,
     LoadSgn,
-    Thermal { a: f64, b: f64, c: f64, src: ThermSrc },
+    Thermal {
+        a: f64,
+        b: f64,
+        c: f64,
+        src: ThermSrc,
+    },
     RipSin(f64),
     RipCos(f64),
-    Cable { engage: f64, width: f64 },
+    Cable {
+        engage: f64,
+        width: f64,
+    },
+    /// the Dahl state in place of `Sgn` (values held by the design, see [`Design::dahl`])
+    Dahl {
+        kappa: f64,
+    },
+    /// a Stribeck curve of another exponent than 2
+    StribeckExp {
+        speed: f64,
+        exponent: f64,
+    },
+    /// a cable taut below `engage`: −spring(engage − q)
+    CableBelow {
+        engage: f64,
+        width: f64,
+    },
+    /// (q − centre) and (q − centre)³ of a progressive spring
+    Lin {
+        centre: f64,
+    },
+    Cubic {
+        centre: f64,
+    },
 }
 
 impl Col {
     /// A friction column (velocity-dependent dissipation of the model's own terms).
     pub fn is_friction(&self) -> bool {
-        matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn)
+        matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn | Col::StribeckExp { .. })
     }
 
     #[inline]
@@ -112,7 +146,7 @@ impl Col {
             Col::SinSq(s) => (s * d.q[i]).sin(),
             Col::CosSq(s) => (s * d.q[i]).cos(),
             Col::Q => d.q[i],
-            Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - q0, w),
+            Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - d.q0 - q0, w),
             Col::Const => 1.0,
             Col::Stribeck(v) => {
                 let r = qd / v;
@@ -131,8 +165,29 @@ impl Col {
             Col::RipSin(p) => (std::f64::consts::TAU * d.q[i] / p).sin(),
             Col::RipCos(p) => (std::f64::consts::TAU * d.q[i] / p).cos(),
             Col::Cable { engage, width } => super::shapes::engaged_spring(1.0, engage, width, d.q[i]),
+            // a state, not a function of the sample: the design holds its values
+            Col::Dahl { .. } => 0.0,
+            Col::StribeckExp { speed, exponent } => (-(qd.abs() / speed).powf(exponent)).exp() * d.sgn[i],
+            Col::CableBelow { engage, width } => -super::shapes::engaged_spring(1.0, -engage, width, -d.q[i]),
+            Col::Lin { centre } => d.q[i] - centre,
+            Col::Cubic { centre } => (d.q[i] - centre).powi(3),
         }
     }
+}
+
+/// The Dahl state z along the log for inverse pre-sliding distance `kappa`, driven by the
+/// travel of the prepared q̇ (trapezoid; at rest q̇ = 0, so encoder noise does not move it).
+/// Each step is the exact solution of dz/dq = κ·(1 − z·sign(dq)) over its travel, so z stays
+/// in [−1, 1] whatever the step; it starts at the expected friction sign of the first sample.
+pub fn dahl_state(d: &Data, kappa: f64) -> Vec<f64> {
+    let mut z = Vec::with_capacity(d.n);
+    let mut s = d.sgn.first().copied().unwrap_or(0.0).clamp(-1.0, 1.0);
+    z.push(s);
+    for i in 1..d.n {
+        s = super::shapes::dahl_step(s, kappa, 0.5 * (d.qd[i] + d.qd[i - 1]) * (d.t[i] - d.t[i - 1]));
+        z.push(s);
+    }
+    z
 }
 
 /// The effect kinds of torque mode, in the spec's vocabulary order.
@@ -147,10 +202,11 @@ pub enum Kind {
     Backlash,
     Delay,
     Dry,
+    Presliding,
 }
 
 impl Kind {
-    pub const ALL: [Kind; 9] = [
+    pub const ALL: [Kind; 10] = [
         Kind::Stribeck,
         Kind::Asymmetric,
         Kind::Load,
@@ -160,6 +216,7 @@ impl Kind {
         Kind::Backlash,
         Kind::Delay,
         Kind::Dry,
+        Kind::Presliding,
     ];
 
     pub fn name(self) -> &'static str {
@@ -173,6 +230,7 @@ impl Kind {
             Kind::Backlash => "backlash",
             Kind::Delay => "delay",
             Kind::Dry => "dry_friction",
+            Kind::Presliding => "presliding_hysteresis",
         }
     }
 }
@@ -180,8 +238,11 @@ impl Kind {
 /// A fitted-shape effect (its linear amplitudes come from the joint solve).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Effect {
+    /// `exp(−(|q̇|/speed)^exponent)·sgn`: the classic Gaussian curve is exponent 2, real joints
+    /// show 0.5–2
     Stribeck {
         speed: f64,
+        exponent: f64,
     },
     Asymmetric,
     Load,
@@ -191,21 +252,35 @@ pub enum Effect {
         c: f64,
         src: ThermSrc,
     },
+    /// one or two harmonics of the period
     Ripple {
         period: f64,
+        harmonics: u8,
     },
+    /// a cable or harness taut past `engage` (side +1: above it, −1: below), or with `side`
+    /// 0 a progressive spring `k1·x + k3·x³` about `engage`
     Cable {
         engage: f64,
         width: f64,
+        side: i8,
     },
+    /// the spring's dead zone of `width`, its centre `offset` from the spring's rest angle
     Backlash {
         width: f64,
+        offset: f64,
     },
-    /// lag in samples (fractional)
+    /// a time shift of one logged channel against the others: `lag` samples (whole), positive
+    /// when that channel lags (its value at t belongs to t − lag)
     Delay {
         lag: f64,
+        channel: Channel,
     },
     Dry,
+    /// the Coulomb sign replaced by a Dahl state z ∈ [−1, 1] that moves with travel:
+    /// dz/dq = κ·(1 − z·sign(dq)); κ = σ/c, the inverse pre-sliding distance (rad⁻¹)
+    Presliding {
+        kappa: f64,
+    },
 }
 
 impl Effect {
@@ -220,19 +295,30 @@ impl Effect {
             Effect::Backlash { .. } => Kind::Backlash,
             Effect::Delay { .. } => Kind::Delay,
             Effect::Dry => Kind::Dry,
+            Effect::Presliding { .. } => Kind::Presliding,
         }
     }
 
     /// Extra columns (backlash and delay change the base instead).
     pub fn cols(&self) -> Vec<Col> {
         match *self {
-            Effect::Stribeck { speed } => vec![Col::Stribeck(speed)],
+            Effect::Stribeck { speed, exponent: 2.0 } => vec![Col::Stribeck(speed)],
+            Effect::Stribeck { speed, exponent } => vec![Col::StribeckExp { speed, exponent }],
             Effect::Asymmetric => vec![Col::AbsSgn],
             Effect::Load => vec![Col::LoadSgn],
             Effect::Thermal { a, b, c, src } => vec![Col::Thermal { a, b, c, src }],
-            Effect::Ripple { period } => vec![Col::RipSin(period), Col::RipCos(period)],
-            Effect::Cable { engage, width } => vec![Col::Cable { engage, width }],
-            Effect::Backlash { .. } | Effect::Delay { .. } => vec![],
+            Effect::Ripple { period, harmonics } => {
+                let mut v = vec![Col::RipSin(period), Col::RipCos(period)];
+                if harmonics >= 2 {
+                    v.extend([Col::RipSin(period / 2.0), Col::RipCos(period / 2.0)]);
+                }
+                v
+            }
+            Effect::Cable { engage, width, side: 1 } => vec![Col::Cable { engage, width }],
+            Effect::Cable { engage, width, side: -1 } => vec![Col::CableBelow { engage, width }],
+            // the cubic first: its stiffening is what the sign rule checks
+            Effect::Cable { engage, .. } => vec![Col::Cubic { centre: engage }, Col::Lin { centre: engage }],
+            Effect::Backlash { .. } | Effect::Delay { .. } | Effect::Presliding { .. } => vec![],
             Effect::Dry => vec![Col::Sgn],
         }
     }
@@ -245,30 +331,72 @@ pub struct Base {
     pub beta0: Vec<f64>,
 }
 
+/// Which logged channel a delay shifts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// the actuator torque `u` (a reported motor torque that lags, a bus delay)
+    U,
+    /// the measured load `tau` (a filtered load cell)
+    Tau,
+    /// the joint's state (q and its derivatives) against both torques: an encoder or a state
+    /// estimate that lags, or an actuation delay seen the other way
+    State,
+}
+
+impl Channel {
+    pub const ALL: [Channel; 3] = [Channel::U, Channel::Tau, Channel::State];
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::U => "u",
+            Channel::Tau => "tau",
+            Channel::State => "state",
+        }
+    }
+}
+
 /// A full design: base columns (possibly with the spring replaced by a dead zone), the effect
-/// columns, and the lag applied to `u`.
+/// columns, and a time shift of one channel.
 #[derive(Clone, Debug)]
 pub struct Design {
     pub cols: Vec<Col>,
     pub lag: f64,
+    pub channel: Channel,
+    /// the Dahl state's values when a pre-sliding candidate replaces the Coulomb sign
+    pub dahl: Option<std::sync::Arc<Vec<f64>>>,
     /// per effect of the spec: the range of its columns
     pub spans: Vec<(usize, usize)>,
+    /// per column, the value a fit keeps where the rows do not determine it: the file's value
+    /// for the model's own terms (also where an effect replaced the column), 0 for an effect's
+    pub prior: Vec<f64>,
 }
 
 impl Design {
-    pub fn new(base: &Base, effects: &[Effect]) -> Design {
+    pub fn new(d: &Data, base: &Base, effects: &[Effect]) -> Design {
         let mut cols = base.cols.clone();
         let mut lag = 0.0;
+        let mut channel = Channel::U;
+        let mut dahl = None;
         for e in effects {
             match *e {
-                Effect::Backlash { width } => {
+                Effect::Backlash { width, offset } => {
                     for c in cols.iter_mut() {
                         if let Col::Q = c {
-                            *c = Col::DeadZone { q0: 0.0, w: width };
+                            *c = Col::DeadZone { q0: offset, w: width };
                         }
                     }
                 }
-                Effect::Delay { lag: l } => lag = l,
+                Effect::Delay { lag: l, channel: c } => {
+                    lag = l;
+                    channel = c;
+                }
+                Effect::Presliding { kappa } => {
+                    for c in cols.iter_mut() {
+                        if let Col::Sgn = c {
+                            *c = Col::Dahl { kappa };
+                        }
+                    }
+                    dahl = Some(std::sync::Arc::new(dahl_state(d, kappa)));
+                }
                 _ => {}
             }
         }
@@ -278,7 +406,9 @@ impl Design {
             cols.extend(e.cols());
             spans.push((s, cols.len()));
         }
-        Design { cols, lag, spans }
+        let mut prior = base.beta0.clone();
+        prior.resize(cols.len(), 0.0);
+        Design { cols, lag, channel, dahl, spans, prior }
     }
 
     /// Fills `x` with the row of sample `i` and returns its target.
@@ -286,35 +416,41 @@ impl Design {
     pub fn row(&self, d: &Data, i: usize, x: &mut [f64]) -> f64 {
         for (xk, c) in x.iter_mut().zip(&self.cols) {
             *xk = match c {
-                Col::DeadZone { w, .. } => super::shapes::dead_zone(d.q[i] - d.q0, *w),
+                Col::DeadZone { q0, w } => super::shapes::dead_zone(d.q[i] - d.q0 - q0, *w),
+                Col::Dahl { .. } => self.dahl.as_ref().map_or(0.0, |z| z[i]),
                 _ => c.eval(d, i),
             };
         }
         self.target(d, i)
     }
 
+    /// The target of sample `i`: `d − rest` with the delayed channel read `lag` samples away.
+    /// A channel that lags holds at `i + lag` what belongs to `i`; the state lagging is both
+    /// torques leading, so they are read `lag` samples back.
     #[inline]
     pub fn target(&self, d: &Data, i: usize) -> f64 {
         if self.lag == 0.0 {
             return d.y[i];
         }
-        // Sensors lag the actuator: the logged state belongs with u at t − lag.
-        let pos = i as f64 - self.lag;
-        let u_then = if pos <= 0.0 {
-            d.u[0]
-        } else {
+        let at = |v: &[f64], off: f64| {
+            let pos = (i as f64 + off).clamp(0.0, (d.n - 1) as f64);
             let k = pos.floor() as usize;
             let f = pos - k as f64;
-            let a = d.u[k.min(d.n - 1)];
-            let b = d.u[(k + 1).min(d.n - 1)];
+            let a = v[k.min(d.n - 1)];
+            let b = v[(k + 1).min(d.n - 1)];
             a + f * (b - a)
         };
-        d.y[i] + u_then - d.u[i]
+        match self.channel {
+            Channel::U => d.y[i] + at(&d.u, self.lag) - d.u[i],
+            Channel::Tau => d.y[i] - at(&d.tau, self.lag) + d.tau[i],
+            Channel::State => d.y[i] + at(&d.u, -self.lag) - d.u[i] - at(&d.tau, -self.lag) + d.tau[i],
+        }
     }
 
     pub fn gram(&self, d: &Data, idx: &[u32]) -> Gram {
         let p = self.cols.len();
         let mut g = Gram::new(p);
+        g.prior.clone_from(&self.prior);
         let mut x = vec![0.0; p];
         for &i in idx {
             let y = self.row(d, i as usize, &mut x);
@@ -358,6 +494,40 @@ pub struct GridCtx<'a> {
     /// the design's target at `idx`
     pub(crate) y: Vec<f64>,
     pub(crate) g: Gram,
+    /// the Dahl state's steps to these rows (built on first use, see [`dahl_plan`])
+    dahl: std::sync::OnceLock<(f64, Vec<(f64, bool)>)>,
+    /// grid searches evaluate the Dahl state from the compressed plan (equal to the sample-by-
+    /// sample state but for rounding); fits and scores keep the exact state
+    pub(crate) compose_dahl: bool,
+}
+
+/// The Dahl state's travel compressed for the rows `idx` (ascending): the starting state and
+/// the steps, each the summed travel of a run of samples moving one way, marked where a row's
+/// value is to be read. Steps one way compose exactly (`exp(−κa)·exp(−κb) = exp(−κ(a+b))`),
+/// so evaluating the state at the rows costs one step per row and per reversal, not per sample.
+fn dahl_plan(d: &Data, idx: &[u32]) -> (f64, Vec<(f64, bool)>) {
+    let z0 = d.sgn.first().copied().unwrap_or(0.0).clamp(-1.0, 1.0);
+    let mut plan = Vec::with_capacity(2 * idx.len() + 16);
+    let mut k = 0;
+    while k < idx.len() && idx[k] == 0 {
+        plan.push((0.0, true));
+        k += 1;
+    }
+    let mut acc = 0.0;
+    for i in 1..d.n {
+        let dq = 0.5 * (d.qd[i] + d.qd[i - 1]) * (d.t[i] - d.t[i - 1]);
+        if dq != 0.0 && acc != 0.0 && (dq > 0.0) != (acc > 0.0) {
+            plan.push((acc, false));
+            acc = 0.0;
+        }
+        acc += dq;
+        while k < idx.len() && idx[k] as usize == i {
+            plan.push((acc, true));
+            acc = 0.0;
+            k += 1;
+        }
+    }
+    (z0, plan)
 }
 
 /// How a candidate changes the current design (see [`GridCtx::delta`]).
@@ -381,11 +551,12 @@ impl<'a> GridCtx<'a> {
     }
 
     fn build(d: &'a Data, base: &Base, chosen: &[Effect], idx: &'a [u32], gram: bool) -> GridCtx<'a> {
-        let des = Design::new(base, chosen);
+        let des = Design::new(d, base, chosen);
         let p = des.cols.len();
         let mut x = vec![0.0; idx.len() * p];
         let mut y = Vec::with_capacity(idx.len());
         let mut g = Gram::new(p);
+        g.prior.clone_from(&des.prior);
         for (r, &i) in idx.iter().enumerate() {
             let row = &mut x[r * p..(r + 1) * p];
             let yi = des.row(d, i as usize, row);
@@ -394,25 +565,49 @@ impl<'a> GridCtx<'a> {
             }
             y.push(yi);
         }
-        GridCtx { d, idx, des, p, x, y, g }
+        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false }
     }
 
     /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
     pub fn delta(&self, e: &Effect) -> Delta {
         let (d, idx) = (self.d, self.idx);
         match *e {
-            Effect::Backlash { width } => {
+            Effect::Backlash { width, offset } => {
                 let at = self.des.cols.iter().position(|c| matches!(c, Col::Q));
-                let z = || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0, width)).collect();
+                let z =
+                    || idx.iter().map(|&i| super::shapes::dead_zone(d.q[i as usize] - d.q0 - offset, width)).collect();
                 Delta { replace: at.map(|j| (j, z())), extra: Vec::new(), y_alt: None }
             }
-            Effect::Delay { lag } => {
+            Effect::Presliding { kappa } => {
+                let at = self.des.cols.iter().position(|c| matches!(c, Col::Sgn));
+                let (z0, plan) =
+                    self.dahl.get_or_init(|| if self.compose_dahl { dahl_plan(d, idx) } else { (0.0, Vec::new()) });
+                let rows = || {
+                    if !self.compose_dahl || plan.iter().filter(|s| s.1).count() != idx.len() {
+                        // rows not in ascending order: the state sample by sample
+                        let z = dahl_state(d, kappa);
+                        return idx.iter().map(|&i| z[i as usize]).collect();
+                    }
+                    let mut z = *z0;
+                    let mut out = Vec::with_capacity(idx.len());
+                    for &(dq, read) in plan {
+                        z = super::shapes::dahl_step(z, kappa, dq);
+                        if read {
+                            out.push(z);
+                        }
+                    }
+                    out
+                };
+                Delta { replace: at.map(|j| (j, rows())), extra: Vec::new(), y_alt: None }
+            }
+            Effect::Delay { lag, channel } => {
                 let mut des = self.des.clone();
                 des.lag = lag;
+                des.channel = channel;
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
-            Effect::Ripple { period } => {
+            Effect::Ripple { period, harmonics: 1 } => {
                 // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
                 let (zs, zc) =
                     idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
@@ -436,6 +631,7 @@ impl<'a> GridCtx<'a> {
                 g.g[a * q + b] = self.g.g[a * p + b];
             }
             g.b[a] = self.g.b[a];
+            g.prior[a] = self.g.prior.get(a).copied().unwrap_or(0.0);
         }
         g.yy = self.g.yy;
         let n = self.idx.len();
@@ -514,7 +710,9 @@ impl<'a> GridCtx<'a> {
 /// already chosen; `None` when the effect cannot apply to this model/log (dry friction in a
 /// model that has a Coulomb term, backlash without a spring, thermal drift without friction).
 pub fn search(kind: Kind, d: &Data, base: &Base, chosen: &[Effect], idx: &[u32]) -> Option<Effect> {
-    search_in(kind, &GridCtx::new(d, base, chosen, idx), base, chosen)
+    let mut grid = GridCtx::new(d, base, chosen, idx);
+    grid.compose_dahl = true;
+    search_in(kind, &grid, base, chosen)
 }
 
 /// [`search`] on a grid context already built for `chosen` (one per round, shared by every
@@ -525,6 +723,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
     let applicable = match kind {
         Kind::Dry => !has(Col::Sgn) && !chosen.iter().any(|e| matches!(e, Effect::Dry)),
         Kind::Backlash => has(Col::Q),
+        // it replaces the model's own Coulomb sign
+        Kind::Presliding => has(Col::Sgn),
         _ => true,
     };
     if !applicable || chosen.iter().any(|e| e.kind() == kind) {
@@ -549,11 +749,43 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // A Stribeck curve narrower than the sign band cannot be told from the band itself
             // (and from velocity noise at rest), so the search starts at 1.5 bands.
             let lo = (1.5 * d.band).max(1e-4).min(0.05 * v95);
-            Some(log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v }))
+            // the curve's speed for each exponent of the family (0.5, 1, 2), then the best
+            // exponent refined between its neighbours
+            let mut best: Option<(f64, Effect)> = None;
+            let mut classic: Option<(f64, Effect)> = None;
+            for exponent in [2.0, 1.0, 0.5] {
+                let e = log_search(lo, 0.6 * v95, 24, &|v| Effect::Stribeck { speed: v, exponent });
+                let r = rss_of(e);
+                if exponent == 2.0 {
+                    classic = Some((r, e));
+                }
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            }
+            let (_, e) = best?;
+            let Effect::Stribeck { speed, exponent } = e else { return Some(e) };
+            if exponent == 2.0 {
+                return Some(e);
+            }
+            let (x, r) = golden(exponent.ln() - 0.7, exponent.ln() + 0.7, 12, |le| {
+                rss_of(Effect::Stribeck { speed, exponent: le.exp().clamp(0.3, 3.0) })
+            });
+            // The exponent is one more value to defend: the classic curve (exponent 2) stays
+            // unless another takes at least a twentieth of what the curve explains on top of it.
+            if let Some((r2, e2)) = classic {
+                let explained = ctx.g.solve().1 - r2;
+                if r2 - r < 0.05 * explained.max(0.0) {
+                    return Some(e2);
+                }
+            }
+            Some(Effect::Stribeck { speed, exponent: x.exp().clamp(0.3, 3.0) })
         }
         Kind::Asymmetric => Some(Effect::Asymmetric),
         Kind::Load => Some(Effect::Load),
         Kind::Dry => Some(Effect::Dry),
+        // pre-sliding distances c/σ from 20 µrad to 20 mrad
+        Kind::Presliding => Some(log_search(50.0, 5.0e4, 20, &|k| Effect::Presliding { kappa: k })),
         Kind::Thermal => {
             // The shape of the friction that scales: the model's friction refitted first.
             let (beta, _) = ctx.g.solve();
@@ -562,22 +794,34 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             if a == 0.0 && b == 0.0 && c == 0.0 {
                 return None;
             }
-            match &d.temp {
-                Some(tp) => {
-                    let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
-                    Some(Effect::Thermal { a, b, c, src: ThermSrc::Temp { mean } })
-                }
-                None => {
-                    let (t0, t1) = (d.t[0], d.t[d.n - 1]);
-                    let span = (t1 - t0).max(1e-6);
-                    let mk = |tau: f64| {
-                        let mean = idx.iter().map(|&i| 1.0 - (-(d.t[i as usize] - t0) / tau).exp()).sum::<f64>()
-                            / idx.len().max(1) as f64;
-                        Effect::Thermal { a, b, c, src: ThermSrc::Time { tau, t0, mean } }
-                    };
-                    Some(log_search(0.05 * span, 20.0 * span, 12, &mk))
+            // The drift may scale all of the friction, or its viscous part (oil viscosity) or
+            // its Coulomb part (seals, preload) alone: each is tried, the best kept.
+            let parts = [(a, b, c), (a, b, 0.0), (0.0, 0.0, c)];
+            let parts = parts.into_iter().filter(|(a, b, c)| *a != 0.0 || *b != 0.0 || *c != 0.0);
+            let mut best: Option<(f64, Effect)> = None;
+            for (a, b, c) in parts {
+                let e = match &d.temp {
+                    Some(tp) => {
+                        let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
+                        Effect::Thermal { a, b, c, src: ThermSrc::Temp { mean } }
+                    }
+                    None => {
+                        let (t0, t1) = (d.t[0], d.t[d.n - 1]);
+                        let span = (t1 - t0).max(1e-6);
+                        let mk = |tau: f64| {
+                            let mean = idx.iter().map(|&i| 1.0 - (-(d.t[i as usize] - t0) / tau).exp()).sum::<f64>()
+                                / idx.len().max(1) as f64;
+                            Effect::Thermal { a, b, c, src: ThermSrc::Time { tau, t0, mean } }
+                        };
+                        log_search(0.05 * span, 20.0 * span, 12, &mk)
+                    }
+                };
+                let r = rss_of(e);
+                if best.as_ref().map(|(bst, _)| r < *bst).unwrap_or(true) {
+                    best = Some((r, e));
                 }
             }
+            best.map(|(_, e)| e)
         }
         Kind::Ripple => {
             // Periodogram of the current residual binned over q, then refinement of the best
@@ -643,42 +887,108 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
             let mut best: Option<(f64, f64)> = None;
             for &(f, _) in peaks.iter().take(3) {
-                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f }));
+                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f, harmonics: 1 }));
                 if best.map(|(_, rb)| r < rb).unwrap_or(true) {
                     best = Some((fx, r));
                 }
             }
-            best.map(|(f, _)| Effect::Ripple { period: 1.0 / f })
+            // a second harmonic (a mesh's tooth profile, a cogging shape) when it lowers the
+            // training RSS by more than its two values cost (BIC on the thinned rows)
+            let (f, r1) = best?;
+            let two = Effect::Ripple { period: 1.0 / f, harmonics: 2 };
+            let n = idx.len().max(2) as f64;
+            let r2 = rss_of(two);
+            Some(if n * (r1 / r2).ln() > 2.0 * n.ln() { two } else { Effect::Ripple { period: 1.0 / f, harmonics: 1 } })
         }
         Kind::Cable => {
+            // A harness taut past an angle (either side), or a progressive spring about one.
             let mut sorted: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
             sorted.sort_by(|a, b| a.total_cmp(b));
             let qat = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
             let width = 0.01;
             let k = 40;
             let pts: Vec<f64> = (0..k).map(|j| qat(0.02 + 0.9 * j as f64 / (k - 1) as f64)).collect();
-            let vals: Vec<f64> = pts.iter().map(|&e| rss_of(Effect::Cable { engage: e, width })).collect();
-            let b = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
-            let (lo, hi) = (pts[b.saturating_sub(1)], pts[(b + 1).min(k - 1)]);
-            let (e, _) = golden(lo, hi, 20, |e| rss_of(Effect::Cable { engage: e, width }));
-            Some(Effect::Cable { engage: e, width })
+            let mut best: Option<(f64, Effect)> = None;
+            let mut keep = |e: Effect, r: f64| {
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            };
+            for side in [1i8, -1] {
+                let vals: Vec<f64> = pts.iter().map(|&e| rss_of(Effect::Cable { engage: e, width, side })).collect();
+                let b = vals.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(0);
+                let (lo, hi) = (pts[b.saturating_sub(1)], pts[(b + 1).min(k - 1)]);
+                let (e, r) = golden(lo, hi, 20, |e| rss_of(Effect::Cable { engage: e, width, side }));
+                keep(Effect::Cable { engage: e, width, side }, r);
+            }
+            // progressive: centred on the spring's rest angle when the model has a spring, else
+            // on the middle of the angles travelled
+            let centre = if has(Col::Q) { d.q0 } else { qat(0.5) };
+            let prog = Effect::Cable { engage: centre, width, side: 0 };
+            keep(prog, rss_of(prog));
+            best.map(|(_, e)| e)
         }
         Kind::Backlash => {
             let qs: Vec<f64> = idx.iter().map(|&i| (d.q[i as usize] - d.q0).abs()).collect();
             let reach = quantile(qs, 0.9).max(1e-3);
-            Some(log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w }))
+            // centred on the spring's rest angle, or all on one side of it
+            let mut best: Option<(f64, Effect)> = None;
+            for side in [0.0, 0.5, -0.5] {
+                let e = log_search(1e-3 * reach, 1.5 * reach, 24, &|w| Effect::Backlash { width: w, offset: side * w });
+                let r = rss_of(e);
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    best = Some((r, e));
+                }
+            }
+            best.map(|(_, e)| e)
         }
         Kind::Delay => {
-            // Whole-sample lags from two samples up to 100 ms (at most 200 samples). No
-            // fractional lag: interpolating u between two samples averages its noise away,
-            // which scores as a "delay" of half a sample on any log whose u is noisy. No lag of
-            // one sample: a torque held over the sample period (zero-order hold) already puts
-            // the q̈ seen from q half a sample off the logged u, whichever way the logger
-            // stamps it, so one sample is the logging convention, not a delay.
-            let max_lag = ((0.1 / d.dt).round() as usize).clamp(4, 200);
-            let vals: Vec<f64> = (0..=max_lag).map(|l| rss_of(Effect::Delay { lag: l as f64 })).collect();
-            let b = vals.iter().enumerate().skip(2).min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| i).unwrap_or(2);
-            Some(Effect::Delay { lag: b as f64 })
+            // Each channel (u, tau, the state) shifted by whole samples either way, from two
+            // samples up to 100 ms (at most 200 samples). No fractional lag: interpolating a
+            // noisy channel between two samples averages its noise away, which scores as a
+            // "delay" of half a sample on any noisy log. No lag of one sample: a torque held over
+            // the sample period (zero-order hold) already puts the q̈ seen from q half a sample
+            // off the logged u, whichever way the logger stamps it, so one sample is the
+            // logging convention, not a delay. A coarse pass (every other lag) then the best
+            // lag's neighbours.
+            let max_lag = ((0.1 / d.dt).round() as i64).clamp(4, 200);
+            let channels: Vec<Channel> =
+                Channel::ALL.into_iter().filter(|c| *c != Channel::Tau || d.tau.iter().any(|t| *t != 0.0)).collect();
+            let consider = |best: &mut Option<(f64, Effect)>, e: Effect| {
+                let r = rss_of(e);
+                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+                    *best = Some((r, e));
+                }
+            };
+            // coarse lags about 15 % apart (every lag up to 8), then every lag around the best
+            let mut coarse: Vec<i64> = (2..=8).collect();
+            while let Some(&l) = coarse.last() {
+                let next = ((l as f64) * 1.15).ceil() as i64;
+                if next > max_lag {
+                    break;
+                }
+                coarse.push(next);
+            }
+            let mut best: Option<(f64, Effect)> = None;
+            for &channel in &channels {
+                for &l in &coarse {
+                    for sgn in [1.0, -1.0] {
+                        consider(&mut best, Effect::Delay { lag: sgn * l as f64, channel });
+                    }
+                }
+            }
+            if let Some((_, Effect::Delay { lag, channel })) = best {
+                let reach = (lag.abs() * 0.15).ceil().max(1.0);
+                let mut off = -reach;
+                while off <= reach {
+                    let l = lag + off;
+                    if off != 0.0 && l.abs() >= 2.0 && l.abs() <= max_lag as f64 {
+                        consider(&mut best, Effect::Delay { lag: l, channel });
+                    }
+                    off += 1.0;
+                }
+            }
+            best.map(|(_, e)| e)
         }
     }
 }

@@ -16,6 +16,7 @@
 #![allow(clippy::indexing_slicing)]
 
 pub mod candidates;
+pub mod evidence;
 pub mod fit;
 pub mod floor;
 pub mod regimes;
@@ -93,6 +94,15 @@ pub struct Gap {
     /// whose variance the fits remove from the inertia's normal equation
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qdd_noise_sd: Option<f64>,
+    /// optional: the samples `rmse` and the regimes are computed on, when some are left out of
+    /// fits and scores (samples whose direction of motion is unknown; with a pure Coulomb sign
+    /// also the rests and their edges, where the model's friction is set-valued)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scored_samples: Option<usize>,
+    /// optional (pure Coulomb sign): samples inside rests taken for a creep below the q̇
+    /// resolution (left out, see [`rest_creep`])
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rest_creep_samples: Option<usize>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -327,6 +337,8 @@ pub struct PlotData {
     pub held: Vec<bool>,
     pub unit: &'static str,
     pub measured_label: &'static str,
+    /// the verdict's evidence in each named effect's coordinate (empty for `none`)
+    pub evidence: Vec<evidence::Evidence>,
 }
 
 /// A diagnosis: the report, the model text `--emit-model` writes, and plot data.
@@ -354,7 +366,11 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
     if log.len() < min {
         return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least {min}", log.len())));
     }
+    let clock = std::time::Instant::now();
     let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
+    if std::env::var_os("DIAG_TIMING").is_some() {
+        eprintln!("[diagnose] preparation stage: {:.3} s", clock.elapsed().as_secs_f64());
+    }
     let mut d = match log.mode() {
         LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
         LogMode::Trajectory => trajectory::diagnose(&prep, model, &params, opts)?,
@@ -406,6 +422,7 @@ fn torque_mode(
     let (qd, qdd) = (prep.qd().to_vec(), prep.qdd().to_vec());
     let pred0 = joint_formats::predict::predicted(log, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
+    lap("the model's prediction");
     let (u, tau) = match (&log.u, &log.tau) {
         (Some(u), Some(t)) => (u.clone(), t),
         _ => return Err(DiagError::Input("torque mode needs `u` and `tau`".into())),
@@ -443,6 +460,7 @@ fn torque_mode(
         qd,
         qdd,
         u,
+        tau: tau.clone(),
         y: Vec::new(),
         temp: log.temp.clone(),
         dt,
@@ -462,7 +480,7 @@ fn torque_mode(
     }
     // y = d − rest: the rest is what the model predicts outside its linear terms (gravity table,
     // the core's f32 rounding), the prediction less the linear part at the core's own sign.
-    let des0 = candidates::Design::new(&base, &[]);
+    let des0 = candidates::Design::new(&data, &base, &[]);
     let mut x = vec![0.0; des0.cols.len()];
     let mut y = Vec::with_capacity(n);
     data.y = vec![0.0; n];
@@ -487,28 +505,56 @@ fn torque_mode(
         non_friction.push(data.u[i] - tau[i] - data.y[i] + lin - fric);
     }
     data.load = transmitted_load(tau, &data.u, &non_friction);
+    lap("expected sign, design, file residual");
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
+    lap("regimes");
     let mut split = select::make_split(n);
     split.leave_out(&prep.ambiguous);
     // With a pure Coulomb sign (no band in the file) a sample whose direction the data cannot
     // tell predicts ±c by a coin toss: it says nothing about the model and is left out too.
-    if band == 0.0 && base.cols.contains(&Col::Sgn) {
+    let pure_sign = band == 0.0 && base.cols.contains(&Col::Sgn);
+    if pure_sign {
         split.leave_out(&prep.sign_unknown);
+        split.leave_out(&prep.rest_edge);
     }
     if split.train.len() < 30 || split.holdout.len() < 30 {
         return Err(DiagError::Input("too few samples for a training/held-out split".into()));
     }
     let floor = torque_floor(&r0, &data, &base, prep);
+    // A pure sign jumps to ±c at any motion, however slow: inside a rest, a creep below the
+    // q̇ resolution shows as the residual stepping by ±c. Those samples' direction is unknown.
+    let creep = if pure_sign {
+        let c = base.cols.iter().position(|x| *x == Col::Sgn).map_or(0.0, |k| base.beta0[k].abs());
+        let creep = rest_creep(&r0, &prep.rest, c, floor);
+        let k = creep.iter().filter(|&&b| b).count();
+        split.leave_out(&creep);
+        (k > 0).then_some(k)
+    } else {
+        None
+    };
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
     lap("candidates and forward selection");
-    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, log);
+    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, log);
     lap("report");
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
     let emitted_model = emit_model(model, &base, final_s, &data);
-    let plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
+    let mut plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
+    plots.evidence = torque_evidence(&data, &sel.m0, final_s, &split, &report.verdict.effects);
     Ok(Diagnosis { report, emitted_model, plots })
+}
+
+/// The rest samples whose residual `r0` stands at ±`c` (within a quarter of `c` or 3 floors,
+/// the larger), where the model predicts 0: the step a pure Coulomb sign makes when the joint
+/// creeps at a speed no estimate resolves (or rests at its breakaway, where a creep is as
+/// likely). Nothing is marked when `c` is under 4 floors (the step is then lost in the noise).
+pub fn rest_creep(r0: &[f64], rest: &[bool], c: f64, floor: f64) -> Vec<bool> {
+    if !(c > 4.0 * floor) {
+        return vec![false; r0.len()];
+    }
+    let tol = (0.25 * c).max(3.0 * floor);
+    r0.iter().zip(rest).map(|(&r, &still)| still && r.abs() > 0.5 * c && (r.abs() - c).abs() < tol).collect()
 }
 
 /// The torque-mode noise floor ([`floor`]): the measurement noise in the file's residual (any
@@ -519,12 +565,14 @@ fn torque_floor(r0: &[f64], d: &Data, base: &Base, prep: &crate::prep::Prepared)
     let (noise, _) = floor::variogram_noise(r0);
     let coef = |c: Col| base.cols.iter().position(|x| *x == c).map_or(0.0, |k| base.beta0[k]);
     let (j, a, b, c) = (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
-    let derived = |i: &crate::prep::DerivInfo| i.source != "logged";
+    // white noise on a logged column is already in the residual's noise; an estimate's or a
+    // filter's error follows the motion and is not
+    let derived = |i: &crate::prep::DerivInfo| !i.white;
     let (dv, da) = (derived(&prep.report.qd), derived(&prep.report.qdd));
     let n = d.n.max(1) as f64;
     let pure_sign = d.band == 0.0;
     let prop2: f64 = (0..d.n)
-        .filter(|&i| !(prep.ambiguous[i] || pure_sign && prep.sign_unknown[i]))
+        .filter(|&i| !(prep.ambiguous[i] || pure_sign && (prep.sign_unknown[i] || prep.rest_edge[i])))
         .map(|i| {
             let slope = b + 2.0 * a * d.qd[i].abs();
             let sv = if dv { prep.qd_err[i] } else { 0.0 };
@@ -583,9 +631,10 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
         p.insert(k.to_string(), v);
     };
     match *e {
-        Effect::Stribeck { speed } => {
+        Effect::Stribeck { speed, exponent } => {
             put("level", beta(0));
             put("speed", speed);
+            put("exponent", exponent);
         }
         Effect::Asymmetric => put("delta", beta(0)),
         Effect::Load => put("mu", beta(0)),
@@ -599,25 +648,48 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
                 }
             }
         }
-        Effect::Ripple { period } => {
+        Effect::Ripple { period, harmonics } => {
             let (bs, bc) = (beta(0), beta(1));
             put("amplitude", bs.hypot(bc));
             put("period", period);
             put("phase", bc.atan2(bs));
+            if harmonics >= 2 {
+                let (bs2, bc2) = (beta(2), beta(3));
+                put("amplitude_2", bs2.hypot(bc2));
+                put("phase_2", bc2.atan2(bs2));
+            }
         }
-        Effect::Cable { engage, width } => {
+        Effect::Cable { engage, side: 0, .. } => {
+            put("k3", beta(0));
+            put("k1", beta(1));
+            put("centre", engage);
+        }
+        Effect::Cable { engage, width, side } => {
             put("k", beta(0));
             put("engage", engage);
             put("width", width);
+            put("side", f64::from(side));
         }
-        Effect::Backlash { width } => {
+        Effect::Backlash { width, offset } => {
             put("width", width);
+            put("offset", offset);
             if let Some(k) = s.design.cols.iter().position(|c| matches!(c, Col::DeadZone { .. })) {
                 put("spring_k", s.beta[k]);
             }
         }
-        Effect::Delay { lag } => put("seconds", lag * d.dt),
+        Effect::Delay { lag, channel } => {
+            // how long the channel lags (negative: it leads); `seconds` is that size
+            put(&format!("{}_lag_s", channel.name()), lag * d.dt);
+            put("seconds", lag.abs() * d.dt);
+        }
         Effect::Dry => put("c", beta(0)),
+        Effect::Presliding { kappa } => {
+            // the Dahl column's coefficient is the Coulomb level c; σ = κ·c
+            let c = s.design.cols.iter().position(|c| matches!(c, Col::Dahl { .. })).map_or(0.0, |k| s.beta[k]);
+            put("sigma", kappa * c);
+            put("distance", 1.0 / kappa);
+            put("c", c);
+        }
     }
     let _ = b;
     p
@@ -643,7 +715,9 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
             put("spring", "b", bt);
         }
     }
-    if let Some(c) = coef(s, Col::Sgn) {
+    let coulomb = coef(s, Col::Sgn)
+        .or_else(|| s.design.cols.iter().position(|c| matches!(c, Col::Dahl { .. })).map(|k| s.beta[k]));
+    if let Some(c) = coulomb {
         if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 {
             put("dry_friction", "c", c);
         } else {
@@ -774,13 +848,19 @@ fn build_report(
     sel: &Selection,
     r0: &[f64],
     floor: f64,
+    creep: Option<usize>,
     log: &JointLog,
 ) -> Report {
     let nreg = regimes.defs.len();
     let mut sse = vec![0.0; nreg];
     let mut cnt = vec![0usize; nreg];
     let mut total = 0.0;
+    let mut scored = 0usize;
     for (i, r) in r0.iter().enumerate() {
+        if split.left_out.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        scored += 1;
         let r2 = r * r;
         total += r2;
         let mut b = regimes.bits[i];
@@ -880,12 +960,14 @@ fn build_report(
             rest_tail: None,
         },
         gap: Gap {
-            rmse: (total / d.n as f64).sqrt(),
+            rmse: (total / scored.max(1) as f64).sqrt(),
             holdout_rmse: before,
             noise_floor: floor,
             unit: "N·m",
             at_noise_floor: final_rmse <= select::at_floor_factor(d) * floor,
             qdd_noise_sd: (d.qdd_noise_var > 0.0).then(|| d.qdd_noise_var.sqrt()),
+            scored_samples: (scored < d.n).then_some(scored),
+            rest_creep_samples: creep,
         },
         regimes: regimes_out,
         effects,
@@ -904,6 +986,40 @@ fn build_report(
         warnings,
         prep: None,
     }
+}
+
+/// The verdict's evidence plots ([`evidence`]) on the held-out samples (at most 200 000).
+fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[String]) -> Vec<evidence::Evidence> {
+    use evidence::Coord;
+    let named: Vec<&String> = names.iter().filter(|n| !matches!(n.as_str(), "none" | "unexplained")).collect();
+    if named.is_empty() {
+        return Vec::new();
+    }
+    let stride = (split.holdout.len() / 200_000).max(1);
+    let idx: Vec<usize> = split.holdout.iter().step_by(stride).map(|&i| i as usize).collect();
+    let (mut before, mut after) = (vec![f64::NAN; d.n], vec![f64::NAN; d.n]);
+    let mut x0 = vec![0.0; m0.design.cols.len()];
+    let mut x1 = vec![0.0; fin.design.cols.len()];
+    for &i in &idx {
+        before[i] = select::residual_at(d, &m0.design, &m0.beta, i, &mut x0);
+        after[i] = select::residual_at(d, &fin.design, &fin.beta, i, &mut x1);
+    }
+    let rate = evidence::rate(&d.u, &d.t);
+    named
+        .iter()
+        .filter_map(|name| {
+            let c = Coord::of(name, d.temp.is_some());
+            let x: &[f64] = match c {
+                Coord::Velocity => &d.qd,
+                Coord::Position => &d.q,
+                Coord::Time => &d.t,
+                Coord::Temperature => d.temp.as_deref().unwrap_or(&d.t),
+                Coord::Load => &d.load,
+                Coord::TorqueRate => &rate,
+            };
+            evidence::binned(name, &c.label("N·m"), x, &before, &after, &idx, 30)
+        })
+        .collect()
 }
 
 fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Split) -> PlotData {
@@ -957,7 +1073,7 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
     for k in 0..fin.effects.len() {
-        let name = fin.effects[k].kind().name();
+        let name = section_name(fin.effects[k].kind());
         if model_text.lines().any(|l| l.trim() == format!("[{name}]")) {
             // The model already carries this term as a section of its own: a second table of
             // the same name would make the file invalid TOML, so the fitted extra is a comment.
@@ -974,7 +1090,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     use std::fmt::Write as _;
     let p = effect_params(s, k, d);
     let Some(e) = s.effects.get(k) else { return String::new() };
-    let section = e.kind().name();
+    let section = section_name(e.kind());
     // Sections the core also knows as model terms are clamped into its parameter ranges, so the
     // emitted file stays a loadable model (a negative Stribeck level, say, is not one).
     let g = |key: &str| {
@@ -985,10 +1101,16 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
         }
     };
     let mut o = String::new();
-    let _ = writeln!(o, "\n[{}]", e.kind().name());
+    let _ = writeln!(o, "\n[{section}]");
     match *e {
-        Effect::Stribeck { .. } => {
+        Effect::Stribeck { exponent, .. } => {
             let _ = writeln!(o, "level = {:?}\nspeed = {:?}", g("level"), g("speed"));
+            if exponent != 2.0 {
+                let _ = writeln!(
+                    o,
+                    "# fitted exponent {exponent:.2}: the section's curve is exp(−(q̇/speed)²); level and speed are the fit's"
+                );
+            }
         }
         Effect::Asymmetric => {
             let _ = writeln!(o, "delta = {:?}", g("delta"));
@@ -1016,15 +1138,47 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
                 log_temp
             );
         }
-        Effect::Ripple { .. } => {
+        Effect::Ripple { harmonics, .. } => {
             let _ =
                 writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
+            if harmonics >= 2 {
+                let _ = writeln!(
+                    o,
+                    "# second harmonic (period/2), not a section key: amplitude_2 = {:?}, phase_2 = {:?}",
+                    g("amplitude_2"),
+                    g("phase_2")
+                );
+            }
         }
-        Effect::Cable { .. } => {
+        Effect::Cable { side: 1, .. } => {
             let _ = writeln!(o, "k = {:?}\nengage = {:?}\nwidth = {:?}", g("k").max(0.0), g("engage"), g("width"));
+        }
+        Effect::Cable { side, .. } => {
+            // Not a shape the section holds (it is taut above `engage`): written as a comment.
+            o.clear();
+            let _ = if side == 0 {
+                writeln!(
+                    o,
+                    "\n# cable_spring (progressive, k3·x³ + k1·x with x = q − {:?}): k3 = {:?}, k1 = {:?}; no model section holds this shape",
+                    g("centre"),
+                    g("k3"),
+                    g("k1")
+                )
+            } else {
+                writeln!(
+                    o,
+                    "\n# cable_spring taut below engage = {:?} (k = {:?}, width = {:?}); the section holds one taut above its angle",
+                    g("engage"),
+                    g("k"),
+                    g("width")
+                )
+            };
         }
         Effect::Backlash { .. } => {
             let _ = writeln!(o, "width = {:?}", g("width"));
+            if g("offset") != 0.0 {
+                let _ = writeln!(o, "# the dead zone's centre is {:?} rad from the spring's rest angle", g("offset"));
+            }
         }
         Effect::Delay { .. } => {
             let _ = writeln!(o, "seconds = {:?}", g("seconds").clamp(0.0, 1.0));
@@ -1032,8 +1186,20 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
         Effect::Dry => {
             let _ = writeln!(o, "c = {:?}", g("c").max(0.0));
         }
+        Effect::Presliding { .. } => {
+            let _ = writeln!(o, "sigma = {:?}", g("sigma").max(0.0));
+        }
     }
     o
+}
+
+/// The model/plant file section an effect is written as (spec §2; the vocabulary name
+/// otherwise).
+pub(crate) fn section_name(k: candidates::Kind) -> &'static str {
+    match k {
+        candidates::Kind::Presliding => "presliding",
+        _ => k.name(),
+    }
 }
 
 /// Fits `T(t) = t_ambient + rise·(1 − e^(−t/τ))` to the temp column (τ by golden section).

@@ -1,5 +1,7 @@
 //! The `--report` HTML: one self-contained file (inline CSS and SVG, no script, no network) with
-//! the residual against velocity, position and time coloured by speed regime, the before/after
+//! the verdict's evidence (the held-out residual binned in the coordinate each named effect lives
+//! in, ±2 standard errors, with the fitted correction over it), the residual against velocity,
+//! position and time coloured by speed regime, the before/after
 //! overlay of measurement and model, the residual's autocorrelation with its 99 % band, and the
 //! effect ranking. Every plot is an `<svg class="plot" id="…">` so a test can find it.
 
@@ -128,6 +130,45 @@ fn scatter(out: &mut String, id: &str, title: &str, xl: &str, x: &[f64], p: &Plo
     out.push_str("</svg></figure>\n");
 }
 
+/// The verdict's evidence for one effect: binned held-out residual (points, ±2 s.e. bars) and
+/// the fitted correction binned the same way (line).
+fn evidence_plot(out: &mut String, k: usize, e: &super::evidence::Evidence, unit: &str) {
+    let x: Vec<f64> = e.bins.iter().map(|b| b.x).collect();
+    let mut ys: Vec<f64> = e.bins.iter().flat_map(|b| [b.residual - 2.0 * b.sem, b.residual + 2.0 * b.sem]).collect();
+    ys.extend(e.bins.iter().map(|b| b.fitted));
+    ys.push(0.0);
+    let f = Frame { x: range(&x), y: range(&ys) };
+    let title = format!("evidence for {}: held-out residual binned over {}", e.effect, e.coordinate);
+    open(out, &format!("evidence-{k}"), &title, &e.coordinate, &format!("residual ({unit})"), &f);
+    let _ = write!(
+        out,
+        r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#bbb"/>"##,
+        f.px(f.x.0),
+        f.px(f.x.1),
+        f.py(0.0),
+        f.py(0.0)
+    );
+    out.push_str(r##"<g class="binned-residual" fill="#d95f02" stroke="#d95f02">"##);
+    for b in &e.bins {
+        let (cx, lo, hi) = (f.px(b.x), f.py(b.residual - 2.0 * b.sem), f.py(b.residual + 2.0 * b.sem));
+        let _ = write!(
+            out,
+            r##"<line x1="{cx:.1}" x2="{cx:.1}" y1="{lo:.1}" y2="{hi:.1}"/><circle cx="{cx:.1}" cy="{:.1}" r="2.2"/>"##,
+            f.py(b.residual)
+        );
+    }
+    out.push_str("</g>");
+    let fitted: Vec<f64> = e.bins.iter().map(|b| b.fitted).collect();
+    polyline(out, &f, &x, &fitted, "#1b9e77", "fitted");
+    let _ = write!(
+        out,
+        r##"<text x="{}" y="30" font-size="10"><tspan fill="#d95f02">● binned residual ±2 s.e.</tspan> <tspan fill="#1b9e77">— fitted {}</tspan></text>"##,
+        M + 6.0,
+        esc(&e.effect)
+    );
+    out.push_str("</svg></figure>\n");
+}
+
 fn polyline(out: &mut String, f: &Frame, x: &[f64], y: &[f64], colour: &str, class: &str) {
     let _ = write!(out, r##"<polyline class="{class}" fill="none" stroke="{colour}" stroke-width="1" points=""##);
     for (a, b) in x.iter().zip(y) {
@@ -158,6 +199,12 @@ pub fn render(d: &Diagnosis) -> String {
         r.split.holdout,
         r.split.method
     );
+    if !p.evidence.is_empty() {
+        o.push_str("<h2>Evidence for the verdict</h2>\n");
+        for (k, e) in p.evidence.iter().enumerate() {
+            evidence_plot(&mut o, k, e, p.unit);
+        }
+    }
     o.push_str("<h2>Where the gap lies</h2>\n");
     scatter(&mut o, "resid-vs-velocity", "residual vs velocity", "qd (rad/s)", &p.qd, p);
     scatter(&mut o, "resid-vs-position", "residual vs position", "q (rad)", &p.q, p);

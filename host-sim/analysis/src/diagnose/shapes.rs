@@ -30,6 +30,19 @@ pub fn engaged_spring(k: f64, engage: f64, width: f64, q: f64) -> f64 {
     }
 }
 
+/// One step of the normalised Dahl state z = F/c over travel `dq`: the exact solution of
+/// dz/dq = κ·(1 − z·sign(dq)), an exponential approach to ±1 (so |z| ≤ 1 for any step).
+pub fn dahl_step(z: f64, kappa: f64, dq: f64) -> f64 {
+    // Once saturated in the direction of travel (exactly ±1) the state stays there: no exp.
+    if dq > 0.0 && z < 1.0 {
+        1.0 - (1.0 - z) * (-kappa * dq).exp()
+    } else if dq < 0.0 && z > -1.0 {
+        -1.0 + (1.0 + z) * (kappa * dq).exp()
+    } else {
+        z
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -40,6 +53,20 @@ mod tests {
         assert_eq!(dead_zone(-0.005, 0.01), 0.0);
         assert!((dead_zone(0.02, 0.01) - 0.015).abs() < 1e-15);
         assert!((dead_zone(-0.02, 0.01) + 0.015).abs() < 1e-15);
+    }
+
+    #[test]
+    fn dahl_steps_compose_and_stay_bounded() {
+        // rate independence: one step of 2δ equals two of δ
+        let (k, z0) = (800.0, -0.3);
+        let two = dahl_step(dahl_step(z0, k, 1e-3), k, 1e-3);
+        assert!((two - dahl_step(z0, k, 2e-3)).abs() < 1e-12);
+        // a long travel saturates at the sign, a reversal starts back from where it was
+        assert!((dahl_step(z0, k, 1.0) - 1.0).abs() < 1e-12);
+        assert!(dahl_step(1.0, k, -1e-4) < 1.0 && dahl_step(1.0, k, -1e-4) > 0.8);
+        for dq in [-10.0, -1e-3, 0.0, 1e-3, 10.0] {
+            assert!(dahl_step(0.99, 1e6, dq).abs() <= 1.0);
+        }
     }
 
     #[test]

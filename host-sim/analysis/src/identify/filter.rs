@@ -98,6 +98,22 @@ pub fn filtfilt_into(x: &[f64], fc: f64, fs: f64, out: &mut Vec<f64>) {
     out.truncate(n);
 }
 
+/// [`filtfilt`] run separately over each half-open range of `pieces` (the gap-free stretches of
+/// a log), so nothing is smoothed across a gap; samples outside every range are copied.
+pub fn filtfilt_pieces(x: &[f64], fc: f64, fs: f64, pieces: &[std::ops::Range<usize>]) -> Vec<f64> {
+    let mut out = x.to_vec();
+    let mut buf = Vec::new();
+    for r in pieces {
+        let r = r.start.min(x.len())..r.end.min(x.len());
+        if r.is_empty() {
+            continue;
+        }
+        filtfilt_into(&x[r.clone()], fc, fs, &mut buf);
+        out[r].copy_from_slice(&buf);
+    }
+    out
+}
+
 /// Derivative of `x` over the time stamps `t`: central differences inside (exact for a parabola
 /// on uneven steps), one-sided at the two ends.
 pub fn derivative(t: &[f64], x: &[f64]) -> Vec<f64> {

@@ -39,11 +39,25 @@ pub struct FrictionFit {
     pub points: Vec<FrictionPoint>,
     /// bisquare weight of each point (0 = rejected as an outlier)
     pub weights: Vec<f64>,
+    /// per coefficient (a, b, c): fitted, or 0 because left out; and left out because it came
+    /// out negative (rather than because the speeds cannot tell it apart or it was not asked for)
+    pub free: [bool; 3],
+    pub negative: [bool; 3],
+    /// covariance of (a, b, c) (0 for a coefficient not fitted)
+    pub cov: [[f64; 3]; 3],
 }
 
 impl FrictionFit {
     pub fn eval(&self, v: f64) -> f64 {
         self.a * v * v + self.b * v + self.c
+    }
+
+    /// The curve's value at speed `v` and the half-width of its CI with quantile `tq`.
+    pub fn curve_ci(&self, v: f64, tq: f64) -> (f64, f64) {
+        let g = [v * v, v, 1.0];
+        let var: f64 =
+            (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| g[i] * g[j] * self.cov[i][j]).sum();
+        (self.eval(v), tq * var.max(0.0).sqrt())
     }
 }
 
@@ -147,33 +161,80 @@ pub fn points(
 /// drives the joint), so a coefficient that comes out negative is fixed at 0 and the others
 /// are refitted (its CI is then reported as [0, 0]).
 pub fn fit(points: &[FrictionPoint]) -> Option<FrictionFit> {
+    fit_with(points, [true; 3])
+}
+
+/// The number of distinct speeds among the points: speeds closer than 10 % are one (the
+/// bins of one plateau pair share a speed). a·v² + b·v + c needs three to be told apart, b·v + c two.
+pub fn distinct_speeds(points: &[FrictionPoint]) -> usize {
+    let mut v: Vec<f64> = points.iter().map(|p| p.v).collect();
+    v.sort_by(f64::total_cmp);
+    let mut n = 0;
+    let mut last = f64::NEG_INFINITY;
+    for x in v {
+        if x > last * 1.1 {
+            n += 1;
+            last = x;
+        }
+    }
+    n
+}
+
+/// [`fit`] with only the coefficients `allowed` (a, b, c) free; the others are 0. A coefficient
+/// the points' speeds cannot tell apart (fewer than three distinct speeds for a, two for b) is
+/// left out too.
+pub fn fit_with(points: &[FrictionPoint], allowed: [bool; 3]) -> Option<FrictionFit> {
     if points.len() < 4 {
         return None;
     }
+    let k = distinct_speeds(points);
+    let allowed = [allowed[0] && k >= 3, allowed[1] && k >= 2, allowed[2]];
     let v: Vec<f64> = points.iter().map(|p| p.v).collect();
     let v2: Vec<f64> = v.iter().map(|v| v * v).collect();
     let one = vec![1.0; v.len()];
     let y: Vec<f64> = points.iter().map(|p| p.f).collect();
     let cols: [&[f64]; 3] = [&v2, &v, &one];
-    let mut active = [true; 3];
+    let mut active = allowed;
+    let mut negative = [false; 3];
     loop {
         let idx: Vec<usize> = (0..3).filter(|&k| active[k]).collect();
         if idx.is_empty() {
-            return None;
+            // Every coefficient came out negative (or none was allowed): a fit of nothing, so
+            // the caller can say why rather than find no fit.
+            let sigma = (y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64).sqrt();
+            return Some(FrictionFit {
+                a: 0.0,
+                b: 0.0,
+                c: 0.0,
+                se: [0.0; 3],
+                ci95: [(0.0, 0.0); 3],
+                sigma,
+                points: points.to_vec(),
+                weights: vec![1.0; points.len()],
+                free: active,
+                negative,
+                cov: [[0.0; 3]; 3],
+            });
         }
         let x: Vec<&[f64]> = idx.iter().map(|&k| cols[k]).collect();
-        let LinFit { beta, se, ci95, sigma, weights, .. } = robust::bisquare(&x, &y)?;
+        let LinFit { beta, se, ci95, sigma, weights, xtx_inv, .. } = robust::bisquare(&x, &y)?;
         if let Some(pos) = beta.iter().position(|b| *b < 0.0) {
             active[idx[pos]] = false;
+            negative[idx[pos]] = true;
             continue;
         }
         let mut full = [0.0; 3];
         let mut fse = [0.0; 3];
         let mut fci = [(0.0, 0.0); 3];
+        let mut cov = [[0.0; 3]; 3];
+        let p = idx.len();
         for (j, &k) in idx.iter().enumerate() {
             full[k] = beta[j];
             fse[k] = se[j];
             fci[k] = ci95[j];
+            for (i, &l) in idx.iter().enumerate() {
+                cov[k][l] = sigma * sigma * xtx_inv[j * p + i];
+            }
         }
         return Some(FrictionFit {
             a: full[0],
@@ -184,6 +245,9 @@ pub fn fit(points: &[FrictionPoint]) -> Option<FrictionFit> {
             sigma,
             points: points.to_vec(),
             weights,
+            free: active,
+            negative,
+            cov,
         });
     }
 }

@@ -29,7 +29,12 @@ pub struct Score {
     pub what: String,
     pub n: usize,
     pub rmse: f64,
+    /// squared Pearson correlation of measured and predicted (blind to bias and scale)
     pub r2: f64,
+    /// coefficient of determination on these samples, 1 − SSE/SST about their own mean: the
+    /// share of their variance the model explains (≤ 0 when it explains nothing); the quality
+    /// gate reads this one
+    pub skill: f64,
     pub unit: &'static str,
     /// true when scored on held-out data
     pub held_out: bool,
@@ -41,6 +46,42 @@ pub struct Report {
     /// why the hold-out refit failed, if it did (scores are then absent)
     pub refit_error: Option<String>,
     pub scores: Vec<Score>,
+    /// the held-out quality the write decision reads
+    pub quality: Quality,
+}
+
+/// Below this held-out R² (share of the held-out variance explained) a model is not written
+/// without `--force`.
+pub const MIN_HELDOUT_R2: f64 = 0.5;
+
+/// The held-out quality of a fit: which score, its value, and whether it passes.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Quality {
+    /// what was measured
+    pub metric: String,
+    /// held-out R² (1 − SSE/SST), when measured
+    pub value: Option<f64>,
+    pub threshold: f64,
+    /// None when nothing could be held out
+    pub passed: Option<bool>,
+    pub why: String,
+}
+
+impl Quality {
+    fn not_measured(why: impl Into<String>) -> Quality {
+        Quality { metric: "none".into(), value: None, threshold: MIN_HELDOUT_R2, passed: None, why: why.into() }
+    }
+
+    fn of(metric: &str, skill: f64, why: impl Into<String>) -> Quality {
+        let passed = skill >= MIN_HELDOUT_R2;
+        Quality {
+            metric: metric.into(),
+            value: Some(skill),
+            threshold: MIN_HELDOUT_R2,
+            passed: Some(passed),
+            why: why.into(),
+        }
+    }
 }
 
 fn held_out(data: &Data, log: usize, t: f64) -> bool {
@@ -82,58 +123,108 @@ fn push_score(v: &mut Vec<Score>, what: &str, meas: &[f64], pred: &[f64], unit: 
 
 fn score(what: &str, meas: &[f64], pred: &[f64], unit: &'static str, held_out: bool) -> Score {
     let (rmse, r2) = rmse_r2(meas, pred);
-    Score { what: what.to_string(), n: meas.len(), rmse, r2, unit, held_out }
+    Score { what: what.to_string(), n: meas.len(), rmse, r2, skill: skill(meas, pred), unit, held_out }
+}
+
+/// 1 − SSE/SST of `pred` against `meas` about the mean of `meas`.
+pub fn skill(meas: &[f64], pred: &[f64]) -> f64 {
+    let n = meas.len().min(pred.len());
+    if n == 0 {
+        return f64::NAN;
+    }
+    let m = meas[..n].iter().sum::<f64>() / n as f64;
+    let sst: f64 = meas[..n].iter().map(|x| (x - m).powi(2)).sum();
+    let sse: f64 = meas[..n].iter().zip(&pred[..n]).map(|(a, b)| (a - b).powi(2)).sum();
+    if sst > 0.0 {
+        1.0 - sse / sst
+    } else {
+        f64::NAN
+    }
 }
 
 /// Model prediction of d at sample i of log `li` (friction at the filtered velocity, q̈ from
 /// the inertia data's filtered acceleration).
-fn predict(id: &Identified, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i: usize) -> f64 {
+/// The model that would be written: the determined parameters of an identification, looked up
+/// once (the prediction runs per sample).
+struct Written<'a> {
+    id: &'a Identified,
+    friction: [f64; 3],
+    c0: f64,
+    weight: Option<&'a super::weight::WeightFit>,
+    table: Option<&'a super::gravity_table::TableFit>,
+    j: Option<f64>,
+    spring_k: Option<(f64, f64, f64)>,
+    spring_b: Option<f64>,
+}
+
+impl<'a> Written<'a> {
+    fn of(id: &'a Identified) -> Written<'a> {
+        let det = |t: &str, k: &str| id.determined(t, k);
+        let f = id.friction.as_ref();
+        let coef = |k: usize, v: f64| if det("friction", ["a", "b", "c"][k]) { v } else { 0.0 };
+        let spring = id.spring.as_ref();
+        Written {
+            id,
+            friction: f.map_or([0.0; 3], |f| [coef(0, f.a), coef(1, f.b), coef(2, f.c)]),
+            c0: id.c0.filter(|_| det("offset", "c0")).unwrap_or(0.0),
+            weight: id.weight.as_ref().filter(|_| det("weight", "amplitude")),
+            table: id.table.as_ref().filter(|_| det("gravity_table", "torque")),
+            j: id.inertia.as_ref().filter(|_| det("inertia", "j")).map(|i| i.j),
+            spring_k: spring.and_then(|s| {
+                let st = s.stat.as_ref()?;
+                s.k.filter(|_| det("spring", "k")).map(|k| (k, st.q0, 0.5 * st.dead_zone))
+            }),
+            spring_b: spring.and_then(|s| s.b).filter(|_| det("spring", "b")),
+        }
+    }
+}
+
+/// The written model's prediction of d at sample i of log `li` (friction at the filtered
+/// velocity, q̈ from the inertia data's filtered acceleration).
+fn predict(w: &Written, data: &Data, acc: Option<&[Vec<f64>]>, li: usize, i: usize) -> f64 {
     let p = &data.prepared[li];
     let (q, v) = (p.q[i], p.qd_f[i]);
-    let mut d = id.c0.unwrap_or(0.0);
-    if let Some(f) = &id.friction {
-        d += friction_torque(f, v, id.v_band);
-    }
-    let w = id.weight.as_ref().map_or(0.0, |w| w.weight(q));
-    match &id.table {
+    let [a, b, c] = w.friction;
+    let mut d = w.c0 + a * v * v.abs() + b * v + c * super::sign_band(v, w.id.v_band);
+    let wq = w.weight.map_or(0.0, |wf| wf.weight(q));
+    match w.table {
         Some(t) => {
             let x: Vec<f64> = t
                 .axes
                 .iter()
                 .map(|a| if a == "q" { q } else { p.others.iter().find(|(n, _)| n == a).map_or(0.0, |(_, c)| c[i]) })
                 .collect();
-            d += t.gravity(w, &x, id.table_clamp_k);
+            d += t.gravity(wq, &x, w.id.table_clamp_k);
         }
-        None => d += w,
+        None => d += wq,
     }
-    if let (Some(inr), Some(acc)) = (&id.inertia, acc) {
-        d += inr.j * acc[li][i];
+    if let (Some(j), Some(acc)) = (w.j, acc) {
+        d += j * acc[li][i];
     }
-    if let Some(s) = &id.spring {
-        if let (Some(k), Some(st)) = (s.k, &s.stat) {
-            let h = 0.5 * st.dead_zone;
-            let x = q - st.q0;
-            d += k * if x > h {
-                x - h
-            } else if x < -h {
-                x + h
-            } else {
-                0.0
-            };
-        }
-        if let Some(b) = s.b {
-            d += b * p.qd[i];
-        }
+    if let Some((k, q0, h)) = w.spring_k {
+        let x = q - q0;
+        d += k * if x > h {
+            x - h
+        } else if x < -h {
+            x + h
+        } else {
+            0.0
+        };
+    }
+    if let Some(b) = w.spring_b {
+        d += b * p.qd[i];
     }
     d
 }
 
 /// Refits on the training blocks and scores the refit on the held-out blocks.
 pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report, IdentifyError> {
-    let mut rep = Report { block_s: BLOCK_S, refit_error: None, scores: Vec::new() };
+    let mut rep =
+        Report { block_s: BLOCK_S, refit_error: None, scores: Vec::new(), quality: Quality::not_measured("") };
     let train = |li: usize, t: f64| !held_out(data, li, t);
-    let refit = match super::identify_data(data, &Options { terms: full.terms.clone(), ..opts.clone() }, &train, &Quiet)
-    {
+    // The refit runs the method the full fit ran (auto resolved), on the same terms.
+    let refit_opts = Options { terms: full.terms.clone(), method: full.method, ..opts.clone() };
+    let refit = match super::identify_data(data, &refit_opts, &train, &Quiet) {
         Ok(r) => Some(r),
         Err(e) => {
             rep.refit_error = Some(e.to_string());
@@ -161,7 +252,7 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q))
         };
         let dat = inertia::data(&data.pairs(), &model, opts.accel_cutoff, opts.v_min_inertia);
-        if let Some(inr) = r.inertia.as_ref().filter(|_| opts.method == super::Method::Papers) {
+        if let Some(inr) = r.inertia.as_ref().filter(|_| full.method == super::Method::Papers) {
             let (mut meas, mut pred) = (Vec::new(), Vec::new());
             for (li, ((acc, y), mask)) in dat.acc.iter().zip(&dat.y).zip(&dat.mask).enumerate() {
                 let p = &data.prepared[li];
@@ -175,13 +266,14 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             push_score(&mut rep.scores, "inertia (filtered eq. 5 residual torque)", &meas, &pred, "N·m", true);
         }
         if data.has_torque() {
+            let written = Written::of(r);
             let (mut meas, mut pred) = (Vec::new(), Vec::new());
             for (li, p) in data.prepared.iter().enumerate() {
                 let Some(d) = &p.d else { continue };
                 for i in 0..p.len() {
                     if held_out(data, li, p.t[i]) {
                         meas.push(d[i]);
-                        pred.push(predict(r, data, Some(&dat.acc), li, i));
+                        pred.push(predict(&written, data, Some(&dat.acc), li, i));
                     }
                 }
             }
@@ -191,9 +283,9 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             let (mut meas_f, mut pred_f) = (Vec::new(), Vec::new());
             for (li, p) in data.prepared.iter().enumerate() {
                 let Some(d) = &p.d else { continue };
-                let df = super::filter::filtfilt(d, opts.accel_cutoff, p.fs);
-                let pr: Vec<f64> = (0..p.len()).map(|i| predict(r, data, Some(&dat.acc), li, i)).collect();
-                let pf = super::filter::filtfilt(&pr, opts.accel_cutoff, p.fs);
+                let df = p.lowpass(d, opts.accel_cutoff);
+                let pr: Vec<f64> = (0..p.len()).map(|i| predict(&written, data, Some(&dat.acc), li, i)).collect();
+                let pf = p.lowpass(&pr, opts.accel_cutoff);
                 for i in 0..p.len() {
                     if held_out(data, li, p.t[i]) {
                         meas_f.push(df[i]);
@@ -242,7 +334,85 @@ pub fn validate(data: &Data, opts: &Options, full: &Identified) -> Result<Report
             }
         }
     }
+    rep.quality = quality(data, opts, full, refit.as_ref(), &rep.scores);
     Ok(rep)
+}
+
+fn determined_set(id: &Identified) -> Vec<String> {
+    id.status.iter().filter(|p| p.determined()).map(|p| p.name()).collect()
+}
+
+/// The held-out figure the write decision reads (see [`Quality`]):
+/// - torque mode: the share of the variance of d (low-passed at the fit's cut-off) on the
+///   held-out blocks that the refit on the other blocks explains (for the papers' procedures:
+///   when the refit determines the same parameters as the full fit);
+/// - when the blocks take a whole test away (the refit determines other parameters, or fails):
+///   the friction curve from plateaus scored on every fourth friction point, refitted on the rest;
+/// - trajectory mode: the free oscillation's last 30 %, predicted from a fit of the first 70 %.
+fn quality(data: &Data, opts: &Options, full: &Identified, refit: Option<&Identified>, scores: &[Score]) -> Quality {
+    let det = determined_set(full);
+    let lp = scores.iter().find(|s| s.what.starts_with("overall low-passed"));
+    // The regression's refit is the same procedure on less data, whatever it then determines;
+    // the papers' refit is only comparable when the held-out blocks left it every test.
+    let same = refit.is_some_and(|r| full.method == super::Method::JointLs || determined_set(r) == det);
+    if let (Some(s), true, true) = (lp, same, data.has_torque()) {
+        return Quality::of(
+            &format!("held-out R² of d low-passed at {} Hz", opts.accel_cutoff),
+            s.skill,
+            format!(
+                "{} held-out samples (every fourth block of {} s), predicted by a refit on the other blocks: RMSE {:.4} \
+                 N·m, Pearson r² {:.4}",
+                s.n,
+                BLOCK_S,
+                s.rmse,
+                s.r2
+            ),
+        );
+    }
+    let why_blocks = match refit {
+        None => "the hold-out refit failed".to_string(),
+        Some(r) => format!(
+            "the refit on the training blocks determines {{{}}} instead of {{{}}} (the held-out blocks take a whole test \
+             away)",
+            determined_set(r).join(", "),
+            det.join(", ")
+        ),
+    };
+    if let Some(f) = full.friction.as_ref().filter(|f| f.points.len() >= 8) {
+        if let Some(sk) = friction_points_cv(f) {
+            return Quality::of(
+                "held-out R² of the friction points (every fourth point held out)",
+                sk,
+                format!("{why_blocks}; the friction curve is scored on its own points instead"),
+            );
+        }
+    }
+    if let Some(s) = scores.iter().find(|s| s.what.contains("last 30 % held out")) {
+        return Quality::of(
+            "held-out R² of the free oscillation's angle (last 30 %, from a fit of the first 70 %)",
+            s.skill,
+            format!("RMSE {:.4} rad, Pearson r² {:.4}", s.rmse, s.r2),
+        );
+    }
+    if det.is_empty() {
+        return Quality::not_measured("nothing determined to score");
+    }
+    Quality::not_measured(why_blocks)
+}
+
+/// The friction curve refitted on three quarters of its points (the coefficients the full
+/// fit has) and scored on the fourth quarter, pooled over the four folds.
+fn friction_points_cv(f: &super::friction::FrictionFit) -> Option<f64> {
+    let (mut meas, mut pred) = (Vec::new(), Vec::new());
+    for fold in 0..4 {
+        let train: Vec<_> = f.points.iter().enumerate().filter(|(i, _)| i % 4 != fold).map(|(_, p)| *p).collect();
+        let g = super::friction::fit_with(&train, f.free)?;
+        for p in f.points.iter().skip(fold).step_by(4) {
+            meas.push(p.f);
+            pred.push(g.eval(p.v));
+        }
+    }
+    Some(skill(&meas, &pred))
 }
 
 fn free_stretch<'a>(
@@ -256,44 +426,69 @@ fn free_stretch<'a>(
     (e > s).then_some((p, (s, e)))
 }
 
+/// How each log's q̇ and q̈ were obtained, in a line or two per log.
+pub fn preparation_text(id: &Identified, cutoff_hz: f64) -> String {
+    let mut s = String::new();
+    let what = |d: &crate::prep::DerivInfo| {
+        if d.source == "logged" {
+            format!("logged (noise {:.2e})", d.error_sd)
+        } else {
+            format!("{}, local cubic ±{:.1} ms (error {:.2e})", d.source, 1e3 * d.half_window_s, d.error_sd)
+        }
+    };
+    for (k, p) in id.preparation.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "log {}: {} of {} samples, {:.1} Hz, {} stretch(es); q̇ {} rad/s; q̈ {} rad/s²",
+            k + 1,
+            p.samples,
+            p.samples_in,
+            p.median_rate_hz,
+            p.segments.len(),
+            what(&p.qd),
+            what(&p.qdd)
+        );
+        for n in &p.notes {
+            let _ = writeln!(s, "       {n}");
+        }
+        if p.rest_share > 0.0 || p.ambiguous_share > 0.0 {
+            let _ = writeln!(
+                s,
+                "       identification evaluates the local cubic over whole stretches and keeps every sample (a \
+                 swing's turning points can pass the rest test; q̈ = 0 there would bias J)"
+            );
+        }
+    }
+    if let Some(p) = id.preparation.first() {
+        let _ = writeln!(
+            s,
+            "smoother: {} (joint_analysis::prep); the fits then low-pass both sides of their equations with \
+             the same zero-phase 2nd-order Butterworth at {cutoff_hz} Hz",
+            p.smoother
+        );
+    }
+    s
+}
+
 /// Human summary of the identified terms (and the scores).
 pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
     let mut s = String::new();
-    if let Some(f) = &id.friction {
-        let _ = writeln!(s, "friction   a = {:.4} [{:.4}, {:.4}] N·m·s²/rad²", f.a, f.ci95[0].0, f.ci95[0].1);
-        let _ = writeln!(s, "           b = {:.4} [{:.4}, {:.4}] N·m·s/rad", f.b, f.ci95[1].0, f.ci95[1].1);
-        let _ = writeln!(
-            s,
-            "           c = {:.4} [{:.4}, {:.4}] N·m   ({} points, {} rejected, 95 % CI)",
-            f.c,
-            f.ci95[2].0,
-            f.ci95[2].1,
-            f.points.len(),
-            f.weights.iter().filter(|w| **w == 0.0).count()
-        );
+    let _ = writeln!(s, "method: {} — {}", id.method.name(), id.method_why);
+    let mut basis = Vec::new();
+    if let Some(f) = id.friction.as_ref().filter(|f| !f.points.is_empty()) {
+        let rej = f.weights.iter().filter(|w| **w == 0.0).count();
+        basis.push(format!("friction from {} plateau points ({rej} rejected as outliers)", f.points.len()));
     }
-    if let Some(w) = &id.weight {
-        let _ = writeln!(
-            s,
-            "weight     amplitude = {:.4} N·m, s = {:.4}{}, phi = {:.4} rad   ({} poses, RMS {:.4} N·m)",
-            w.amplitude,
-            w.s,
-            if w.s_fixed { " (fixed: arc too short)" } else { "" },
-            w.phi,
-            id.poses.len(),
-            w.rms
-        );
+    if let Some(w) = id.weight.as_ref().filter(|_| !id.poses.is_empty()) {
+        basis.push(format!("weight from {} static poses (curve RMS {:.4} N·m)", id.poses.len(), w.rms));
     }
-    if let Some(i) = &id.inertia {
-        let _ = writeln!(
-            s,
-            "inertia    j = {:.4} [{:.4}, {:.4}] kg·m²   ({} samples, {} Hz zero-phase)",
-            i.j, i.ci95[0].0, i.ci95[0].1, i.n, i.cutoff_hz
-        );
+    if let Some(i) = id.inertia.as_ref().filter(|_| id.joint_ls.is_none()) {
+        basis.push(format!("inertia from {} moving samples ({} Hz zero-phase)", i.n, i.cutoff_hz));
     }
-    if let Some(c0) = id.c0 {
-        let _ = writeln!(s, "offset     c0 = {c0:.4} N·m");
+    if !basis.is_empty() {
+        let _ = writeln!(s, "from: {}", basis.join("; "));
     }
+    s.push_str(&super::status::text(&id.status));
     if let Some(sp) = &id.spring {
         if let Some(st) = &sp.stat {
             let _ = writeln!(
@@ -336,15 +531,28 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
         for sc in &r.scores {
             let _ = writeln!(
                 s,
-                "validation {}: RMSE {:.4} {}, r² {:.4} ({} {})",
+                "validation {}: RMSE {:.4} {}, R² {:.4}, Pearson r² {:.4} ({} {})",
                 sc.what,
                 sc.rmse,
                 sc.unit,
+                sc.skill,
                 sc.r2,
                 sc.n,
                 if sc.held_out { "held-out" } else { "in-sample" }
             );
         }
+        let q = &r.quality;
+        let _ = match (q.value, q.passed) {
+            (Some(v), Some(p)) => writeln!(
+                s,
+                "quality: {} = {v:.4} ({} the threshold {}); {}",
+                q.metric,
+                if p { "meets" } else { "below" },
+                q.threshold,
+                q.why
+            ),
+            _ => writeln!(s, "quality: not measured ({})", q.why),
+        };
     }
     s
 }
@@ -574,8 +782,9 @@ fn overall_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
             let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
             let idx: Vec<usize> = subsample(&(0..p.len()).collect::<Vec<_>>(), 4000);
             let meas: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], d[i])).collect();
+            let written = Written::of(id);
             let pred: Vec<(f64, f64)> =
-                idx.iter().map(|&i| (p.t[i], predict(id, data, Some(&dat.acc), li, i))).collect();
+                idx.iter().map(|&i| (p.t[i], predict(&written, data, Some(&dat.acc), li, i))).collect();
             plots.push((
                 "overall.svg",
                 svg_plot(
@@ -729,18 +938,21 @@ fn spring_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
 /// report.md up to the plots: the summary and the score table.
 fn report_md(rep: &Report, id: &Identified) -> String {
     let mut md = String::from("# Identification report\n\n```\n");
+    let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
+    md.push_str(&preparation_text(id, cutoff));
     md.push_str(&summary_text(id, Some(rep)));
     md.push_str("```\n\n");
     let _ = writeln!(md, "Hold-out: every 4th block of {BLOCK_S} s (or an eighth of a shorter log) is left out of a refit and used to score it.\n");
-    md.push_str("| score | n | RMSE | r² | data |\n|---|---|---|---|---|\n");
+    md.push_str("| score | n | RMSE | R² | Pearson r² | data |\n|---|---|---|---|---|---|\n");
     for s in &rep.scores {
         let _ = writeln!(
             md,
-            "| {} | {} | {:.4} {} | {:.4} | {} |",
+            "| {} | {} | {:.4} {} | {:.4} | {:.4} | {} |",
             s.what,
             s.n,
             s.rmse,
             s.unit,
+            s.skill,
             s.r2,
             if s.held_out { "held-out" } else { "in-sample" }
         );

@@ -21,6 +21,8 @@ pub struct LinFit {
     /// final weight of each row (1 for ordinary least squares)
     pub weights: Vec<f64>,
     pub iterations: usize,
+    /// (XᵀWX)⁻¹ (row-major p×p, unscaled by σ²): the coefficients' covariance is σ² times it
+    pub xtx_inv: Vec<f64>,
 }
 
 /// Solves the symmetric positive definite system `a·x = b` (a row-major n×n) by Cholesky;
@@ -155,7 +157,7 @@ fn finish(beta: Vec<f64>, cov: &[f64], sigma: f64, dof: f64, weights: Vec<f64>, 
     let tq = t_quantile_975(dof);
     let se: Vec<f64> = (0..p).map(|j| sigma * cov[j * p + j].max(0.0).sqrt()).collect();
     let ci95 = beta.iter().zip(&se).map(|(b, s)| (b - tq * s, b + tq * s)).collect();
-    LinFit { beta, se, ci95, sigma, weights, iterations }
+    LinFit { beta, se, ci95, sigma, weights, iterations, xtx_inv: cov.to_vec() }
 }
 
 fn median(v: &mut [f64]) -> f64 {

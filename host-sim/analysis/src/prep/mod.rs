@@ -73,6 +73,10 @@ pub struct DerivInfo {
     /// the logged column against the derivative of the signal below it (1 = consistent)
     #[serde(skip_serializing_if = "Option::is_none")]
     pub logged_scale: Option<f64>,
+    /// the error is white noise (a logged column whose own high-frequency noise accounts for
+    /// its difference from the estimate); otherwise it follows the motion (an estimator's
+    /// smoothing, a logger's filter) and no noise estimate of the residual will see it
+    pub white: bool,
 }
 
 /// What the preparation did, for the reports (optional fields of identification and
@@ -115,6 +119,9 @@ pub struct Prepared {
     /// samples where the sign of q̇ is not known: within 3σ of zero, not at rest, no direction
     /// from the way q goes (a reversal, or a near stop the data cannot resolve)
     pub sign_unknown: Vec<bool>,
+    /// the ends of each rest (up to a quarter of it): the joint may still creep there below
+    /// any estimate's resolution
+    pub rest_edge: Vec<bool>,
     /// per sample: the 1σ error (noise and bias) of the q̇ and q̈ used
     pub qd_err: Vec<f64>,
     pub qdd_err: Vec<f64>,
@@ -228,9 +235,40 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         ));
     }
     let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
-    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(resolution_sd(&log.q));
-    let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
+    let quantum = resolution_sd(&log.q);
+    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(quantum);
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
+    let mut q_spec = q_spec;
+    // A coarse encoder's quantisation is not white: a joint moving at v crosses steps of Δ at
+    // v/Δ Hz, tones the spectrum shows as "motion" up to hundreds of Hz, and a window chosen
+    // for that motion is a few samples wide and all noise. Where q is quantised, the motion's
+    // own frequency is checked on q̇ and q̈ seen through a wide window (where the steps average
+    // out): a spectral bandwidth far above it is the encoder, and the derivative sizes are
+    // taken from the wide window's motion instead.
+    if quantum > 0.0 {
+        if let (Some(s), Some(r)) = (q_spec.as_mut(), longest(&segments)) {
+            let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
+            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
+            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+            if v1 > 0.0 && v2 > 0.0 {
+                let w = v2 / v1; // rad/s: the motion's typical angular frequency
+                if s.bandwidth_hz > 5.0 * w / std::f64::consts::TAU {
+                    // a margin of 2 on the frequency for the motion's spread
+                    let w2 = 2.0 * w;
+                    let mut dk = v2;
+                    for k in 2..6 {
+                        s.deriv_rms[k] = dk * w2.powi(k as i32 - 1);
+                        dk = dk.max(0.0);
+                    }
+                    s.deriv_rms[0] = v1;
+                    s.deriv_rms[1] = v2;
+                    s.bandwidth_hz = w2 / std::f64::consts::TAU;
+                }
+            }
+        }
+    }
+    let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
     let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
 
     // q̇ and q̈ from q.
@@ -244,18 +282,33 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     };
     let r1 = Recipe { from_q: true, second: false, h: h1, sigma: q_noise };
     let r2 = Recipe { from_q: true, second: true, h: h2, sigma: q_noise };
-    let (v1, s1) = derive(r1, &log.q, &segments);
+    // q̇ and q̈ are independent fits: one on each core
+    let ((v1, s1), (v2, s2)) = std::thread::scope(|sc| {
+        let second = sc.spawn(|| derive(r2, &log.q, &segments));
+        let first = derive(r1, &log.q, &segments);
+        (first, second.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+    });
     let qd_q = Deriv { info: derived_info("derived from q", h1, dt, &s1, bias1), values: v1, noise: s1, bias: bias1 };
-    let (v2, s2) = derive(r2, &log.q, &segments);
     let qdd_q = Deriv { info: derived_info("derived from q", h2, dt, &s2, bias2), values: v2, noise: s2, bias: bias2 };
+    // Rest is judged on the joint's own angle: a logged derivative may be a filtered estimate
+    // that smears a stop into the dwell.
+    let still_from_q = (qd_q.values.clone(), qd_q.noise.clone(), qdd_q.values.clone(), qdd_q.noise.clone());
 
     // A logged q̇: checked against q, kept when its error is the smaller.
     let (qd, qd_recipe) = match &log.qd {
         Some(v) => {
-            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), "qd", "q")?;
-            let noise = diff.max(own_noise(v, &segments, dt));
-            if noise <= qd_q.effective_error() && consistent(scale) {
-                let info = logged_info(noise, scale);
+            let short = || derive(Recipe { h: (r1.h / 4).max(2), ..r1 }, &log.q, &segments).0;
+            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), &short, "qd", "q")?;
+            let own = own_noise(v, &segments, dt);
+            let noise = diff.max(own);
+            let lag = logged_lag(v, &qd_q.values);
+            if let Some(l) = lag {
+                notes.push(format!(
+                    "the logged qd lags the derivative of q by {l} samples (a filtered estimate): q's is used"
+                ));
+            }
+            if noise <= qd_q.effective_error() && consistent(scale) && lag.is_none() {
+                let info = logged_info(noise, scale, own >= 0.5 * diff);
                 (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
             } else {
                 notes.push(format!(
@@ -291,10 +344,31 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let (qdd, qdd_recipe) = match &log.qdd {
         Some(a) => {
             let best_err = typical(&qdd_best.error());
-            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, "qdd", "qd")?;
-            let noise = diff.max(own_noise(a, &segments, dt));
-            if noise <= qdd_best.effective_error() && consistent(scale) {
-                (Deriv { values: a.clone(), noise: vec![noise; n], bias: 0.0, info: logged_info(noise, scale) }, None)
+            let short = || match qdd_recipe {
+                Some(r) => {
+                    derive(Recipe { h: (r.h / 4).max(2), ..r }, if r.from_q { &log.q } else { &qd.values }, &segments).0
+                }
+                None => qdd_best.values.clone(),
+            };
+            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, &short, "qdd", "qd")?;
+            let own = own_noise(a, &segments, dt);
+            let noise = diff.max(own);
+            let lag = logged_lag(a, &qdd_best.values);
+            if let Some(l) = lag {
+                notes.push(format!(
+                    "the logged qdd lags the estimate by {l} samples (a filtered estimate): the estimate is used"
+                ));
+            }
+            if noise <= qdd_best.effective_error() && consistent(scale) && lag.is_none() {
+                (
+                    Deriv {
+                        values: a.clone(),
+                        noise: vec![noise; n],
+                        bias: 0.0,
+                        info: logged_info(noise, scale, own >= 0.5 * diff),
+                    },
+                    None,
+                )
             } else {
                 notes.push(format!(
                     "the logged qdd is noisier than the estimate ({noise:.3e} vs {best_err:.3e} rad/s²): the estimate is used"
@@ -314,7 +388,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // still: q̇ = q̈ = 0 exactly, so a Coulomb term is sign(0) = 0 rather than the sign of
     // the estimate's noise.
     let min_run = ((2.0 * qd.info.half_window_s.max(qdd.info.half_window_s).max(0.01) / dt).round() as usize).max(3);
-    let rest = detect_rest(&qd.values, &qdd.values, &qd.noise, &qdd.noise, min_run, &segments);
+    // still: the q̇ used (the best estimate, possibly a clean logged one) within its noise, and
+    // q's own q̈ within its noise
+    let rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
     // Motion next to a rest is re-estimated from the motion's side only: a window across the
     // start or end of a move mixes the still joint into the moving one (q̈ jumps there), and
     // its smeared q̇ would put the Coulomb sign wrong for a whole window.
@@ -328,21 +404,42 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
                 runs.push((lo..hi, run));
             }
         }
+        // Only the samples within a window of a run's ends change: their fits are redone on
+        // the run's side alone.
         let redo = |d: &mut Deriv, r: Recipe, src: &[f64]| {
+            let reach = 2 * r.h + 2;
             for (window, run) in &runs {
-                let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
-                estimate_deriv(&log.t, src, std::slice::from_ref(window), r, &mut v, &mut s);
-                d.values[run.clone()].copy_from_slice(&v[run.clone()]);
-                d.noise[run.clone()].copy_from_slice(&s[run.clone()]);
+                let parts: Vec<(std::ops::Range<usize>, std::ops::Range<usize>)> = if run.len() <= 3 * reach {
+                    vec![(window.clone(), run.clone())]
+                } else {
+                    vec![
+                        (window.start..run.start + 2 * reach, run.start..run.start + reach),
+                        (run.end - 2 * reach..window.end, run.end - reach..run.end),
+                    ]
+                };
+                for (w, out) in parts {
+                    let e = lpr::estimate(&log.t[w.clone()], &src[w.clone()], r.h);
+                    let (v, g) = if r.second { (&e.d2, &e.gain2) } else { (&e.d1, &e.gain1) };
+                    for i in out {
+                        d.values[i] = v[i - w.start];
+                        d.noise[i] = r.sigma * g[i - w.start].max(0.0).sqrt();
+                    }
+                }
             }
         };
         let qd_logged = qd.values.clone();
-        if let Some(r) = qd_recipe {
-            redo(&mut qd, r, &log.q);
-        }
-        if let Some(r) = qdd_recipe {
-            redo(&mut qdd, r, if r.from_q { &log.q } else { &qd_logged });
-        }
+        std::thread::scope(|sc| {
+            let (qd, qdd, redo, qd_logged, q) = (&mut qd, &mut qdd, &redo, &qd_logged, &log.q);
+            let h = sc.spawn(move || {
+                if let Some(r) = qdd_recipe {
+                    redo(qdd, r, if r.from_q { q } else { qd_logged });
+                }
+            });
+            if let Some(r) = qd_recipe {
+                redo(qd, r, q);
+            }
+            h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        });
         for (i, &still) in rest.iter().enumerate() {
             if still {
                 qd.values[i] = 0.0;
@@ -367,11 +464,58 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             100.0 * ambiguous_share
         ));
     }
+    // A stop's last creep and a start's first creep sit below every estimate's resolution:
+    // the ends of each rest may still be motion. Marked, so an analysis whose model jumps at
+    // q̇ = 0 (a pure Coulomb sign) can leave them out.
+    let rest_edge = rest_edges(&rest, &segments, &qd.values, hold, hold.max((0.1 / dt).round() as usize));
     let rest_share = share(&rest);
     if rest_share > 0.0 {
         notes.push(format!("{:.1} % of the samples are at rest (q̇ = q̈ = 0 there)", 100.0 * rest_share));
     }
-    let (qd_err, qdd_err) = (qd.error(), qdd.error());
+    let (mut qd_err, mut qdd_err) = (qd.error(), qdd.error());
+    // The estimator's bias follows the motion: where the motion turns sharply (a stop, a
+    // reversal at speed) it is far above the log's typical figure. Measured locally by
+    // comparing each estimate with the same fit on half the window.
+    std::thread::scope(|sc| {
+        let (qd_err, qdd_err, log, segments, rest, qd, qdd) =
+            (&mut qd_err, &mut qdd_err, &log, &segments, &rest, &qd, &qdd);
+        let h = sc.spawn(move || {
+            if let Some(r) = qdd_recipe {
+                let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
+                let q_quantum = if r.from_q { quantum } else { 0.0 };
+                local_bias(&log.t, src, segments, r, &qdd.values, rest, (q_quantum, &qd.values), qdd_err);
+            }
+        });
+        if let Some(r) = qd_recipe {
+            local_bias(&log.t, &log.q, segments, r, &qd.values, rest, (quantum, &qd.values), qd_err);
+        }
+        h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+    });
+    // A quantised q resolves a speed no finer than one step over the window (its error is
+    // not independent from sample to sample, so the noise formula alone is too hopeful there).
+    // A faster move crosses k steps inside the window and the staircase's error averages down
+    // as 1/k: the floor holds near zero speed, where it matters, and fades with speed.
+    if quantum > 0.0 {
+        let step = quantum * 12f64.sqrt();
+        let crossed = |i: usize, w: f64| (qd.values[i].abs() * 2.0 * w / step).max(1.0);
+        if qd.info.source != "logged" {
+            let w = qd.info.half_window_s.max(dt);
+            let floor = step / (2.0 * w);
+            qd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
+        }
+        if qdd.info.source == "derived from q" {
+            let w = qdd.info.half_window_s.max(dt);
+            let floor = step / (w * w);
+            qdd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
+        }
+    }
+    // At rest q̇ = q̈ = 0 is taken, not estimated: no estimation error there.
+    for (i, &still) in rest.iter().enumerate() {
+        if still {
+            qd_err[i] = 0.0;
+            qdd_err[i] = 0.0;
+        }
+    }
     // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
     // from q, not at rest): a pure Coulomb sign there is a coin toss.
     let sign_unknown: Vec<bool> =
@@ -404,11 +548,85 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         direction,
         ambiguous,
         sign_unknown,
+        rest_edge,
         qd_err,
         qdd_err,
         qdd_noise: qdd.noise,
         report,
     })
+}
+
+/// Raises `err` (per-sample 1σ error of `est`, the recipe's estimate) to the local bias:
+/// the estimate at half the window differs from it by the bias's change plus noise; the squared
+/// difference smoothed over a window, less its noise share, times the factor that turns the
+/// change into the bias (the leading bias grows as h⁴ for q̇ from q and as h² otherwise).
+#[allow(clippy::too_many_arguments)] // the estimate, its recipe and its source, each needed
+fn local_bias(
+    t: &[f64],
+    src: &[f64],
+    segments: &[std::ops::Range<usize>],
+    r: Recipe,
+    est: &[f64],
+    rest: &[bool],
+    (quantum, speed): (f64, &[f64]),
+    err: &mut [f64],
+) {
+    let half = Recipe { h: (r.h / 2).max(2), ..r };
+    if half.h == r.h {
+        return;
+    }
+    let n = est.len();
+    let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
+    estimate_deriv(t, src, segments, half, &mut v, &mut s);
+    // the noise of the difference: both estimates share their samples, so its variance is
+    // the half window's less the full one's (the full window's is nested in it to first order)
+    let dt = (t[t.len() - 1] - t[0]) / (t.len().max(2) - 1) as f64;
+    let gain = |h: usize| {
+        lpr::weights(h, dt).map_or(0.0, |(w1, w2)| {
+            let w = if r.second { w2 } else { w1 };
+            w.iter().map(|x| x * x).sum::<f64>()
+        })
+    };
+    let noise_var = r.sigma * r.sigma * (gain(half.h) - gain(r.h)).max(0.0);
+    let grow = if r.from_q && !r.second { 16.0 / 15.0 } else { 4.0 / 3.0 };
+    // A quantised source's staircase error is not white either: on the half window it is up to
+    // one step over the window, less as the move crosses more steps (as the error floor after
+    // this); that too is no bias.
+    let step = quantum * 12f64.sqrt();
+    let w_half = half.h as f64 * dt;
+    let stair_var = |i: usize| {
+        if step <= 0.0 || w_half <= 0.0 {
+            return 0.0;
+        }
+        let crossed = (speed[i].abs() * 2.0 * w_half / step).max(1.0);
+        let f = if r.second { step / (w_half * w_half) } else { step / (2.0 * w_half) } / crossed;
+        f * f
+    };
+    let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) - stair_var(i) }).collect();
+    for seg in segments {
+        let mut acc = 0.0;
+        let (lo, hi) = (seg.start, seg.end);
+        let w = r.h;
+        // running sum over ±w inside the segment
+        let mut a = lo;
+        let mut b = lo;
+        for i in lo..hi {
+            let (want_a, want_b) = (i.saturating_sub(w).max(lo), (i + w + 1).min(hi));
+            while b < want_b {
+                acc += d2[b];
+                b += 1;
+            }
+            while a < want_a {
+                acc -= d2[a];
+                a += 1;
+            }
+            let mean = acc.max(0.0) / (b - a).max(1) as f64;
+            let bias = grow * (mean - noise_var).max(0.0).sqrt();
+            if bias > err[i] {
+                err[i] = err[i].hypot(bias);
+            }
+        }
+    }
 }
 
 /// A logged derivative whose scale against the estimate is off by more than 20 % is not the
@@ -442,10 +660,11 @@ fn derived_info(source: &'static str, h: usize, dt: f64, noise: &[f64], bias: f6
         noise_sd: nsd,
         logged_noise_sd: None,
         logged_scale: None,
+        white: false,
     }
 }
 
-fn logged_info(noise: f64, scale: f64) -> DerivInfo {
+fn logged_info(noise: f64, scale: f64, white: bool) -> DerivInfo {
     DerivInfo {
         source: "logged",
         half_window_s: 0.0,
@@ -453,6 +672,7 @@ fn logged_info(noise: f64, scale: f64) -> DerivInfo {
         noise_sd: noise,
         logged_noise_sd: Some(noise),
         logged_scale: Some(scale),
+        white,
     }
 }
 
@@ -461,7 +681,8 @@ fn logged_info(noise: f64, scale: f64) -> DerivInfo {
 /// estimated velocity. Far from rest it is the plain sign; at rest (v̂ ≈ 0 within its error)
 /// it is ≈ 0, as the spec's `sign(0) = 0`, instead of a random ±1 from the estimate's noise.
 pub fn expected_sign(v: f64, band: f64, sd: f64) -> f64 {
-    if !(sd > 0.0) {
+    // 8σ beyond the band the error can no longer reach it (the tail is below 1e-15)
+    if !(sd > 0.0) || v.abs() > band.max(0.0) + 8.0 * sd {
         return crate::diagnose::sgn_band(v, band);
     }
     if !(band > 0.0) {
@@ -522,6 +743,52 @@ const GAUSS_HERMITE_20: [(f64, f64); 20] = [
     (4.603682449550744, 4.399340992273181e-10),
     (5.387480890011233, 2.229393645534151e-13),
 ];
+
+/// The first and last samples of every rest run that may still be a stop's creep or a start's
+/// first creep: at least `reach`, and as long as the adjacent move's own slow-down says it
+/// takes to stop (a smooth approach's q̇ falls like the square of the time left, so from q̇ and
+/// its slope over `span` samples the time left is 2·q̇/q̇'); at most a quarter of the run.
+fn rest_edges(rest: &[bool], segments: &[std::ops::Range<usize>], qd: &[f64], span: usize, reach: usize) -> Vec<bool> {
+    // samples a move next to a rest at `edge` (its last or first moving sample) takes to stop,
+    // going from `edge` away from `inner` (the sample `span` further into the move)
+    let creep = |edge: usize, inner: usize| -> usize {
+        let (v, w) = (qd[edge].abs(), qd[inner].abs());
+        if w <= v || qd[edge] * qd[inner] <= 0.0 {
+            return 0; // not a slow-down into the rest: an abrupt stop or start
+        }
+        let steps = 2.0 * v / ((w - v) / span as f64);
+        if steps.is_finite() {
+            steps.round().min(usize::MAX as f64 / 2.0) as usize
+        } else {
+            0
+        }
+    };
+    let mut edge = vec![false; rest.len()];
+    for seg in segments {
+        let mut i = seg.start;
+        while i < seg.end {
+            if !rest[i] {
+                i += 1;
+                continue;
+            }
+            let j = (i..seg.end).find(|&k| !rest[k]).unwrap_or(seg.end);
+            let quarter = (j - i) / 4;
+            // a rest that starts or ends the segment has no move on that side
+            if i > seg.start {
+                let inner = (i - 1).saturating_sub(span).max(seg.start);
+                let m = reach.max(creep(i - 1, inner)).min(quarter);
+                edge[i..i + m].iter_mut().for_each(|e| *e = true);
+            }
+            if j < seg.end {
+                let inner = (j + span).min(seg.end - 1);
+                let m = reach.max(creep(j, inner)).min(quarter);
+                edge[j - m..j].iter_mut().for_each(|e| *e = true);
+            }
+            i = j;
+        }
+    }
+    edge
+}
 
 /// The runs of samples not at rest inside `seg`.
 fn motion_runs(rest: &[bool], seg: std::ops::Range<usize>) -> Vec<std::ops::Range<usize>> {
@@ -794,8 +1061,8 @@ fn resolution_sd(x: &[f64]) -> f64 {
     if steps.len() < 20 {
         return 0.0;
     }
-    steps.sort_by(|a, b| a.total_cmp(b));
-    let smallest = steps[steps.len() / 100];
+    let k = steps.len() / 100;
+    let (_, &mut smallest, _) = steps.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     // Quantised: most changes are whole multiples of the smallest.
     let on_grid = steps
         .iter()
@@ -827,7 +1094,14 @@ const FACTORS: [(f64, &str); 9] = [
 /// The logged column `v` against the estimate `e` (error `e_sd`): its scale (least squares
 /// slope where the estimate is well above its error) and its noise. A scale at a unit factor
 /// refuses the log naming it.
-fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Result<(f64, f64), PrepError> {
+fn compare_logged(
+    v: &[f64],
+    e: &[f64],
+    e_sd: f64,
+    short: &dyn Fn() -> Vec<f64>,
+    name: &str,
+    of: &str,
+) -> Result<(f64, f64), PrepError> {
     let strong: Vec<(f64, f64)> =
         v.iter().zip(e).filter(|(_, e)| e.abs() > 5.0 * e_sd).map(|(a, b)| (*a, *b)).collect();
     let mut scale = 1.0;
@@ -851,11 +1125,53 @@ fn compare_logged(v: &[f64], e: &[f64], e_sd: f64, name: &str, of: &str) -> Resu
     if r.is_empty() {
         return Ok((scale, 0.0));
     }
+    let rms = (r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
     let k = r.len() / 2;
     let (_, m, _) = r.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     let diff_sd = 1.4826 * *m;
     let noise = (diff_sd * diff_sd - e_sd * e_sd).max(0.0).sqrt();
+    // Differences whose RMS is far beyond their typical size sit in a few places, where one of
+    // the two smears every sudden change: a filtered column, or the estimate's own window. The
+    // one that does is the one farther there from an estimate on a quarter of the window (less
+    // bias, more noise); if that is the column, its error is that RMS, not its median.
+    let concentrated = rms > 3.0 * diff_sd.max(e_sd);
+    let column_smears = concentrated && {
+        let s = short();
+        let (mut col, mut est) = (0.0, 0.0);
+        for ((a, b), c) in v.iter().zip(e).zip(&s) {
+            if (a - b).abs() > 3.0 * diff_sd.max(e_sd) {
+                col += (a - c) * (a - c);
+                est += (b - c) * (b - c);
+            }
+        }
+        col >= est
+    };
+    let noise = if column_smears { noise.max((rms * rms - e_sd * e_sd).max(0.0).sqrt()) } else { noise };
     Ok((scale, noise))
+}
+
+/// Samples by which a logged column lags (positive) or leads the estimate of the same
+/// quantity, when shifting it explains their difference clearly better (the shift's squared
+/// difference under 70 % of the unshifted one): a drive's filtered estimate. `None`: no shift.
+fn logged_lag(v: &[f64], e: &[f64]) -> Option<i64> {
+    let n = v.len().min(e.len());
+    if n < 100 {
+        return None;
+    }
+    let sse = |lag: i64| -> f64 {
+        let stride = (n / 50_000).max(1);
+        (20..n - 20)
+            .step_by(stride)
+            .map(|i| {
+                let j = (i as i64 - lag) as usize;
+                let d = v[i] - e[j];
+                d * d
+            })
+            .sum()
+    };
+    let s0 = sse(0);
+    let (best, sb) = (-10..=10).map(|l| (l, sse(l))).min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (best != 0 && sb < 0.7 * s0).then_some(best)
 }
 
 #[cfg(test)]

@@ -47,6 +47,10 @@ pub struct DiagnoseArgs {
     /// At most this many effects in the forward selection (1 ≤ N ≤ the vocabulary's 9)
     #[arg(long, default_value_t = 3, value_parser = num::count(1, Kind::ALL.len() as u64))]
     pub max_effects: usize,
+    /// Write the --emit-model even when it fails the plausibility gate (non-positive inertia,
+    /// negative friction or stiffness, a weight the log's static samples contradict)
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
@@ -62,6 +66,9 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
     let d = diagnose::diagnose(&log, &model, &Options { max_effects: a.max_effects })
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.log.display()))?;
     let elapsed = t0.elapsed().as_secs_f64();
+    if model_out.is_some() {
+        gate_emitted(&d.emitted_model, &log, a.force)?;
+    }
     // Render everything first, write every output to its temporary file, then commit them:
     // a failure on any one leaves none of them behind.
     let json = serde_json::to_string_pretty(&d.report)?;
@@ -79,6 +86,26 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
     }
     print_summary(&mut outs.human(), &d.report, elapsed);
     Ok(())
+}
+
+/// The plausibility gate on the emitted model, with the diagnosed log as the static evidence.
+/// The emitted text is a plant file (the model plus effect sections), so it is read as one;
+/// refused, nothing at all is written (the outputs are all or nothing).
+fn gate_emitted(text: &str, log: &JointLog, force: bool) -> anyhow::Result<()> {
+    let model = match host_sim::plant::PlantFile::parse(text, "--emit-model") {
+        Ok(p) => p.model,
+        Err(_) => ModelFile::parse(text, "--emit-model")?,
+    };
+    let gate = joint_analysis::plausible::check(&model, std::slice::from_ref(log));
+    if gate.plausible() {
+        return Ok(());
+    }
+    let why = gate.reasons().join("; ");
+    if force {
+        eprintln!("warning: --emit-model: implausible model written (--force): {why}");
+        return Ok(());
+    }
+    anyhow::bail!("--emit-model: the emitted model is implausible, nothing written: {why} (--force writes it anyway)")
 }
 
 fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
@@ -108,6 +135,15 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
         r.gap.holdout_rmse,
         r.gap.noise_floor
     );
+    if let Some(k) = r.gap.scored_samples {
+        say!(o, "  (RMSE and regimes on the {k} samples scored; the others say nothing about the model: their direction of motion is unknown)");
+    }
+    if let Some(k) = r.gap.rest_creep_samples {
+        say!(
+            o,
+            "  {k} samples inside rests step by the model's ±c: a creep below the q̇ resolution (direction unknown, left out)"
+        );
+    }
     if let Some(sd) = r.gap.qdd_noise_sd {
         say!(o, "  the log's q̈ carries white noise of ≈ {sd:.3} rad/s²: removed from the inertia's fit (errors in variables)");
     }

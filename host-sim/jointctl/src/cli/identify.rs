@@ -26,6 +26,12 @@ pub const REPORT: FolderKind = FolderKind {
 /// offset from moving samples (zero-phase filtered, eq. 5); spring K from the static
 /// torque–angle slope, J and B from a free oscillation; a gravity table over q and the other
 /// joints' angles from static samples. Segments are found from the data; --window overrides.
+/// A log without plateaus or poses gets the whole-log regression (--method auto).
+///
+/// Every parameter is reported with its 95 % CI and a status (determined, weakly determined,
+/// not excited, with the test that would pin it); only determined ones are written, and only
+/// when the held-out R² is at least 0.5 and the model passes the plausibility gate (--force
+/// overrides those two). Otherwise nothing is written and the exit status is 1.
 ///
 /// Example:
 ///   jointctl simulate --plant examples/plants/trunk-right.toml \
@@ -54,10 +60,15 @@ pub struct IdentifyArgs {
     /// the automatic search for that kind (0 ≤ START < END, finite); repeatable
     #[arg(long = "window", value_name = "START:END:KIND", value_parser = parse_window)]
     pub windows: Vec<Window>,
-    /// papers = the papers' procedures (plateaus, poses, motion); joint-ls = one least-squares
-    /// fit of all rigid terms on every sample, for logs without plateaus or poses
-    #[arg(long, value_parser = super::choice::described(&Method::NAMES), default_value = "papers")]
+    /// auto = the papers' procedures where the log holds their tests (± plateaus, static poses,
+    /// a free oscillation), the whole-log regression where it holds none; papers = the papers'
+    /// procedures only; joint-ls = one least-squares fit of all rigid terms on every sample
+    #[arg(long, value_parser = super::choice::described(&Method::NAMES), default_value = "auto")]
     pub method: Method,
+    /// Write the model even when its held-out R² is below 0.5 or it fails the plausibility
+    /// gate (it still holds the determined parameters only, and must pass the joint's check)
+    #[arg(long)]
+    pub force: bool,
     /// Zero-phase low-pass cut-off of the inertia (and joint-ls) fit, Hz (0 < HZ ≤ 10000; at or
     /// above the log's Nyquist frequency the filter passes everything)
     #[arg(long, value_name = "HZ", default_value_t = 5.0, value_parser = num::positive(10_000.0, "Hz"))]
@@ -134,38 +145,63 @@ pub fn run(a: &IdentifyArgs) -> anyhow::Result<()> {
     let progress = Bar(bar);
     let (data, id) = identify::identify(&logs, &opts, &progress)?;
     let name = a.name.clone().or_else(|| a.out.file_stem().map(|s| s.to_string_lossy().into_owned()));
-    let mf = identify::model_file(&id, name.as_deref())?;
-    // The report is built in a folder beside DIR; the model and the report are committed only
-    // when both were written.
-    let (rep, staged) = match report_out {
-        Some(slot) => {
-            let r = identify::report::validate(&data, &opts, &id)?;
-            let st = outs.stage(slot)?;
-            identify::report::write_dir(st.path(), &r, &id, &data)
-                .with_context(|| format!("{}: cannot write the report", st.named()))?;
-            (Some(r), Some(st))
-        }
-        None => (None, None),
-    };
+    // The held-out refit always runs: the decision to write reads its quality.
+    let rep = identify::report::validate(&data, &opts, &id)?;
+    let decision = identify::decide::decide(&data, &id, &rep.quality, name.as_deref(), a.force)?;
     if let Some(b) = &progress.0 {
         b.finish_and_clear();
     }
-    let mut sink = outs.open(model_out)?;
-    sink.write_all(mf.to_toml_string().as_bytes()).with_context(|| format!("{}: cannot write", sink.named()))?;
-    if let Some(st) = staged {
-        st.commit()?;
+    if let Some(mf) = &decision.model {
+        // The report is built in a folder beside DIR; the model and the report are committed
+        // only when both were written.
+        let staged = match report_out {
+            Some(slot) => {
+                let st = outs.stage(slot)?;
+                identify::report::write_dir(st.path(), &rep, &id, &data)
+                    .with_context(|| format!("{}: cannot write the report", st.named()))?;
+                Some(st)
+            }
+            None => None,
+        };
+        let mut sink = outs.open(model_out)?;
+        sink.write_all(mf.to_toml_string().as_bytes()).with_context(|| format!("{}: cannot write", sink.named()))?;
+        if let Some(st) = staged {
+            st.commit()?;
+        }
+        sink.commit()?;
     }
-    sink.commit()?;
     let mut o = outs.human();
     if a.json {
-        let v = serde_json::json!({ "model": a.out.display().to_string(), "identified": id, "report": rep });
+        let v = serde_json::json!({
+            "model": a.out.display().to_string(),
+            "written": decision.written,
+            "decision": decision,
+            "identified": id,
+            "report": rep,
+        });
         say!(o, "{}", serde_json::to_string_pretty(&v)?);
     } else {
-        say_raw!(o, "{}", identify::report::summary_text(&id, rep.as_ref()));
-        say!(o, "wrote {}", a.out.display());
-        if let Some(d) = &a.report {
-            say!(o, "report in {}", d.display());
+        say_raw!(o, "{}", identify::report::preparation_text(&id, opts.accel_cutoff));
+        say_raw!(o, "{}", identify::report::summary_text(&id, Some(&rep)));
+        for c in &decision.plausibility.checked {
+            say!(o, "plausibility: {c}");
         }
+        for w in &decision.warnings {
+            say!(o, "warning: {w}");
+        }
+        for f in &decision.overridden {
+            say!(o, "forced past: {f}");
+        }
+        if decision.written {
+            say!(o, "wrote {} ({})", a.out.display(), decision.params.join(", "));
+            if let Some(d) = &a.report {
+                say!(o, "report in {}", d.display());
+            }
+        }
+    }
+    if !decision.written {
+        let force = if decision.params.is_empty() { "" } else { " (--force writes it anyway)" };
+        anyhow::bail!("nothing written to {}: {}{force}", a.out.display(), decision.refused.join("; "));
     }
     Ok(())
 }

@@ -12,7 +12,8 @@ use joint_formats::output::Plan;
 
 /// Convert a data set's file into a joint log (CSV, spec §1).
 ///
-/// Formats: dfki-pendulum (time,position,velocity,torque), jensen-free-swing
+/// Formats: dfki-pendulum (time,position,velocity,torque), dfki-double-pendulum (one joint
+/// of the DFKI double pendulum's sys-id record; --joint 1..2), jensen-free-swing
 /// (time_s_nominal,angle_deg), panda-gaz (one joint of the Panda exciting trajectory; --joint
 /// 1..7), ur5e-friction (one joint of the UR5e friction table as held constant-velocity
 /// stretches; --joint 0..5).
@@ -31,7 +32,7 @@ pub struct ImportArgs {
     /// Joint log to write, or - for stdout
     #[arg(long, value_name = "LOG.csv")]
     pub out: PathBuf,
-    /// Joint to extract (panda-gaz: 1..7, ur5e-friction: 0..5)
+    /// Joint to extract (panda-gaz: 1..7, ur5e-friction: 0..5, dfki-double-pendulum: 1..2)
     #[arg(long, value_parser = num::count(0, 7))]
     pub joint: Option<usize>,
     /// ur5e-friction: motor-to-joint torque ratio (0 < N ≤ 1000)

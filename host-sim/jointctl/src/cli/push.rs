@@ -8,7 +8,9 @@ use joint_formats::model_file::ModelFile;
 use std::path::PathBuf;
 
 /// Push a model TOML to a joint node: every parameter is staged by SDO, read back, and the
-/// set is committed as a whole (the joint checks it and keeps its old set if it fails).
+/// set is committed as a whole (the joint checks it and keeps its old set if it fails). A model
+/// that fails the plausibility gate (an [inertia] j ≤ 0, negative friction or spring terms) is
+/// refused before any CAN traffic unless --force.
 ///
 /// Example:
 ///   jointctl push examples/models/trunk-right.toml --node 5 --bus slcan:/dev/ttyACM0 --save
@@ -31,6 +33,10 @@ pub struct PushArgs {
     /// Print one JSON object instead of the human summary
     #[arg(long)]
     pub json: bool,
+    /// Push a model that fails the plausibility gate (non-positive inertia, negative friction
+    /// or stiffness); the joint's own check still applies
+    #[arg(long)]
+    pub force: bool,
     #[command(flatten)]
     pub bus: BusArgs,
 }
@@ -40,6 +46,15 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     let mf = ModelFile::read_file(&a.model)?;
     // Refuse locally what the joint would refuse, with the file's key and line named.
     mf.param_set()?;
+    // And what it would accept but no physical joint has; both before any CAN traffic.
+    let gate = joint_analysis::plausible::check(&mf, &[]);
+    if !gate.plausible() {
+        let why = gate.reasons().join("; ");
+        if !a.force {
+            anyhow::bail!("{}: implausible model, not pushed: {why} (--force pushes it anyway)", a.model.display());
+        }
+        eprintln!("warning: {}: implausible model pushed (--force): {why}", a.model.display());
+    }
     let raw = mf.raw_params()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
     let bar = indicatif::ProgressBar::new(1);

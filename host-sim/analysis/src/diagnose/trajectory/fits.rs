@@ -288,7 +288,14 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
     let units = split.units;
     let mut s = Scored {
         effects: vec![],
-        design: crate::diagnose::candidates::Design { cols: vec![], lag: 0.0, spans: vec![] },
+        design: crate::diagnose::candidates::Design {
+            cols: vec![],
+            lag: 0.0,
+            channel: crate::diagnose::candidates::Channel::U,
+            dahl: None,
+            spans: vec![],
+            prior: vec![],
+        },
         beta: theta,
         sse: 0.0,
         n: split.n_held(),

@@ -490,12 +490,17 @@ where
     out.into_iter().map(|(_, f)| f).collect()
 }
 
+/// A chosen effect whose held-out RMSE is within this factor of the floor leaves nothing a
+/// second effect could be shown to explain (torque mode's former `select::SECOND_EFFECT`; torque
+/// mode now asks a share of the excess instead, trajectory mode keeps the stricter gate).
+const SECOND_EFFECT: f64 = 1.5;
+
 /// Forward selection's second step: while the chosen effect leaves the held-out RMSE above
 /// `SECOND_EFFECT`× the floor, every other effect family is fitted on top of it and the
 /// parsimonious significant one is kept.
 fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, opts: &Options) {
     let Some(first) = j.chosen.first().cloned() else { return };
-    if opts.max_effects < 2 || fits[first.fit].scored.rmse() <= super::select::SECOND_EFFECT * j.floor {
+    if opts.max_effects < 2 || fits[first.fit].scored.rmse() <= SECOND_EFFECT * j.floor {
         return;
     }
     let lay = pb.lay;

@@ -105,6 +105,8 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             unit: "rad",
             at_noise_floor: vafter <= AT_FLOOR * j.floor,
             qdd_noise_sd: None,
+            scored_samples: None,
+            rest_creep_samples: None,
         },
         regimes,
         effects,
