@@ -9,7 +9,7 @@
 //!   estimate by more than that uncertainty (χ² with 2 degrees of freedom, p < 0.001);
 //!   `parameters` is P against S; an effect must beat P and F. Each with the unit test of
 //!   [`crate::diagnose::select::compare`], Bonferroni over everything tested, a 2 % minimum gain,
-//!   nothing tested once F is within 5 % of the noise floor, and never a fit whose values are
+//!   nothing tested once F is within 10 % of the noise floor (`AT_FLOOR`), and never a fit whose values are
 //!   unphysical (the fits are bounded to physical terms; the effects' sign rules as in torque
 //!   mode).
 //! - **parsimony**: among significant effects the best held-out fit wins unless one with fewer
@@ -46,6 +46,8 @@ pub struct Outcome {
 pub struct Judged {
     pub alpha_each: f64,
     pub floor: f64,
+    /// the floor's degrees of freedom when it was read from a training residual (short logs)
+    pub floor_dof: Option<usize>,
     /// F is S (the start settled by the data), else R0
     pub f_is_s: bool,
     /// S's start against the estimate: χ² (2 dof)
@@ -77,14 +79,31 @@ fn chi2_upper(k: f64, z: f64) -> f64 {
     k * (1.0 - a + z * a.sqrt()).powi(3)
 }
 
-/// Whether held-out mean square `mse` over `n` samples is significantly above `floor²`.
-pub fn above_floor(mse: f64, n: usize, floor: f64) -> bool {
+/// Upper-tail normal deviate of the F ratio `f` with `(k, d)` degrees of freedom (Paulson's
+/// approximation, from Wilson–Hilferty on both χ²s; within a few hundredths of the exact
+/// quantiles from d ≈ 6 on).
+fn f_deviate(f: f64, k: f64, d: f64) -> f64 {
+    let (a, b) = (2.0 / (9.0 * k), 2.0 / (9.0 * d));
+    let c = f.cbrt();
+    ((1.0 - b) * c - (1.0 - a)) / (b * c * c + a).sqrt()
+}
+
+/// z of p = 0.001, one-sided.
+const Z_001: f64 = 3.090_232;
+
+/// Whether held-out mean square `mse` over `n` samples is significantly above `floor²`
+/// (p < 0.001): χ²_n when the floor is taken as known, the F ratio with `floor_dof` degrees of
+/// freedom in the denominator when it was itself read from a residual of that many.
+pub fn above_floor(mse: f64, n: usize, floor: f64, floor_dof: Option<usize>) -> bool {
     if !(floor > 0.0) || n == 0 {
         return mse > 0.0;
     }
-    // z of p = 0.001 (one-sided)
     let k = n as f64;
-    mse * k / (floor * floor) > chi2_upper(k, 3.090_232)
+    let ratio = mse / (floor * floor);
+    match floor_dof {
+        Some(d) => f_deviate(ratio, k, d as f64) > Z_001,
+        None => ratio * k > chi2_upper(k, Z_001),
+    }
 }
 
 fn test(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
@@ -109,7 +128,7 @@ pub fn judge(
     lay: &Layout,
     fits: &[Fitted],
     families: &[Vec<usize>],
-    floor: f64,
+    (floor, floor_dof): (f64, Option<usize>),
     start_sd: (f64, f64, f64, f64),
 ) -> Judged {
     let (r0, s, p) = (&fits[0], &fits[1], &fits[2]);
@@ -185,12 +204,12 @@ pub fn judge(
         "parameters"
     } else if initial.significant {
         "initial_state"
-    } else if f.scored.rmse() > UNEXPLAINED * floor && above_floor(f.scored.mse(), f.scored.n, floor) {
+    } else if f.scored.rmse() > UNEXPLAINED * floor && above_floor(f.scored.mse(), f.scored.n, floor, floor_dof) {
         "unexplained"
     } else {
         "none"
     };
-    Judged { alpha_each, floor, f_is_s, start_chi2, initial, params, effects, own, chosen, verdict }
+    Judged { alpha_each, floor, floor_dof, f_is_s, start_chi2, initial, params, effects, own, chosen, verdict }
 }
 
 /// The variant of one effect family that speaks for it: the best held-out fit among its
@@ -284,5 +303,17 @@ mod tests {
         // χ²_10(0.001) = 29.59, χ²_100(0.001) = 149.4
         assert!((chi2_upper(10.0, 3.090_232) / 29.59 - 1.0).abs() < 0.01);
         assert!((chi2_upper(100.0, 3.090_232) / 149.4 - 1.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn f_deviate_matches_the_f_tables_and_an_estimated_floor_asks_more() {
+        // F(10, 20) and F(18, 35) at p = 0.001: 5.075 and 3.378 (tables)
+        assert!((f_deviate(5.075, 10.0, 20.0) - Z_001).abs() < 0.05);
+        assert!((f_deviate(3.378, 18.0, 35.0) - Z_001).abs() < 0.05);
+        // 12 held-out samples at 3× the floor's mean square: clear against a known floor,
+        // not against one read from 14 degrees of freedom
+        assert!(above_floor(3.0, 12, 1.0, None));
+        assert!(!above_floor(3.0, 12, 1.0, Some(14)));
+        assert!(above_floor(9.0, 12, 1.0, Some(14)));
     }
 }

@@ -84,7 +84,15 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
     let n = ctx.q.len();
     let refit_used = matches!(j.verdict, "parameters") || !j.chosen.is_empty();
     let refit_base = if refit_used { final_fit.base(ctx.lay) } else { &ctx.lay.beta0 };
-    let warnings = crate::diagnose::refit_warnings(&effects);
+    let mut warnings = crate::diagnose::refit_warnings(&effects);
+    if let Some(d) = j.floor_dof {
+        warnings.push(format!(
+            "short log ({n} samples, {} held out): the noise floor is read from the fits' training residual ({d} \
+             degrees of freedom), so a model error the refit absorbs there counts as noise; a `none` here means \
+             this log cannot tell, not that the model is confirmed",
+            ctx.split.n_held()
+        ));
+    }
     let report = Report {
         mode: "trajectory",
         samples: n,
@@ -114,9 +122,9 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         selected,
         refit: nest(refit_values(ctx.model, &ctx.lay.cols, refit_base)),
         test: TestInfo {
-            method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (the last 30 % in 20 units, \
+            method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (six interleaved held-out blocks of 20, up to four units each, \
                      or one per sample when fewer; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
-                     nothing tested once the file's model is within 5 % of the noise floor; initial_state only when the \
+                     nothing tested once the file's model is within 10 % of the noise floor; initial_state only when the \
                      freed start differs from the log's estimate beyond its uncertainty (χ², 2 dof, p < 0.001)",
             alpha: ALPHA,
             alpha_each: j.alpha_each,
