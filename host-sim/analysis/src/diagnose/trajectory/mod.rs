@@ -115,6 +115,8 @@ struct Window<'a> {
     n: usize,
     rest_tail: Option<super::RestTail>,
     prior0: Prior,
+    /// the log has no q̇ column: the assumed start is rest at the first angle
+    assumed_rest: bool,
 }
 
 impl<'a> Window<'a> {
@@ -135,9 +137,22 @@ impl<'a> Window<'a> {
     /// out (see [`settled_from`]).
     fn cut(prep: &'a Prepared, seg: std::ops::Range<usize>, model: &ModelFile) -> Result<Window<'a>, DiagError> {
         let s0 = seg.start;
-        let v0 = if prep.rest[s0] { 0.0 } else { prep.qd()[s0] };
-        let prior0 = Prior { q: prep.log.q[s0], v: v0, sd_q: prep.report.q_noise_sd.max(1e-12), sd_v: prep.qd_err[s0] };
-        let mut w = Window { prep, seg, n: 0, rest_tail: None, prior0 };
+        // The assumed start: the first angle, and the logged q̇ there; without a q̇ column, rest
+        // (a free response is a release, a driven one starts from rest). A q̇ derived from q at a
+        // log's first sample is a one-sided estimate, biased well beyond its reported error on
+        // short logs: as the assumed start it made a log cut mid-swing look right from its
+        // first sample (seed 7: `initial_state` 0 of 6 found). It is still what the fits'
+        // nuisance start is drawn towards ([`Window::run`], through the prior's width).
+        // (a logged column the preparation found noisier than q's derivative still says the
+        // start was measured: the q̇ used is then q's, with its error)
+        let logged = prep.report.qd.logged_noise_sd.is_some();
+        let (v0, sd_v) = match (logged, prep.rest[s0]) {
+            (true, false) => (prep.qd()[s0], prep.qd_err[s0]),
+            (true, true) => (0.0, prep.qd_err[s0]),
+            (false, _) => (0.0, 0.0),
+        };
+        let prior0 = Prior { q: prep.log.q[s0], v: v0, sd_q: prep.report.q_noise_sd.max(1e-12), sd_v };
+        let mut w = Window { prep, seg, n: 0, rest_tail: None, prior0, assumed_rest: !logged };
         w.n = w.seg.len();
         let (t, q) = (w.t(), w.q());
         let lay = Layout::new(model, min_of(q), max_of(q), 1.0, false);
@@ -237,7 +252,12 @@ impl<'a> Window<'a> {
         };
         let floor = (noise * noise + spread_ms).sqrt();
         let se = |k: usize| s.lm.as_ref().and_then(|f| f.std_err(k, noise)).unwrap_or(0.0);
-        let start_sd = (pb.prior.sd_q, pb.prior.sd_v, se(0), se(1));
+        // `initial_state` is tested against the assumed start: a logged q̇ with the fits' prior
+        // width (its noise and the distance to the start that makes the file's model follow
+        // the first samples: a short log's own noise estimate of the column can be 20× low);
+        // an assumed rest exactly (S's standard errors carry the uncertainty; what keeps a
+        // statistically resolved but harmless creep from being a verdict is in [`judge`]).
+        let start_sd = (pb.prior.sd_q, if self.assumed_rest { 0.0 } else { pb.prior.sd_v }, se(0), se(1));
         let f_rmse = if judge::start_chi2(&r0, &s, start_sd) > judge::START_CHI2 { &r0 } else { &s }.scored.rmse();
         let mut fits = vec![r0, s, p];
         // Nothing is tested once the file's model is at the floor: the candidates are not fitted.
@@ -262,7 +282,7 @@ impl<'a> Window<'a> {
             rest_tail: self.rest_tail.clone(),
             skipped,
             has_u: u.is_some(),
-            prior: pb.prior,
+            prior: Prior { sd_q: start_sd.0, sd_v: start_sd.1, ..pb.prior },
         };
         Ok(report::build(&ctx, &fits, &judged))
     }
