@@ -244,7 +244,7 @@ impl<'a> Round<'a> {
     pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut g = self.fit.g.clone();
         eiv_correct(&mut g, &self.fit.des, self.d);
-        let (beta, _) = g.solve_nonneg(&physical_signs(&self.fit.des));
+        let (beta, _) = g.solve_held(&physical_signs(&self.fit.des), &physical_holds(&self.fit.des));
         self.score_current(beta, split, bits, n_regimes)
     }
 
@@ -255,7 +255,7 @@ impl<'a> Round<'a> {
         let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
-        let (beta, _) = g.solve_nonneg(&physical_signs(&des));
+        let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des));
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
         acc.into_scored(effects, des, beta)
     }
@@ -297,7 +297,7 @@ pub fn fit_and_score(
     let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
-    let (beta, _) = g.solve_nonneg(&physical_signs(&des));
+    let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des));
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
@@ -318,6 +318,33 @@ pub fn physical_signs(des: &Design) -> Vec<bool> {
                 )
         })
         .collect()
+}
+
+/// Where a bounded fit holds a term that would go negative: the inertia at the file's value
+/// (a joint has one; rows that want none, such as a log whose torque is not what moved the
+/// joint, do not say it is zero), every other term at 0.
+pub fn physical_holds(des: &Design) -> Vec<f64> {
+    use super::candidates::Col;
+    des.cols
+        .iter()
+        .enumerate()
+        .map(|(k, c)| match c {
+            Col::Qdd => des.prior.get(k).copied().unwrap_or(0.0).max(0.0),
+            _ => 0.0,
+        })
+        .collect()
+}
+
+/// Whether a fit held the inertia at the file's value ([`physical_holds`]): its coefficient is
+/// that value exactly, which a free least-squares solution (ridge included) never lands on.
+pub fn inertia_held(s: &Scored) -> bool {
+    use super::candidates::Col;
+    s.design
+        .cols
+        .iter()
+        .zip(&s.beta)
+        .zip(&s.design.prior)
+        .any(|((c, &b), &p)| matches!(c, Col::Qdd) && p > 0.0 && b == p)
 }
 
 /// Errors in variables: white noise of variance σ² on the logged q̈ adds n·σ² to the q̈
@@ -400,7 +427,7 @@ pub struct Outcome {
 /// emitting its section would mislead; it stays in the ranking, marked, but is never selected.
 /// - `stribeck`: friction above the Coulomb level near rest, `level > 0`;
 /// - `load_dependent_friction`: friction grows with the transmitted load, `mu > 0`;
-/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0`;
+/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0` (a progressive one: k3 > 0 and k1 ≥ 0);
 /// - `dry_friction`: Coulomb friction opposes the motion, `c > 0`.
 /// - `thermal_drift`: either sign (lubricant thins or a seal swells), but the friction it
 ///   scales, `1 + coefficient·(T − T_ref)` times the refitted shape, must stay positive over
@@ -410,8 +437,11 @@ pub struct Outcome {
 /// sign rule.
 pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
     let e = s.effects.last()?;
-    let &(start, _) = s.design.spans.get(s.effects.len() - 1)?;
+    let &(start, end) = s.design.spans.get(s.effects.len() - 1)?;
     let amp = s.beta.get(start).copied()?;
+    // a progressive spring k3·x³ + k1·x: both stiffnesses (k1 < 0 is a spring that pushes the
+    // joint away from its centre, a double well no harness makes)
+    let any_negative = s.beta.get(start..end).is_some_and(|b| b.iter().any(|&x| x < 0.0));
     if let Effect::Thermal { src, .. } = *e {
         // T − T_ref at the ends of its range over the whole log
         let (lo, hi) = match src {
@@ -436,7 +466,9 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
             Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
         }
         Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
-        Kind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
+        Kind::Cable if amp <= 0.0 || any_negative => {
+            Some("fitted cable stiffness is not positive: a cable cannot push")
+        }
         Kind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
         _ => None,
     }
