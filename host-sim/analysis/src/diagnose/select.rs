@@ -360,11 +360,29 @@ fn eiv_correct(g: &mut super::fit::Gram, des: &Design, d: &Data) {
     let Some(j) = des.cols.iter().position(|&c| c == super::candidates::Col::Qdd) else { return };
     let p = g.p;
     let noise = g.n as f64 * d.qdd_noise_var;
-    if let Some(gjj) = g.g.get_mut(j * p + j) {
-        if noise < 0.5 * *gjj {
-            *gjj -= noise;
-        }
+    let prior = g.prior.get(j).copied().unwrap_or(0.0);
+    let Some(&gjj) = g.g.get(j * p + j) else { return };
+    if !qdd_noise_dominated(d) {
+        g.g[j * p + j] = gjj - noise;
+    } else if prior > 0.0 {
+        // q̈ noise-dominated: the rows would shrink the inertia towards 0 by the noise share
+        // (regression dilution) and the correction is not trusted; the inertia stays at the
+        // file's value (a pseudo-row of overwhelming weight on it)
+        let w = 1e8 * gjj.max(1e-300);
+        g.g[j * p + j] = gjj + w;
+        g.b[j] += w * prior;
+        g.yy += w * prior * prior;
     }
+}
+
+/// Whether the log's q̈ is noise-dominated: its white noise holds half or more of the q̈
+/// column's energy. Then no fit can tell the inertia from the noise (see [`eiv_correct`]).
+pub fn qdd_noise_dominated(d: &Data) -> bool {
+    if d.qdd_noise_var <= 0.0 || d.n == 0 {
+        return false;
+    }
+    let energy: f64 = d.qdd.iter().map(|a| a * a).sum();
+    d.n as f64 * d.qdd_noise_var >= 0.5 * energy
 }
 
 fn unit_t(diffs: &[f64]) -> (f64, f64) {
