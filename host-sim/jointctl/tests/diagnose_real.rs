@@ -81,14 +81,14 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
     assert!((3.0..3.6).contains(&amp), "refit weight amplitude {amp} N·m (README: the commanded m·g·l·sin q)");
 }
 
-/// Panda joint 1 (vertical axis) against a single-joint model with the authors' friction level:
-/// the gap is the inertial coupling of six moving links, which no effect of the vocabulary is.
-/// The diagnosis must not pin it on one: the verdict is the refit of the model's own terms (an
-/// apparent inertia of ≈ 0.25 kg·m² along this trajectory instead of 1.16, Coulomb close to the
-/// authors'), which leaves a remainder well above the noise floor, and its residual evidence
-/// must show the structure that is left (autocorrelation far outside the band after the fix).
-/// A progressive "cable spring" scores better still, with a negative linear stiffness: a
-/// double well no harness makes, so it is marked and not named.
+/// Panda joint 1 (vertical axis) against a single-joint model with the authors' friction level
+/// and the inertia identification finds on this log: the gap is the inertial coupling of six
+/// moving links, which no effect of the vocabulary is. The diagnosis must not pin it on one:
+/// `unexplained`, with a refit that agrees with the file's values (J ≈ 1.19, c ≈ 0.31; before the
+/// preparation knew coloured noise, a ±2 ms q̈ diluted J to 0.25 and that refit was the verdict),
+/// and residual evidence that shows the structure left (autocorrelation far outside the band).
+/// A progressive "cable spring" scores best, with a negative linear stiffness: a double well no
+/// harness makes, so it is marked and not named.
 #[test]
 fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let p = PathBuf::from(concat!(
@@ -104,16 +104,13 @@ fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let model = ModelFile::parse("[inertia]\nj = 1.16\n[friction]\nc = 0.273\nv_band = 0.2\n", "panda1.toml").unwrap();
     let r = diagnose(&log, &model, &Options::default()).unwrap().report;
     assert!(r.gap.holdout_rmse > 3.0 * r.gap.noise_floor, "{:?}", r.gap);
-    assert_eq!(r.verdict.effect, "parameters", "a single-joint effect named for a coupling gap: {:?}", r.verdict);
-    assert!(r.verdict.holdout_rmse_after > 1.3 * r.gap.noise_floor, "the coupling left: {:?} {:?}", r.verdict, r.gap);
+    assert_eq!(r.verdict.effect, "unexplained", "a coupling gap named: {:?}", r.verdict);
     let cable = r.effects.iter().find(|e| e.effect == "cable_spring").unwrap();
     assert!(cable.implausible.is_some() && !cable.significant, "{:?}", cable.params);
-    for e in r.effects.iter().filter(|e| e.significant) {
-        assert!(e.implausible.is_none(), "{} significant though implausible", e.effect);
-    }
-    let refit = &r.refit;
-    let (j, c) = (refit["inertia"]["j"], refit["friction"]["c"]);
-    assert!((0.1..1.5).contains(&j) && (0.2..0.45).contains(&c), "refit J {j}, c {c}");
+    assert!(r.effects.iter().all(|e| !e.significant), "nothing explains it");
+    let p = &r.effects.iter().find(|e| e.effect == "parameters").unwrap().params;
+    let (j, c) = (p["inertia.j"], p["friction.c"]);
+    assert!((1.0..1.4).contains(&j) && (0.2..0.45).contains(&c), "refit J {j}, c {c}");
     assert!(r.warnings.is_empty(), "{:?}", r.warnings);
     let resid = r.resid.as_ref().unwrap();
     let after = &resid.autocorrelation_after;

@@ -64,17 +64,19 @@ impl Gram {
     /// negative is held at 0 and the rest refitted, until none is negative). A physical joint
     /// has no negative inertia or friction; the bounded fit is the best physical one.
     pub fn solve_nonneg(&self, nonneg: &[bool]) -> (Vec<f64>, f64) {
-        self.solve_held(nonneg, &[])
+        self.solve_held(nonneg, &[], &[])
     }
 
     /// As [`Gram::solve_nonneg`], but a coefficient that would go negative is held at
     /// `hold[i]` (0 where `hold` has no entry) and the others refitted around it: a term a
-    /// joint cannot lack (its inertia) keeps the file's value where the rows want none.
-    pub fn solve_held(&self, nonneg: &[bool], hold: &[f64]) -> (Vec<f64>, f64) {
+    /// joint cannot lack (its inertia) keeps the file's value where the rows want none. The
+    /// coefficients marked in `fixed` are held at `hold` from the start (a term the rows cannot
+    /// determine at all).
+    pub fn solve_held(&self, nonneg: &[bool], hold: &[f64], fixed: &[bool]) -> (Vec<f64>, f64) {
         let p = self.p;
         let held = |i: usize| hold.get(i).copied().unwrap_or(0.0);
         let full = |i: usize, j: usize| if i <= j { self.g[i * p + j] } else { self.g[j * p + i] };
-        let mut fixed = vec![false; p];
+        let mut fixed: Vec<bool> = (0..p).map(|i| fixed.get(i).copied().unwrap_or(false)).collect();
         loop {
             let free: Vec<usize> = (0..p).filter(|&i| !fixed[i]).collect();
             let fix: Vec<usize> = (0..p).filter(|&i| fixed[i]).collect();
@@ -410,7 +412,7 @@ mod tests {
             g.add(&[x1, x2], y);
             rows.push((x1, x2, y));
         }
-        let (b, rss) = g.solve_held(&[false, true], &[0.0, 0.3]);
+        let (b, rss) = g.solve_held(&[false, true], &[0.0, 0.3], &[]);
         assert_eq!(b[1], 0.3);
         for &(x1, x2, y) in &rows {
             let r = y - 0.3 * x2;

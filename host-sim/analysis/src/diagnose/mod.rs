@@ -966,20 +966,17 @@ fn build_report(
     effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
     let mut warnings = refit_warnings(&effects);
-    if select::qdd_noise_dominated(d) && base.cols.contains(&Col::Qdd) {
-        warnings.push(format!(
-            "q̈ is noise-dominated (white noise ≈ {:.3} rad/s², half or more of its energy): no fit can tell the \
-             inertia from that noise, so every fit keeps the file's inertia; give a filtered `qdd` column to test it",
-            d.qdd_noise_var.sqrt()
-        ));
-    }
     if select::inertia_held(&sel.refit.scored) {
-        warnings.push(
-            "refit inertia.j: the log's torque wants no inertia (or a negative one), which no joint has; it is kept at \
-             the file's value. The logged torque may not be what moved the joint (a hand, an unlogged load), or q̈ \
-             does not determine it"
-                .to_string(),
-        );
+        let noise = if d.qdd_noise_var > 0.0 {
+            format!(" (its white noise ≈ {:.3} rad/s²)", d.qdd_noise_var.sqrt())
+        } else {
+            String::new()
+        };
+        warnings.push(format!(
+            "refit inertia.j is kept at the file's value: the rows want none or a negative one, which no joint has, or \
+             q̈{noise} is too noisy to tell the inertia from its noise. The logged torque may not be what moved the \
+             joint (a hand, an unlogged load), or give a filtered `qdd` column"
+        ));
     }
     let selected: Vec<Step> = sel
         .chosen

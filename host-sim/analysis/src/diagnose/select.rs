@@ -244,7 +244,11 @@ impl<'a> Round<'a> {
     pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut g = self.fit.g.clone();
         eiv_correct(&mut g, &self.fit.des, self.d);
-        let (beta, _) = g.solve_held(&physical_signs(&self.fit.des), &physical_holds(&self.fit.des));
+        let (beta, _) = g.solve_held(
+            &physical_signs(&self.fit.des),
+            &physical_holds(&self.fit.des),
+            &undetermined(&self.fit.des, self.d, &g),
+        );
         self.score_current(beta, split, bits, n_regimes)
     }
 
@@ -255,7 +259,7 @@ impl<'a> Round<'a> {
         let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
-        let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des));
+        let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, self.d, &g));
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
         acc.into_scored(effects, des, beta)
     }
@@ -297,7 +301,7 @@ pub fn fit_and_score(
     let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
-    let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des));
+    let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, d, &g));
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
@@ -360,29 +364,32 @@ fn eiv_correct(g: &mut super::fit::Gram, des: &Design, d: &Data) {
     let Some(j) = des.cols.iter().position(|&c| c == super::candidates::Col::Qdd) else { return };
     let p = g.p;
     let noise = g.n as f64 * d.qdd_noise_var;
-    let prior = g.prior.get(j).copied().unwrap_or(0.0);
-    let Some(&gjj) = g.g.get(j * p + j) else { return };
-    if !qdd_noise_dominated(d) {
-        g.g[j * p + j] = gjj - noise;
-    } else if prior > 0.0 {
-        // q̈ noise-dominated: the rows would shrink the inertia towards 0 by the noise share
-        // (regression dilution) and the correction is not trusted; the inertia stays at the
-        // file's value (a pseudo-row of overwhelming weight on it)
-        let w = 1e8 * gjj.max(1e-300);
-        g.g[j * p + j] = gjj + w;
-        g.b[j] += w * prior;
-        g.yy += w * prior * prior;
+    if let Some(gjj) = g.g.get_mut(j * p + j) {
+        // noise-dominated: not corrected, the inertia is held instead ([`undetermined`])
+        if noise < 0.5 * *gjj {
+            *gjj -= noise;
+        }
     }
 }
 
-/// Whether the log's q̈ is noise-dominated: its white noise holds half or more of the q̈
-/// column's energy. Then no fit can tell the inertia from the noise (see [`eiv_correct`]).
-pub fn qdd_noise_dominated(d: &Data) -> bool {
-    if d.qdd_noise_var <= 0.0 || d.n == 0 {
-        return false;
-    }
-    let energy: f64 = d.qdd.iter().map(|a| a * a).sum();
-    d.n as f64 * d.qdd_noise_var >= 0.5 * energy
+/// The coefficients no fit may move: where q̈'s white noise holds half or more of the q̈
+/// column's energy on these rows (`g`, after [`eiv_correct`], which leaves it uncorrected then),
+/// the rows would shrink the inertia towards 0 by the noise share (regression dilution) and the
+/// correction is not trusted, so the inertia stays at the file's value ([`physical_holds`])
+/// when it has one.
+pub fn undetermined(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
+    let p = g.p;
+    des.cols
+        .iter()
+        .zip(&des.prior)
+        .enumerate()
+        .map(|(k, (c, &prior))| {
+            *c == super::candidates::Col::Qdd
+                && prior > 0.0
+                && d.qdd_noise_var > 0.0
+                && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk)
+        })
+        .collect()
 }
 
 fn unit_t(diffs: &[f64]) -> (f64, f64) {
