@@ -47,26 +47,31 @@ fn wrong_sign_effects_are_never_the_verdict_on_the_dfki_payload_run() {
     // it is the best-scoring candidate: without the sign rules it would be the verdict
     assert!(thermal.holdout_rmse_after < by("parameters").holdout_rmse_after);
 
-    // Nothing physical beats the refit, whose values are reported with their warnings.
-    assert_eq!(r.verdict.effect, "parameters");
-    for e in r.effects.iter().filter(|e| e.significant && e.effect != "parameters") {
+    // Nothing physical explains the gap, the bounded refit included (it does worse on the
+    // held-out blocks than the file): the log is called unexplained, not pinned on a term.
+    assert_eq!(r.verdict.effect, "unexplained", "{:?}", r.verdict);
+    assert!(by("parameters").holdout_rmse_after >= r.verdict.holdout_rmse_before);
+    for e in r.effects.iter().filter(|e| e.significant) {
         assert!(e.implausible.is_none(), "{} significant though implausible", e.effect);
     }
-    assert!(r.warnings.iter().any(|w| w.contains("inertia.j")), "{:?}", r.warnings);
     let json = serde_json::to_value(r).unwrap();
     assert!(json["effects"].as_array().unwrap().iter().any(|e| e["implausible"].is_string()));
-    assert!(json["warnings"].as_array().is_some_and(|w| !w.is_empty()));
 }
 
 /// The hand-moved gravity-compensation run (1 kHz, 30 s): the file's weight is from another
-/// configuration, so the refit closes 99 % of the gap; the wrong-sign terms stay out.
+/// configuration, so the refit closes 95 % of the gap; the wrong-sign terms stay out. The
+/// logged torque is the commanded gravity torque alone (the hand that moved the joint is not
+/// logged), so the rows want no inertia: the refit keeps the file's and says why.
 #[test]
 fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
     let Some(log) = import("dfki_simple_pendulum/gravity_compensation_handmoved_measured.csv") else { return };
     let model = ModelFile::parse(DFKI_MODEL, "dfki.toml").unwrap();
     let d = diagnose(&log, &model, &Options::default()).unwrap();
     let r = &d.report;
-    assert!(r.verdict.shrink > 0.95, "{:?}", r.verdict);
+    assert_eq!(r.verdict.effect, "parameters", "{:?}", r.verdict);
+    assert!(r.verdict.shrink > 0.9, "{:?}", r.verdict);
+    assert!(r.warnings.iter().any(|w| w.contains("inertia.j")), "{:?}", r.warnings);
+    assert!(r.refit["inertia"]["j"] > 0.0);
     assert!(r
         .verdict
         .effects
@@ -76,11 +81,14 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
     assert!((3.0..3.6).contains(&amp), "refit weight amplitude {amp} N·m (README: the commanded m·g·l·sin q)");
 }
 
-/// Panda joint 1 (vertical axis) against a single-joint model with the authors' friction level:
-/// most of the gap is the inertial coupling of six moving links, which no effect of the
-/// vocabulary is. The diagnosis must not pin it on one (small shrink, whatever is named), must
-/// keep the refitted friction and inertia physical, and its residual evidence must show the
-/// structure that is left (autocorrelation far outside the band after the fix too).
+/// Panda joint 1 (vertical axis) against a single-joint model with the authors' friction level
+/// and the inertia identification finds on this log: the gap is the inertial coupling of six
+/// moving links, which no effect of the vocabulary is. The diagnosis must not pin it on one:
+/// `unexplained`, with a refit that agrees with the file's values (J ≈ 1.19, c ≈ 0.31; before the
+/// preparation knew coloured noise, a ±2 ms q̈ diluted J to 0.25 and that refit was the verdict),
+/// and residual evidence that shows the structure left (autocorrelation far outside the band).
+/// A progressive "cable spring" scores best, with a negative linear stiffness: a double well no
+/// harness makes, so it is marked and not named.
 #[test]
 fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let p = PathBuf::from(concat!(
@@ -95,19 +103,14 @@ fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let log = convert(Format::PandaGaz, &text, "panda", &opts).unwrap().log;
     let model = ModelFile::parse("[inertia]\nj = 1.16\n[friction]\nc = 0.273\nv_band = 0.2\n", "panda1.toml").unwrap();
     let r = diagnose(&log, &model, &Options::default()).unwrap().report;
-    assert!(r.gap.holdout_rmse > 10.0 * r.gap.noise_floor, "{:?}", r.gap);
-    assert!(
-        r.verdict.shrink < 0.1,
-        "a single-joint effect took {:.1} % of a coupling gap: {:?}",
-        100.0 * r.verdict.shrink,
-        r.verdict
-    );
-    for e in r.effects.iter().filter(|e| e.significant) {
-        assert!(e.implausible.is_none(), "{} significant though implausible", e.effect);
-    }
-    let refit = &r.refit;
-    let (j, c) = (refit["inertia"]["j"], refit["friction"]["c"]);
-    assert!((0.8..1.5).contains(&j) && (0.2..0.45).contains(&c), "refit J {j}, c {c}");
+    assert!(r.gap.holdout_rmse > 3.0 * r.gap.noise_floor, "{:?}", r.gap);
+    assert_eq!(r.verdict.effect, "unexplained", "a coupling gap named: {:?}", r.verdict);
+    let cable = r.effects.iter().find(|e| e.effect == "cable_spring").unwrap();
+    assert!(cable.implausible.is_some() && !cable.significant, "{:?}", cable.params);
+    assert!(r.effects.iter().all(|e| !e.significant), "nothing explains it");
+    let p = &r.effects.iter().find(|e| e.effect == "parameters").unwrap().params;
+    let (j, c) = (p["inertia.j"], p["friction.c"]);
+    assert!((1.0..1.4).contains(&j) && (0.2..0.45).contains(&c), "refit J {j}, c {c}");
     assert!(r.warnings.is_empty(), "{:?}", r.warnings);
     let resid = r.resid.as_ref().unwrap();
     let after = &resid.autocorrelation_after;

@@ -31,7 +31,7 @@ const TABLE: &[Row] = &[
     ("simulate", "plant-rate", &["1000", "1000000"], &["4294967295", "nan", "0", "999"], "1000 ≤ x ≤ 1e6 Hz"),
     ("simulate", "range", &["-360,360", "0,116.5"], &["nan,1", "1,0", "-400,0", "0,inf"], "-360 ≤ MIN < MAX ≤ 360"),
     ("simulate", "free-start", &["-360", "360"], &["nan", "361", "-inf"], "-360 ≤ x ≤ 360 deg"),
-    ("diagnose", "max-effects", &["1", "9"], &["0", "10", "-1"], "1..=9"),
+    ("diagnose", "max-effects", &["1", "10"], &["0", "11", "-1"], "1..=10"),
     ("diagnose-bench", "cases", &["1", "10000"], &["0", "10001"], "1..=10000"),
     ("diagnose-bench", "seed", &["0"], SEED, ""),
     ("diagnose-bench", "seconds", &["3", "600"], &["nan", "2.9", "601"], "3 ≤ x ≤ 600 s"),

@@ -60,29 +60,41 @@ impl Gram {
         self.n += o.n;
     }
 
-    /// Least-squares coefficients and the residual sum of squares. Columns that are all zero on
-    /// these rows get a zero coefficient instead of a failure.
     /// Least squares with the coefficients marked in `nonneg` kept ≥ 0 (active set: the most
     /// negative is held at 0 and the rest refitted, until none is negative). A physical joint
     /// has no negative inertia or friction; the bounded fit is the best physical one.
     pub fn solve_nonneg(&self, nonneg: &[bool]) -> (Vec<f64>, f64) {
+        self.solve_held(nonneg, &[], &[])
+    }
+
+    /// As [`Gram::solve_nonneg`], but a coefficient that would go negative is held at
+    /// `hold[i]` (0 where `hold` has no entry) and the others refitted around it: a term a
+    /// joint cannot lack (its inertia) keeps the file's value where the rows want none. The
+    /// coefficients marked in `fixed` are held at `hold` from the start (a term the rows cannot
+    /// determine at all).
+    pub fn solve_held(&self, nonneg: &[bool], hold: &[f64], fixed: &[bool]) -> (Vec<f64>, f64) {
         let p = self.p;
-        let mut fixed = vec![false; p];
+        let held = |i: usize| hold.get(i).copied().unwrap_or(0.0);
+        let full = |i: usize, j: usize| if i <= j { self.g[i * p + j] } else { self.g[j * p + i] };
+        let mut fixed: Vec<bool> = (0..p).map(|i| fixed.get(i).copied().unwrap_or(false)).collect();
         loop {
             let free: Vec<usize> = (0..p).filter(|&i| !fixed[i]).collect();
+            let fix: Vec<usize> = (0..p).filter(|&i| fixed[i]).collect();
             let mut sub = Gram::new(free.len());
             for (a, &i) in free.iter().enumerate() {
                 for (b, &j) in free.iter().enumerate() {
-                    let (lo, hi) = if i <= j { (i, j) } else { (j, i) };
-                    sub.g[a * free.len() + b] = self.g[lo * p + hi];
+                    sub.g[a * free.len() + b] = full(i, j);
                 }
-                sub.b[a] = self.b[i];
+                // the held columns' contribution moves to the target side
+                sub.b[a] = self.b[i] - fix.iter().map(|&f| full(i, f) * held(f)).sum::<f64>();
                 sub.prior[a] = self.prior.get(i).copied().unwrap_or(0.0);
             }
-            sub.yy = self.yy;
+            let bh: f64 = fix.iter().map(|&f| self.b[f] * held(f)).sum();
+            let hgh: f64 = fix.iter().map(|&f| fix.iter().map(|&g| full(f, g) * held(g)).sum::<f64>() * held(f)).sum();
+            sub.yy = self.yy - 2.0 * bh + hgh;
             sub.n = self.n;
             let (z, rss) = sub.solve();
-            let mut beta = vec![0.0; p];
+            let mut beta: Vec<f64> = (0..p).map(|i| if fixed[i] { held(i) } else { 0.0 }).collect();
             for (a, &i) in free.iter().enumerate() {
                 beta[i] = z[a];
             }
@@ -96,6 +108,8 @@ impl Gram {
         }
     }
 
+    /// Least-squares coefficients and the residual sum of squares. Columns that are all zero on
+    /// these rows get a zero coefficient instead of a failure.
     pub fn solve(&self) -> (Vec<f64>, f64) {
         let p = self.p;
         if p == 0 {
@@ -383,6 +397,38 @@ mod tests {
         g.prior = vec![3.0, -2.0];
         let (b, _) = g.solve();
         assert!((b[0] - 3.0).abs() < 1e-9 && (b[1] + 2.0).abs() < 1e-9, "{b:?}");
+    }
+
+    /// A coefficient the rows want negative is held at the value given and the others refit
+    /// around it: y = 2·x1 − 0.5·x2 with x2 ≥ 0 held at 0.3 gives x1's best value with
+    /// 0.3·x2 taken off, and the RSS of that fit.
+    #[test]
+    fn a_held_coefficient_keeps_its_value_and_the_rest_refit() {
+        let mut g = Gram::new(2);
+        let (mut rows, mut x1x1, mut x1y, mut yy) = (Vec::new(), 0.0, 0.0, 0.0);
+        for i in 0..200 {
+            let (x1, x2) = ((i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+            let y = 2.0 * x1 - 0.5 * x2;
+            g.add(&[x1, x2], y);
+            rows.push((x1, x2, y));
+        }
+        let (b, rss) = g.solve_held(&[false, true], &[0.0, 0.3], &[]);
+        assert_eq!(b[1], 0.3);
+        for &(x1, x2, y) in &rows {
+            let r = y - 0.3 * x2;
+            x1x1 += x1 * x1;
+            x1y += x1 * r;
+        }
+        let b1 = x1y / x1x1;
+        for &(x1, x2, y) in &rows {
+            let e = y - 0.3 * x2 - b1 * x1;
+            yy += e * e;
+        }
+        assert!((b[0] - b1).abs() < 1e-4, "{b:?} vs {b1}");
+        assert!((rss - yy).abs() < 1e-6 * g.yy, "{rss} vs {yy}");
+        // held at 0 it is the plain bounded fit
+        let (b0, _) = g.solve_nonneg(&[false, true]);
+        assert_eq!(b0[1], 0.0);
     }
 
     /// Two columns the rows cannot tell apart (a weight's cosine over 0.03 rad and an offset):

@@ -520,7 +520,17 @@ fn torque_mode(
     if split.train.len() < 30 || split.holdout.len() < 30 {
         return Err(DiagError::Input("too few samples for a training/held-out split".into()));
     }
-    let floor = torque_floor(&r0, &data, &base, prep);
+    // The floor is the noise a right model would leave. The file's own terms can raise it: an
+    // inertia several times too large multiplies the q̈ estimate's error, and no effect is
+    // measured against that. So it is also taken with the model's terms refitted (bounded,
+    // errors in variables removed) on the training rows, and the lower of the two counts.
+    let floor = {
+        let at_file = torque_floor(&r0, &data, (&base.cols, &base.beta0), prep);
+        let rs = select::fit_and_score(&data, &base, &[], &split.train, &split, &regimes.bits, regimes.defs.len());
+        let mut x = vec![0.0; rs.design.cols.len()];
+        let r1: Vec<f64> = (0..n).map(|i| select::residual_at(&data, &rs.design, &rs.beta, i, &mut x)).collect();
+        at_file.min(torque_floor(&r1, &data, (&rs.design.cols, &rs.beta), prep))
+    };
     // A pure sign jumps to ±c at any motion, however slow: inside a rest, a creep below the
     // q̇ resolution shows as the residual stepping by ±c. Those samples' direction is unknown.
     let creep = if pure_sign {
@@ -561,9 +571,9 @@ pub fn rest_creep(r0: &[f64], rest: &[bool], c: f64, floor: f64) -> Vec<bool> {
 /// colour) and, in variance, what the error of the estimated q̇/q̈ makes of the model's own
 /// inertia, viscous and Coulomb terms (a logged column's white noise is already in the
 /// residual's noise and is not counted twice).
-fn torque_floor(r0: &[f64], d: &Data, base: &Base, prep: &crate::prep::Prepared) -> f64 {
+fn torque_floor(r0: &[f64], d: &Data, (cols, beta): (&[Col], &[f64]), prep: &crate::prep::Prepared) -> f64 {
     let (noise, _) = floor::variogram_noise(r0);
-    let coef = |c: Col| base.cols.iter().position(|x| *x == c).map_or(0.0, |k| base.beta0[k]);
+    let coef = |c: Col| cols.iter().position(|x| *x == c).map_or(0.0, |k| beta.get(k).copied().unwrap_or(0.0));
     let (j, a, b, c) = (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
     // white noise on a logged column is already in the residual's noise; an estimate's or a
     // filter's error follows the motion and is not
@@ -888,7 +898,19 @@ fn build_report(
     let mut effects: Vec<EffectOut> = vec![effect_out(&sel.refit, "model", &sel.m0, regimes, d, model)];
     effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
-    let warnings = refit_warnings(&effects);
+    let mut warnings = refit_warnings(&effects);
+    if select::inertia_held(&sel.refit.scored) {
+        let noise = if d.qdd_noise_var > 0.0 {
+            format!(" (its white noise ≈ {:.3} rad/s²)", d.qdd_noise_var.sqrt())
+        } else {
+            String::new()
+        };
+        warnings.push(format!(
+            "refit inertia.j is kept at the file's value: the rows want none or a negative one, which no joint has, or \
+             q̈{noise} is too noisy to tell the inertia from its noise. The logged torque may not be what moved the \
+             joint (a hand, an unlogged load), or give a filtered `qdd` column"
+        ));
+    }
     let selected: Vec<Step> = sel
         .chosen
         .iter()

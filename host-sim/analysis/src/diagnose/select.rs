@@ -244,7 +244,11 @@ impl<'a> Round<'a> {
     pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut g = self.fit.g.clone();
         eiv_correct(&mut g, &self.fit.des, self.d);
-        let (beta, _) = g.solve_nonneg(&physical_signs(&self.fit.des));
+        let (beta, _) = g.solve_held(
+            &physical_signs(&self.fit.des),
+            &physical_holds(&self.fit.des),
+            &undetermined(&self.fit.des, self.d, &g),
+        );
         self.score_current(beta, split, bits, n_regimes)
     }
 
@@ -255,7 +259,7 @@ impl<'a> Round<'a> {
         let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
-        let (beta, _) = g.solve_nonneg(&physical_signs(&des));
+        let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, self.d, &g));
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
         acc.into_scored(effects, des, beta)
     }
@@ -297,7 +301,7 @@ pub fn fit_and_score(
     let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
-    let (beta, _) = g.solve_nonneg(&physical_signs(&des));
+    let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, d, &g));
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
@@ -320,6 +324,33 @@ pub fn physical_signs(des: &Design) -> Vec<bool> {
         .collect()
 }
 
+/// Where a bounded fit holds a term that would go negative: the inertia at the file's value
+/// (a joint has one; rows that want none, such as a log whose torque is not what moved the
+/// joint, do not say it is zero), every other term at 0.
+pub fn physical_holds(des: &Design) -> Vec<f64> {
+    use super::candidates::Col;
+    des.cols
+        .iter()
+        .enumerate()
+        .map(|(k, c)| match c {
+            Col::Qdd => des.prior.get(k).copied().unwrap_or(0.0).max(0.0),
+            _ => 0.0,
+        })
+        .collect()
+}
+
+/// Whether a fit held the inertia at the file's value ([`physical_holds`]): its coefficient is
+/// that value exactly, which a free least-squares solution (ridge included) never lands on.
+pub fn inertia_held(s: &Scored) -> bool {
+    use super::candidates::Col;
+    s.design
+        .cols
+        .iter()
+        .zip(&s.beta)
+        .zip(&s.design.prior)
+        .any(|((c, &b), &p)| matches!(c, Col::Qdd) && p > 0.0 && b == p)
+}
+
 /// Errors in variables: white noise of variance σ² on the logged q̈ adds n·σ² to the q̈
 /// column's Gram diagonal and shrinks the fitted inertia by `var(q̈)/(var(q̈) + σ²)`. A shrunk
 /// inertia predicts the same noisy q̈ slightly better, so without this a refit "beats" an exact
@@ -334,10 +365,31 @@ fn eiv_correct(g: &mut super::fit::Gram, des: &Design, d: &Data) {
     let p = g.p;
     let noise = g.n as f64 * d.qdd_noise_var;
     if let Some(gjj) = g.g.get_mut(j * p + j) {
+        // noise-dominated: not corrected, the inertia is held instead ([`undetermined`])
         if noise < 0.5 * *gjj {
             *gjj -= noise;
         }
     }
+}
+
+/// The coefficients no fit may move: where q̈'s white noise holds half or more of the q̈
+/// column's energy on these rows (`g`, after [`eiv_correct`], which leaves it uncorrected then),
+/// the rows would shrink the inertia towards 0 by the noise share (regression dilution) and the
+/// correction is not trusted, so the inertia stays at the file's value ([`physical_holds`])
+/// when it has one.
+pub fn undetermined(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
+    let p = g.p;
+    des.cols
+        .iter()
+        .zip(&des.prior)
+        .enumerate()
+        .map(|(k, (c, &prior))| {
+            *c == super::candidates::Col::Qdd
+                && prior > 0.0
+                && d.qdd_noise_var > 0.0
+                && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk)
+        })
+        .collect()
 }
 
 fn unit_t(diffs: &[f64]) -> (f64, f64) {
@@ -400,7 +452,7 @@ pub struct Outcome {
 /// emitting its section would mislead; it stays in the ranking, marked, but is never selected.
 /// - `stribeck`: friction above the Coulomb level near rest, `level > 0`;
 /// - `load_dependent_friction`: friction grows with the transmitted load, `mu > 0`;
-/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0`;
+/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0` (a progressive one: k3 > 0 and k1 ≥ 0);
 /// - `dry_friction`: Coulomb friction opposes the motion, `c > 0`.
 /// - `thermal_drift`: either sign (lubricant thins or a seal swells), but the friction it
 ///   scales, `1 + coefficient·(T − T_ref)` times the refitted shape, must stay positive over
@@ -410,8 +462,11 @@ pub struct Outcome {
 /// sign rule.
 pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
     let e = s.effects.last()?;
-    let &(start, _) = s.design.spans.get(s.effects.len() - 1)?;
+    let &(start, end) = s.design.spans.get(s.effects.len() - 1)?;
     let amp = s.beta.get(start).copied()?;
+    // a progressive spring k3·x³ + k1·x: both stiffnesses (k1 < 0 is a spring that pushes the
+    // joint away from its centre, a double well no harness makes)
+    let any_negative = s.beta.get(start..end).is_some_and(|b| b.iter().any(|&x| x < 0.0));
     if let Effect::Thermal { src, .. } = *e {
         // T − T_ref at the ends of its range over the whole log
         let (lo, hi) = match src {
@@ -436,7 +491,9 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
             Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
         }
         Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
-        Kind::Cable if amp <= 0.0 => Some("fitted cable stiffness is not positive: a cable cannot push"),
+        Kind::Cable if amp <= 0.0 || any_negative => {
+            Some("fitted cable stiffness is not positive: a cable cannot push")
+        }
         Kind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
         _ => None,
     }

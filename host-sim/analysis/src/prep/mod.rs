@@ -899,7 +899,10 @@ fn transitions(
     let mut dir = vec![0i8; n];
     let mut amb = vec![false; n];
     let sgn = |x: f64| if x > 0.0 { 1i8 } else { -1i8 };
-    let sure = |i: usize, d: i8| sgn(qd[i]) == d && qd[i].abs() > 3.0 * qd_noise[i];
+    // the estimate signs the motion itself from here on, whichever way: a move that overshoots
+    // and settles back reaches its rest going the other way, and that last way must not be
+    // carried back over the whole move
+    let sure = |i: usize| qd[i].abs() > 3.0 * qd_noise[i];
     for seg in segments {
         for run in motion_runs(rest, seg.clone()) {
             // leaving a rest at run.start
@@ -911,7 +914,7 @@ fn transitions(
                 if let Some(k) = out {
                     let d = sgn(q[k] - q_rest);
                     for i in k..run.end {
-                        if sure(i, d) {
+                        if sure(i) {
                             break;
                         }
                         dir[i] = d;
@@ -927,7 +930,7 @@ fn transitions(
                 if let Some(k) = last {
                     let d = sgn(q_rest - q[k]);
                     for i in (run.start..=k).rev() {
-                        if sure(i, d) {
+                        if sure(i) {
                             break;
                         }
                         if dir[i] == 0 {
