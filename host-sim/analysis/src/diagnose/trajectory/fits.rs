@@ -201,21 +201,7 @@ impl Problem<'_> {
             }
             Some(r)
         };
-        let calls = std::cell::Cell::new(0usize);
-        let resid = |x: &[f64]| {
-            calls.set(calls.get() + 1);
-            resid(x)
-        };
         let f = lm::fit(&x0, &lo_f, &hi_f, &steps, iters, resid)?;
-        if std::env::var_os("DIAG_LM").is_some() {
-            eprintln!(
-                "[lm] {effects:?} free {} iters {iters}: {} sims, cost {:.3e} -> {:.3e}",
-                free.len(),
-                calls.get(),
-                0.0,
-                f.cost
-            );
-        }
         Some((full(&f.theta), f))
     }
 

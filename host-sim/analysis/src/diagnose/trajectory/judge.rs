@@ -178,12 +178,6 @@ pub fn judge(
         let implausible = lay.implausible(e.effects[last], e.base(lay), e.effect_values(lay, last));
         let name = e.effects[last].name();
         let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each);
-        if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!(
-                "[judge] {:?}: train {:.4e} (P {:.4e}) vs P {:?} vs F {:?} implausible {:?} θ {:?}",
-                e.effects, e.train_sse, p.train_sse, t, t0, implausible, e.theta
-            );
-        }
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
     let effects: Vec<Outcome> = families
