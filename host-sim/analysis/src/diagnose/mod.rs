@@ -362,8 +362,9 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
             )));
         }
     }
-    if log.len() < 100 {
-        return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least 100", log.len())));
+    let min = if log.mode() == LogMode::Trajectory { trajectory::min_samples(model) } else { 100 };
+    if log.len() < min {
+        return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least {min}", log.len())));
     }
     let clock = std::time::Instant::now();
     let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
@@ -372,7 +373,7 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
     }
     let mut d = match log.mode() {
         LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
-        LogMode::Trajectory => trajectory::diagnose(&prep.log, model, &params, opts)?,
+        LogMode::Trajectory => trajectory::diagnose(&prep, model, &params, opts)?,
     };
     d.report.prep = Some(prep.report);
     Ok(d)
@@ -386,74 +387,6 @@ pub(crate) fn median_dt(t: &[f64]) -> f64 {
     let k = d.len() / 2;
     let (_, m, _) = d.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     *m
-}
-
-/// Centred moving average over `2h+1` samples (zero phase).
-pub(crate) fn smooth(x: &[f64], h: usize) -> Vec<f64> {
-    let n = x.len();
-    if h == 0 || n == 0 {
-        return x.to_vec();
-    }
-    let mut pre = vec![0.0; n + 1];
-    for i in 0..n {
-        pre[i + 1] = pre[i] + x[i];
-    }
-    (0..n)
-        .map(|i| {
-            let (a, b) = (i.saturating_sub(h), (i + h + 1).min(n));
-            (pre[b] - pre[a]) / (b - a) as f64
-        })
-        .collect()
-}
-
-/// Slope of `x` against `t` by least squares over `±h` samples (a local line, i.e. a first-order
-/// Savitzky–Golay derivative that honours uneven time stamps): noise and quantisation are
-/// averaged over the window instead of amplified by a two-point difference.
-pub(crate) fn local_slope(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
-    let n = x.len();
-    if n < 2 {
-        return vec![0.0; n];
-    }
-    let t0 = t[0];
-    let mut st = vec![0.0; n + 1];
-    let mut stt = vec![0.0; n + 1];
-    let mut sx = vec![0.0; n + 1];
-    let mut stx = vec![0.0; n + 1];
-    for i in 0..n {
-        let tt = t[i] - t0;
-        st[i + 1] = st[i] + tt;
-        stt[i + 1] = stt[i] + tt * tt;
-        sx[i + 1] = sx[i] + x[i];
-        stx[i + 1] = stx[i] + tt * x[i];
-    }
-    (0..n)
-        .map(|i| {
-            let (a, b) = (i.saturating_sub(h.max(1)), (i + h.max(1) + 1).min(n));
-            let m = (b - a) as f64;
-            let (s1, s2, sy, s1y) = (st[b] - st[a], stt[b] - stt[a], sx[b] - sx[a], stx[b] - stx[a]);
-            let den = m * s2 - s1 * s1;
-            if den > 0.0 {
-                (m * s1y - s1 * sy) / den
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
-/// q̇ and q̈ from the log, derived when absent: local-line slopes over ±5 ms for q̇ and ±10 ms
-/// for q̈ (at least ±1 and ±2 samples).
-pub(crate) fn velocities(log: &JointLog, dt: f64) -> (Vec<f64>, Vec<f64>) {
-    let h = |s: f64, min: usize| ((s / dt).round() as usize).clamp(min, 200);
-    let qd = match &log.qd {
-        Some(v) => v.clone(),
-        None => local_slope(&log.t, &log.q, h(0.005, 1)),
-    };
-    let qdd = match &log.qdd {
-        Some(v) => v.clone(),
-        None => local_slope(&log.t, &qd, h(0.01, 2)),
-    };
-    (qd, qdd)
 }
 
 /// Robust white-noise level of a residual from its second differences (smooth parts cancel,

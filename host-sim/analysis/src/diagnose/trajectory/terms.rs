@@ -1,0 +1,477 @@
+//! What a trajectory-mode fit varies: the start `(q0, q̇0)`, the model's own terms (J fixed: a
+//! free response sees D/J only) and each effect's values, laid out as one vector
+//! `θ = [q0, q̇0 | the model's terms | effect 1 | effect 2 …]`, with the physical bounds of each
+//! and the force law ([`Law`]) they make.
+//!
+//! Effects own their shapes here (never the simulator's plant):
+//! - `stribeck`: `level·exp(−(|q̇|/speed)^δ)·sign(q̇)` on top of `c`, δ in 0.5–2;
+//! - `asymmetric_friction`: `delta·|sign(q̇)|` (`c ± delta` per direction);
+//! - `position_ripple`: one harmonic `α·sin(2πq/P) + β·cos(2πq/P)`, or two;
+//! - `cable_spring`: one-sided (taut above or below an angle, with a blend width) or progressive
+//!   `k1·x + k3·x³`, or padding pressed over a stretch of angle `A·exp(−½((q − q_b)/w)²)`;
+//! - `backlash`: a dead zone of width `w` centred at `m` in the spring (either side of its rest);
+//! - `dry_friction`: `c·sign(q̇)` when the model has none;
+//! - `presliding_hysteresis`: a Dahl state of the model's level `c` and pre-sliding distance
+//!   `x = c/σ` instead of `c·sign(q̇)`;
+//! - `delay`: the joint felt the logged input `u` shifted by `δ` either way (only with a logged
+//!   `u`; positive as torque mode's: the logged state lags the input).
+
+use joint_core::params::ParamId;
+use joint_formats::model_file::ModelFile;
+
+use super::sim::{Cable, Law};
+use crate::diagnose::candidates::{base_from_model, Col};
+
+/// One effect a fit can carry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kind {
+    Stribeck,
+    Asymmetric,
+    Ripple,
+    Ripple2,
+    CableAbove,
+    CableBelow,
+    CableCubic,
+    CableBump,
+    Backlash,
+    Dry,
+    Presliding,
+    Delay,
+}
+
+impl Kind {
+    pub const ALL: [Kind; 12] = [
+        Kind::Stribeck,
+        Kind::Asymmetric,
+        Kind::Ripple,
+        Kind::Ripple2,
+        Kind::CableAbove,
+        Kind::CableBelow,
+        Kind::CableCubic,
+        Kind::CableBump,
+        Kind::Backlash,
+        Kind::Dry,
+        Kind::Presliding,
+        Kind::Delay,
+    ];
+
+    /// The spec §3 name (variants of one effect share it).
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Stribeck => "stribeck",
+            Kind::Asymmetric => "asymmetric_friction",
+            Kind::Ripple | Kind::Ripple2 => "position_ripple",
+            Kind::CableAbove | Kind::CableBelow | Kind::CableCubic | Kind::CableBump => "cable_spring",
+            Kind::Backlash => "backlash",
+            Kind::Dry => "dry_friction",
+            Kind::Presliding => "presliding_hysteresis",
+            Kind::Delay => "delay",
+        }
+    }
+
+    /// How many values the effect adds to the model (what parsimony counts).
+    pub fn size(self, lay: &Layout) -> usize {
+        match self {
+            Kind::Asymmetric | Kind::Dry | Kind::Presliding | Kind::Delay => 1,
+            Kind::Backlash => 2,
+            Kind::CableCubic if lay.has(Col::Q) => 2,
+            Kind::CableBump
+            | Kind::Stribeck
+            | Kind::Ripple
+            | Kind::CableAbove
+            | Kind::CableBelow
+            | Kind::CableCubic => 3,
+            Kind::Ripple2 => 6,
+        }
+    }
+}
+
+/// The model's terms as the fits see them, and what bounds the effects' shapes.
+#[derive(Clone, Debug)]
+pub struct Layout {
+    pub cols: Vec<Col>,
+    pub beta0: Vec<f64>,
+    pub j: f64,
+    /// the file's sign band (0: no `v_band`, the pure sign)
+    pub band: f64,
+    /// the file's own pre-sliding stiffness, when it has `[presliding]`
+    pub file_sigma: Option<f64>,
+    /// angles travelled in the training part: lowest, highest
+    pub qmin: f64,
+    pub qmax: f64,
+    /// the spring's rest angle (or the equilibrium of the weight), a backlash's start centre
+    pub q_rest: f64,
+    /// a typical speed of the motion (95th percentile of |q̇|), rad/s
+    pub v_typ: f64,
+    /// a torque scale: the restoring torque over half the angles travelled, N·m
+    pub torque: f64,
+    /// the longest ripple period searched, rad
+    pub ripple_max: f64,
+}
+
+impl Layout {
+    /// `driven`: the log has a known input, so J is a term the fits can see (a free response
+    /// scales with D/J only, and J stays fixed).
+    pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64, driven: bool) -> Layout {
+        let base = base_from_model(model);
+        let (cols, beta0): (Vec<Col>, Vec<f64>) =
+            base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
+        let v = |id| model.value(id);
+        let span = (qmax - qmin).max(1e-3);
+        let k = if model.explicit(ParamId::SpringK).is_some() { v(ParamId::SpringK) } else { 0.0 };
+        let w = if model.explicit(ParamId::WeightAmplitude).is_some() {
+            v(ParamId::WeightAmplitude) * v(ParamId::WeightS).abs()
+        } else {
+            0.0
+        };
+        let q_rest = if k > 0.0 {
+            v(ParamId::SpringQ0) - v(ParamId::OffsetC0) / k
+        } else if w > 0.0 {
+            -v(ParamId::WeightPhi) / v(ParamId::WeightS)
+        } else {
+            0.5 * (qmin + qmax)
+        };
+        let torque = ((k + w) * 0.5 * span).max(1e-6);
+        Layout {
+            cols,
+            beta0,
+            j: v(ParamId::InertiaJ),
+            band: model.explicit(ParamId::FrictionVBand).unwrap_or(0.0),
+            file_sigma: model.explicit(ParamId::PreslidingSigma).filter(|s| *s > 0.0),
+            qmin,
+            qmax,
+            q_rest,
+            v_typ: v_typ.max(1e-3),
+            torque,
+            // short periods (gear mesh, cogging, wave generator: ≤ 0.3 rad) with at least three
+            // periods inside the angles travelled
+            ripple_max: (span / 3.0).min(0.3),
+        }
+    }
+
+    pub fn has(&self, c: Col) -> bool {
+        self.cols.contains(&c)
+    }
+
+    pub fn nb(&self) -> usize {
+        self.cols.len()
+    }
+
+    pub fn span(&self) -> f64 {
+        (self.qmax - self.qmin).max(1e-3)
+    }
+
+    /// The Coulomb level of the model's terms at `base` (0 without a sign term).
+    pub fn coulomb(&self, base: &[f64]) -> f64 {
+        self.cols.iter().zip(base).filter(|(c, _)| **c == Col::Sgn).map(|(_, b)| *b).sum()
+    }
+
+    /// Whether effect `k` applies to this model and log (`Err`: why not).
+    pub fn applies(&self, k: Kind, has_u: bool) -> Result<(), &'static str> {
+        match k {
+            Kind::Backlash if !self.has(Col::Q) => Err("the model has no [spring] whose dead zone could be fitted"),
+            Kind::Dry if self.has(Col::Sgn) => {
+                Err("the model has a Coulomb term, so a missing Coulomb torque is `parameters`")
+            }
+            Kind::Asymmetric if !self.has(Col::Sgn) => {
+                Err("the model has no Coulomb term whose level could differ by direction")
+            }
+            Kind::Presliding if !self.has(Col::Sgn) => {
+                Err("the model has no Coulomb term to build up after a reversal")
+            }
+            Kind::Presliding if self.file_sigma.is_some() => Err("the model already has [presliding]"),
+            Kind::Delay if !has_u => {
+                Err("a free response has no logged input to lag: a time shift is an initial state")
+            }
+            Kind::Ripple2 if self.ripple_max < 0.02 => Err("the angles travelled hold too few periods"),
+            _ => Ok(()),
+        }
+    }
+
+    /// Lower and upper bounds of the start and the model's terms.
+    pub fn base_bounds(&self) -> (Vec<f64>, Vec<f64>) {
+        let mut lo = vec![f64::NEG_INFINITY; 2];
+        let mut hi = vec![f64::INFINITY; 2];
+        for c in &self.cols {
+            // friction cannot feed energy in, a spring cannot push away from its rest
+            let nonneg = matches!(c, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Q | Col::Stribeck(_) | Col::Cable { .. });
+            // an inertia is positive (and a tenth of the file's is a wrong model, not a fit)
+            lo.push(if *c == Col::Qdd {
+                0.1 * self.j
+            } else if nonneg {
+                0.0
+            } else {
+                f64::NEG_INFINITY
+            });
+            hi.push(f64::INFINITY);
+        }
+        (lo, hi)
+    }
+
+    /// Bounds of effect `k`'s values.
+    pub fn effect_bounds(&self, k: Kind) -> (Vec<f64>, Vec<f64>) {
+        let inf = f64::INFINITY;
+        let span = self.span();
+        let per = (0.008f64.ln(), (1.5 * self.ripple_max).max(0.01).ln());
+        let width = ((1e-3f64).ln(), (0.5 * span).max(2e-3).ln());
+        let (lo, hi): (Vec<f64>, Vec<f64>) = match k {
+            Kind::Stribeck => (vec![0.0, (1e-3f64).ln(), 0.5], vec![inf, (20.0 * self.v_typ).ln(), 2.0]),
+            Kind::Asymmetric => (vec![-inf], vec![inf]),
+            Kind::Ripple => (vec![-inf, -inf, per.0], vec![inf, inf, per.1]),
+            Kind::Ripple2 => (vec![-inf, -inf, per.0, -inf, -inf, per.0], vec![inf, inf, per.1, inf, inf, per.1]),
+            Kind::CableAbove | Kind::CableBelow => {
+                (vec![0.0, self.qmin - 0.1 * span, width.0], vec![inf, self.qmax + 0.1 * span, width.1])
+            }
+            Kind::CableCubic if self.has(Col::Q) => (vec![0.0, self.qmin], vec![inf, self.qmax]),
+            Kind::CableCubic => (vec![0.0, 0.0, self.qmin], vec![inf, inf, self.qmax]),
+            Kind::CableBump => (vec![-inf, self.qmin, (0.01 * span).ln()], vec![inf, self.qmax, (0.5 * span).ln()]),
+            Kind::Backlash => {
+                (vec![(1e-4f64).ln(), self.q_rest - 0.5 * span], vec![(0.5 * span).ln(), self.q_rest + 0.5 * span])
+            }
+            Kind::Dry => (vec![0.0], vec![inf]),
+            Kind::Presliding => (vec![(1e-5f64).ln()], vec![(0.05f64).ln()]),
+            Kind::Delay => (vec![-0.2], vec![0.2]),
+        };
+        (lo, hi)
+    }
+
+    /// Starts of effect `k`'s values (several where its shape makes the fit multimodal).
+    pub fn effect_starts(&self, k: Kind, c_ref: f64) -> Vec<Vec<f64>> {
+        let span = self.span();
+        let tq = self.torque;
+        let lvl = if c_ref > 0.0 { 0.3 * c_ref } else { 0.05 * tq };
+        match k {
+            Kind::Stribeck => {
+                // the speed is where the fit is multimodal (a high narrow curve and a low wide
+                // one take the same energy per reversal): a decade and a half of starts
+                let mut v = Vec::new();
+                for f in [0.01, 0.03, 0.1, 0.3] {
+                    for d in [1.0, 2.0] {
+                        v.push(vec![lvl, (f * self.v_typ).ln(), d]);
+                    }
+                }
+                v
+            }
+            Kind::Asymmetric => vec![vec![0.1 * c_ref.max(0.01 * tq)]],
+            // The period is where the fit is multimodal (a start more than ~10 % off locks onto
+            // another period): starts every 15 % from 0.01 rad to `ripple_max`.
+            Kind::Ripple => (0..40)
+                .map(|i| 0.01 * 1.15f64.powi(i))
+                .take_while(|p| *p <= self.ripple_max)
+                .map(|p| vec![0.02 * tq, 0.02 * tq, p.ln()])
+                .collect(),
+            Kind::Ripple2 => Vec::new(), // started from the best single harmonic (see fits)
+            Kind::CableAbove => [0.5, 0.75, 0.9]
+                .iter()
+                .map(|f| vec![0.1 * tq / (0.2 * span), self.qmin + f * span, (0.05 * span).ln()])
+                .collect(),
+            Kind::CableBelow => [0.5, 0.25, 0.1]
+                .iter()
+                .map(|f| vec![0.1 * tq / (0.2 * span), self.qmin + f * span, (0.05 * span).ln()])
+                .collect(),
+            Kind::CableCubic => {
+                let k3 = 0.1 * tq / (0.5 * span).powi(3);
+                let mid = 0.5 * (self.qmin + self.qmax);
+                if self.has(Col::Q) {
+                    vec![vec![k3, mid]]
+                } else {
+                    vec![vec![0.0, k3, mid], vec![0.1 * tq / span, k3, mid]]
+                }
+            }
+            Kind::CableBump => [0.25, 0.5, 0.75]
+                .iter()
+                .flat_map(|f| [1.0, -1.0].map(|sg| vec![sg * 0.05 * tq, self.qmin + f * span, (0.1 * span).ln()]))
+                .collect(),
+            Kind::Backlash => [0.01, 0.04]
+                .iter()
+                .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.q_rest + side * w * span]))
+                .collect(),
+            Kind::Dry => vec![vec![0.02 * tq]],
+            Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
+            Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
+        }
+    }
+
+    /// The force law of `θ` with `effects` (in θ's order after the model's terms).
+    pub fn law(&self, th: &[f64], effects: &[Kind]) -> Law {
+        let nb = self.nb();
+        let mut law = Law { j: self.j, band: self.band, dahl: self.file_sigma, span: self.span(), ..Law::default() };
+        let mut weight = (0.0, 0.0, 0.0);
+        let mut has_weight = false;
+        for (c, &b) in self.cols.iter().zip(th.iter().skip(2)) {
+            match *c {
+                Col::Qdd => law.j = b,
+                Col::QdAbsQd => law.a += b,
+                Col::Qd => law.b += b,
+                Col::Sgn => law.c += b,
+                Col::SinSq(s) => {
+                    weight.0 = s;
+                    weight.1 = b;
+                    has_weight = true;
+                }
+                Col::CosSq(s) => {
+                    weight.0 = s;
+                    weight.2 = b;
+                    has_weight = true;
+                }
+                Col::Q => law.k += b,
+                Col::Const => law.konst += b,
+                Col::Stribeck(v) => law.strib.push((b, v, 2.0)),
+                Col::AbsSgn => law.delta += b,
+                Col::RipSin(p) => push_ripple(&mut law, p, Some(b), None),
+                Col::RipCos(p) => push_ripple(&mut law, p, None, Some(b)),
+                Col::Cable { engage, width } => law.cables.push(Cable::Above { k: b, engage, width }),
+                _ => {}
+            }
+        }
+        if has_weight {
+            law.weight = Some(weight);
+        }
+        let mut off = 2 + nb;
+        for &k in effects {
+            let e = th.get(off..).unwrap_or(&[]);
+            let g = |i: usize| e.get(i).copied().unwrap_or(0.0);
+            match k {
+                Kind::Stribeck => law.strib.push((g(0), g(1).exp(), g(2))),
+                Kind::Asymmetric => law.delta += g(0),
+                Kind::Ripple => law.ripples.push((g(2).exp(), g(0), g(1))),
+                Kind::Ripple2 => {
+                    law.ripples.push((g(2).exp(), g(0), g(1)));
+                    law.ripples.push((g(5).exp(), g(3), g(4)));
+                }
+                Kind::CableAbove => law.cables.push(Cable::Above { k: g(0), engage: g(1), width: g(2).exp() }),
+                Kind::CableBelow => law.cables.push(Cable::Below { k: g(0), engage: g(1), width: g(2).exp() }),
+                Kind::CableCubic if self.has(Col::Q) => law.cables.push(Cable::Cubic { k1: 0.0, k3: g(0), qs: g(1) }),
+                Kind::CableCubic => law.cables.push(Cable::Cubic { k1: g(0), k3: g(1), qs: g(2) }),
+                Kind::CableBump => law.cables.push(Cable::Bump { a: g(0), qb: g(1), w: g(2).exp() }),
+                Kind::Backlash => law.backlash = Some((g(0).exp(), g(1))),
+                Kind::Dry => law.c += g(0),
+                Kind::Presliding => law.dahl = Some(law.c.max(0.0) / g(0).exp()),
+                Kind::Delay => {}
+            }
+            off += self.len(k);
+        }
+        // Friction never pushes: a direction offset beyond the Coulomb level is held at it
+        // (the fit is then marked implausible, see `implausible`).
+        law.delta = law.delta.clamp(-law.c.max(0.0), law.c.max(0.0));
+        law
+    }
+
+    /// How many entries of θ effect `k` takes.
+    pub fn len(&self, k: Kind) -> usize {
+        self.effect_bounds(k).0.len()
+    }
+
+    /// The input lag of `θ` with `effects`, s (0 without a delay): the joint felt the logged
+    /// input of `lag` seconds earlier (negative: the logged input is late).
+    pub fn delay(&self, th: &[f64], effects: &[Kind]) -> f64 {
+        let mut off = 2 + self.nb();
+        for &k in effects {
+            if k == Kind::Delay {
+                return th.get(off).copied().unwrap_or(0.0);
+            }
+            off += self.len(k);
+        }
+        0.0
+    }
+
+    /// Why effect `k` (at `e`, its values) on top of the terms `base` is not the physical effect
+    /// its name says: the same sign rules as torque mode, plus friction that would push in one
+    /// direction.
+    pub fn implausible(&self, k: Kind, base: &[f64], e: &[f64]) -> Option<&'static str> {
+        let g = |i: usize| e.get(i).copied().unwrap_or(0.0);
+        let c: f64 = self.cols.iter().zip(base).filter(|(c, _)| **c == Col::Sgn).map(|(_, b)| *b).sum();
+        let tiny = 1e-9 * self.torque;
+        match k {
+            Kind::Stribeck if g(0) <= tiny => {
+                Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
+            }
+            Kind::CableAbove | Kind::CableBelow if g(0) <= tiny => {
+                Some("fitted cable stiffness is not positive: a cable cannot push")
+            }
+            Kind::CableCubic if e.iter().rev().nth(1).copied().unwrap_or(0.0) <= tiny => {
+                Some("fitted progressive stiffness is not positive: the element does not stiffen")
+            }
+            Kind::Dry if g(0) <= tiny => {
+                Some("fitted dry friction level is not positive: friction cannot drive the motion")
+            }
+            Kind::Asymmetric if g(0).abs() >= c => {
+                Some("fitted asymmetry exceeds the Coulomb level: friction would push the joint in one direction")
+            }
+            _ => None,
+        }
+    }
+}
+
+fn push_ripple(law: &mut Law, p: f64, s: Option<f64>, c: Option<f64>) {
+    if let Some(r) = law.ripples.iter_mut().find(|r| r.0 == p) {
+        if let Some(s) = s {
+            r.1 = s;
+        }
+        if let Some(c) = c {
+            r.2 = c;
+        }
+    } else {
+        law.ripples.push((p, s.unwrap_or(0.0), c.unwrap_or(0.0)));
+    }
+}
+
+/// The model's terms at coefficient vector `b` (the layout's columns), as "section.key".
+pub fn refit_values(model: &ModelFile, cols: &[Col], b: &[f64]) -> Vec<(String, f64)> {
+    let v = |id| model.value(id);
+    let mut out = Vec::new();
+    let c = |want: Col| cols.iter().position(|x| *x == want).and_then(|k| b.get(k).copied());
+    if let Some(j) = c(Col::Qdd) {
+        out.push(("inertia.j".to_string(), j));
+    }
+    if let Some(a) = c(Col::QdAbsQd) {
+        out.push(("friction.a".to_string(), a));
+    }
+    if let Some(bt) = c(Col::Qd) {
+        if v(ParamId::FrictionB) != 0.0 || v(ParamId::SpringB) == 0.0 {
+            out.push(("friction.b".into(), bt - v(ParamId::SpringB)));
+        } else {
+            out.push(("spring.b".into(), bt));
+        }
+    }
+    if let Some(cc) = c(Col::Sgn) {
+        let key = if v(ParamId::FrictionC) == 0.0 && v(ParamId::DryFrictionC) != 0.0 {
+            "dry_friction.c"
+        } else {
+            "friction.c"
+        };
+        out.push((key.into(), cc));
+    }
+    if let Some(l) = c(Col::Stribeck(v(ParamId::StribeckSpeed))) {
+        out.push(("stribeck.level".into(), l));
+    }
+    if let Some(dl) = c(Col::AbsSgn) {
+        out.push(("asymmetric_friction.delta".into(), dl));
+    }
+    let per = v(ParamId::RipplePeriod);
+    if let (Some(bs), Some(bc)) = (c(Col::RipSin(per)), c(Col::RipCos(per))) {
+        out.push(("position_ripple.amplitude".into(), bs.hypot(bc)));
+        out.push(("position_ripple.phase".into(), bc.atan2(bs)));
+    }
+    if let Some(kc) = c(Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) }) {
+        out.push(("cable_spring.k".into(), kc));
+    }
+    let ws = v(ParamId::WeightS);
+    if let (Some(bs), Some(bc)) = (c(Col::SinSq(ws)), c(Col::CosSq(ws))) {
+        out.push(("weight.amplitude".into(), bs.hypot(bc)));
+        out.push(("weight.phi".into(), bc.atan2(bs)));
+    }
+    let k = c(Col::Q);
+    if let Some(k) = k {
+        out.push(("spring.k".into(), k));
+    }
+    if let Some(cst) = c(Col::Const) {
+        let k = k.unwrap_or(0.0);
+        if v(ParamId::OffsetC0) != 0.0 || k == 0.0 {
+            out.push(("offset.c0".into(), cst + k * v(ParamId::SpringQ0)));
+        } else {
+            out.push(("spring.q0".into(), -cst / k));
+        }
+    }
+    out
+}
