@@ -2,7 +2,7 @@
 # Every test: the firmware size budget, the firmware on an emulated Cortex-M4F (QEMU) with
 # bit-parity against the PC, the control step's instruction budget, the core's no-panic lints,
 # and the host test suite (core, CANopen, host-sim, identification, diagnosis, python-canopen
-# interop, end-to-end).
+# interop, end-to-end), and the diagnosis's null test on 500 generated logs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -27,3 +27,5 @@ echo "== headless Chromium for the diagnosis report test"
 bash scripts/chromium.sh
 echo "== host test suite"
 cargo test --workspace --no-fail-fast
+echo "== null test: 500 model-exact logs from diag-bench diagnosed blind (named an effect ≤ 1 %, refused ≤ 1 %)"
+bash scripts/null-test.sh 500 31
