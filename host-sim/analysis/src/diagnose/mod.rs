@@ -526,7 +526,9 @@ fn torque_mode(
     // errors in variables removed) on the training rows, and the lower of the two counts.
     let floor = {
         let at_file = torque_floor(&r0, &data, (&base.cols, &base.beta0), prep, &split.holdout);
-        let rs = select::fit_and_score(&data, &base, &[], &split.train, &split, &regimes.bits, regimes.defs.len());
+        // (on at most 150 000 training rows, as the selection's fits)
+        let fit_idx = candidates::thin_idx(&split.train, 150_000);
+        let rs = select::fit_and_score(&data, &base, &[], &fit_idx, &split, &regimes.bits, regimes.defs.len());
         let mut x = vec![0.0; rs.design.cols.len()];
         let r1: Vec<f64> = (0..n).map(|i| select::residual_at(&data, &rs.design, &rs.beta, i, &mut x)).collect();
         at_file.min(torque_floor(&r1, &data, (&rs.design.cols, &rs.beta), prep, &split.holdout))
