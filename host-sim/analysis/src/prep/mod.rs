@@ -203,6 +203,13 @@ fn estimate_deriv(
 /// Prepares `log` (already parsed and checked by the reader).
 pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let samples_in = log.len();
+    let timing = std::env::var_os("DIAG_TIMING").is_some();
+    let t_start = std::time::Instant::now();
+    let lap = |what: &str| {
+        if timing {
+            eprintln!("[prep] {what}: {:.3} s", t_start.elapsed().as_secs_f64());
+        }
+    };
     let (log, stale) = drop_stale(log);
     let n = log.len();
     if n < 2 {
@@ -216,6 +223,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
              if `t` is in milliseconds, divide it by 1000 (spec §1: seconds)"
         )));
     }
+    lap("stale rows");
     let mut segments = split_at_gaps(&log.t, dt);
     let jumps = split_at_jumps(&log.q, &mut segments);
     let mut notes = Vec::new();
@@ -237,6 +245,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
     let quantum = resolution_sd(&log.q);
     let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(quantum);
+    lap("spectrum, resolution");
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
     let mut q_spec = q_spec;
     // A coarse encoder's quantisation is not white: a joint moving at v crosses steps of Δ at
@@ -288,6 +297,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         let first = derive(r1, &log.q, &segments);
         (first, second.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
     });
+    lap("derivatives from q");
     let qd_q = Deriv { info: derived_info("derived from q", h1, dt, &s1, bias1), values: v1, noise: s1, bias: bias1 };
     let qdd_q = Deriv { info: derived_info("derived from q", h2, dt, &s2, bias2), values: v2, noise: s2, bias: bias2 };
     // Rest is judged on the joint's own angle: a logged derivative may be a filtered estimate
@@ -381,6 +391,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         }
         None => (qdd_best, qdd_recipe),
     };
+    lap("logged columns checked");
     let (mut qd, mut qdd) = (qd, qdd);
 
     // Rest: where q̇ and q̈ both stay within their noise for longer than a derivative window
@@ -391,6 +402,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // still: the q̇ used (the best estimate, possibly a clean logged one) within its noise, and
     // q's own q̈ within its noise
     let rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
+    lap("rest");
     // Motion next to a rest is re-estimated from the motion's side only: a window across the
     // start or end of a move mixes the still joint into the moving one (q̈ jumps there), and
     // its smeared q̇ would put the Coulomb sign wrong for a whole window.
@@ -447,6 +459,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             }
         }
     }
+    lap("re-estimated next to rests");
     // Where a move leaves or reaches a rest, the joint's direction is known before its speed
     // is: from the way it goes. Until q has left the rest's noise band the sign is unknown
     // (the joint may have started, the data cannot say): those samples are marked ambiguous.
@@ -456,6 +469,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // Elsewhere where the q̇ estimate is too small to sign, q may still be going one way on
     // both sides (a move that slows to a near stop and goes on): then that is its direction.
     through_direction(&log.q, &qd.values, &qd.error(), &rest, &segments, 4.0 * q_noise, hold, &mut direction);
+    lap("directions");
     let ambiguous_share = share(&ambiguous);
     if ambiguous_share > 0.0 {
         notes.push(format!(
@@ -541,6 +555,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         smoother: SMOOTHER,
         notes,
     };
+    lap("errors, local bias, floors");
     Ok(Prepared {
         log: out,
         segments,
