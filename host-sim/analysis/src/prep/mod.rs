@@ -468,6 +468,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let (mut direction, ambiguous) = transitions(&log.q, &qd.values, &qd.noise, &rest, &segments, 4.0 * q_noise, hold);
     // Elsewhere where the q̇ estimate is too small to sign, q may still be going one way on
     // both sides (a move that slows to a near stop and goes on): then that is its direction.
+    let before_through = direction.clone();
     through_direction(&log.q, &qd.values, &qd.error(), &rest, &segments, 4.0 * q_noise, hold, &mut direction);
     lap("directions");
     let ambiguous_share = share(&ambiguous);
@@ -532,8 +533,12 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     }
     // Where the estimate cannot say which way the joint moves (within 3σ of zero, no direction
     // from q, not at rest): a pure Coulomb sign there is a coin toss.
+    // A direction read from q on both sides says which way the joint goes if it moves, not
+    // that it moves: a dwell shorter than a rest (two moves the same way) passes for a slow
+    // move there, and a pure sign predicts ±c where the joint stood (0, or anything in ±c).
+    // Only a direction next to a rest (q has left the rest's band) says it moves.
     let sign_unknown: Vec<bool> =
-        (0..n).map(|i| !rest[i] && direction[i] == 0 && qd.values[i].abs() < 3.0 * qd_err[i]).collect();
+        (0..n).map(|i| !rest[i] && before_through[i] == 0 && qd.values[i].abs() < 3.0 * qd_err[i]).collect();
     let mut out = log;
     out.qd = Some(qd.values);
     out.qdd = Some(qdd.values);
