@@ -3,7 +3,7 @@
 # family, 20 Hz–2 kHz, white or AR(1) noise, quantised encoders, clean or noisy qd, pure or
 # banded sign; torque and trajectory mode), diagnosed blind by `jointctl diagnose`. Fails when
 # more than 1 % of them are named an effect, or more than 1 % are refused.
-#   scripts/null-test.sh [CASES] [SEED]      (default 500 logs, seed 31; measured 4 named, 0 refused)
+#   scripts/null-test.sh [CASES] [SEED]      (default 500 logs, seed 31; measured 2 named, 0 refused)
 # The generator is its own crate (host-sim/bench) that never imports the diagnosis.
 set -euo pipefail
 cd "$(dirname "$0")/.."
