@@ -19,6 +19,7 @@ pub mod candidates;
 pub mod evidence;
 pub mod fit;
 pub mod floor;
+mod par;
 pub mod regimes;
 pub mod report_html;
 pub mod resid;

@@ -163,8 +163,9 @@ pub fn score(
     acc.into_scored(effects, des, beta)
 }
 
-/// Held-out squared residuals summed overall, per test unit and per regime.
-struct Sums {
+/// Held-out squared residuals summed overall, per test unit and per regime (torque mode's and
+/// trajectory mode's scores alike).
+pub(crate) struct Sums {
     sse: f64,
     n: usize,
     unit_sse: Vec<f64>,
@@ -174,7 +175,38 @@ struct Sums {
 }
 
 impl Sums {
-    fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>) -> Scored {
+    /// Empty sums for `n` held-out samples in `units` test units and `n_regimes` regimes.
+    pub(crate) fn new(n: usize, units: usize, n_regimes: usize) -> Sums {
+        Sums {
+            sse: 0.0,
+            n,
+            unit_sse: vec![0.0; units],
+            unit_n: vec![0.0; units],
+            regime_sse: vec![0.0; n_regimes],
+            regime_n: vec![0.0; n_regimes],
+        }
+    }
+
+    /// One held-out sample's squared residual `r2`, in test unit `unit`, in the regimes whose
+    /// bits `regimes` has set (a unit or regime out of range counts overall only).
+    pub(crate) fn add(&mut self, r2: f64, unit: usize, regimes: u32) {
+        self.sse += r2;
+        if let (Some(a), Some(b)) = (self.unit_sse.get_mut(unit), self.unit_n.get_mut(unit)) {
+            *a += r2;
+            *b += 1.0;
+        }
+        let mut b = regimes;
+        while b != 0 {
+            let j = b.trailing_zeros() as usize;
+            if let (Some(a), Some(c)) = (self.regime_sse.get_mut(j), self.regime_n.get_mut(j)) {
+                *a += r2;
+                *c += 1.0;
+            }
+            b &= b - 1;
+        }
+    }
+
+    pub(crate) fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>) -> Scored {
         let Sums { sse, n, unit_sse, unit_n, regime_sse, regime_n } = self;
         Scored { effects, design, beta, sse, n, unit_sse, unit_n, regime_sse, regime_n }
     }
@@ -182,30 +214,10 @@ impl Sums {
 
 /// Sums `resid(k, i)²` over the held-out samples (`k`-th held-out sample, log index `i`).
 fn accumulate(split: &Split, bits: &[u32], n_regimes: usize, mut resid: impl FnMut(usize, usize) -> f64) -> Sums {
-    let mut s = Sums {
-        sse: 0.0,
-        n: split.holdout.len(),
-        unit_sse: vec![0.0; split.n_units],
-        unit_n: vec![0.0; split.n_units],
-        regime_sse: vec![0.0; n_regimes],
-        regime_n: vec![0.0; n_regimes],
-    };
+    let mut s = Sums::new(split.holdout.len(), split.n_units, n_regimes);
     for (k, &i) in split.holdout.iter().enumerate() {
         let r = resid(k, i as usize);
-        let r2 = r * r;
-        s.sse += r2;
-        let u = split.unit[k] as usize;
-        s.unit_sse[u] += r2;
-        s.unit_n[u] += 1.0;
-        let mut b = bits[i as usize];
-        while b != 0 {
-            let j = b.trailing_zeros() as usize;
-            if j < n_regimes {
-                s.regime_sse[j] += r2;
-                s.regime_n[j] += 1.0;
-            }
-            b &= b - 1;
-        }
+        s.add(r * r, split.unit[k] as usize, bits[i as usize]);
     }
     s
 }
@@ -622,46 +634,15 @@ fn try_kinds(
         }
         Some(round.fit_and_score(e, split, bits, n_regimes))
     };
-    if threads == 1 || kinds.len() < 2 {
-        return kinds.iter().filter_map(|&k| work(k)).collect();
-    }
-    // Kinds differ a lot in cost (grid searches vs. one fit), so threads take the next kind
-    // from a shared counter instead of fixed halves, the costliest searches first (measured on
-    // a 1 M-sample log: ripple ≈ 0.1 s, delay ≈ 0.04 s, the others ≤ 0.03 s); results keep
-    // the order of `kinds`, so the outcome does not depend on the schedule.
-    let cost = |k: Kind| match k {
+    // Kinds differ a lot in cost, the costliest searches first (measured on a 1 M-sample log:
+    // ripple ≈ 0.1 s, delay ≈ 0.04 s, the others ≤ 0.03 s).
+    let cost = |k: &Kind| match k {
         Kind::Ripple => 0,
         Kind::Delay => 1,
         Kind::Thermal | Kind::Cable | Kind::Stribeck => 2,
         _ => 3,
     };
-    let mut order: Vec<usize> = (0..kinds.len()).collect();
-    order.sort_by_key(|&i| kinds.get(i).map_or(4, |&k| cost(k)));
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let out: Vec<Option<Scored>> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..threads.min(kinds.len()))
-            .map(|_| {
-                let (work, next, order) = (&work, &next, &order);
-                s.spawn(move || {
-                    let mut done = Vec::new();
-                    loop {
-                        let slot = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&pos) = order.get(slot) else { break };
-                        let Some(&k) = kinds.get(pos) else { break };
-                        done.push((pos, work(k)));
-                    }
-                    done
-                })
-            })
-            .collect();
-        let mut all: Vec<(usize, Option<Scored>)> = Vec::with_capacity(kinds.len());
-        for h in handles {
-            // A panicking worker is a bug; re-raise it here rather than drop its kinds.
-            all.extend(h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        }
-        all.sort_by_key(|&(pos, _)| pos);
-        all.into_iter().map(|(_, r)| r).collect()
-    });
+    let out = super::par::costliest_first(kinds, threads, cost, |&k| work(k));
     out.into_iter().flatten().collect()
 }
 

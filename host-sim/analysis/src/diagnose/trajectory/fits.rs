@@ -271,46 +271,20 @@ impl Problem<'_> {
 /// The held-out score of a simulated angle: squared residuals over the held-out samples, per
 /// test unit and per regime.
 pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, theta: Vec<f64>) -> Scored {
-    let units = split.units;
-    let mut s = Scored {
-        effects: vec![],
-        design: crate::diagnose::candidates::Design {
-            cols: vec![],
-            lag: 0.0,
-            channel: crate::diagnose::candidates::Channel::U,
-            dahl: None,
-            spans: vec![],
-            prior: vec![],
-        },
-        beta: theta,
-        sse: 0.0,
-        n: split.n_held(),
-        unit_sse: vec![0.0; units],
-        unit_n: vec![0.0; units],
-        regime_sse: vec![0.0; nreg],
-        regime_n: vec![0.0; nreg],
-    };
+    let mut s = crate::diagnose::select::Sums::new(split.n_held(), split.units, nreg);
     for (i, (&qi, &si)) in q.iter().zip(sim).enumerate() {
-        if !split.held[i] {
-            continue;
-        }
-        let r = qi - si;
-        let r2 = r * r;
-        s.sse += r2;
-        let u = split.unit[i];
-        if let (Some(a), Some(b)) = (s.unit_sse.get_mut(u), s.unit_n.get_mut(u)) {
-            *a += r2;
-            *b += 1.0;
-        }
-        let mut b = bits.get(i).copied().unwrap_or(0);
-        while b != 0 {
-            let j = b.trailing_zeros() as usize;
-            if j < nreg {
-                s.regime_sse[j] += r2;
-                s.regime_n[j] += 1.0;
-            }
-            b &= b - 1;
+        if split.held[i] {
+            let r = qi - si;
+            s.add(r * r, split.unit[i], bits.get(i).copied().unwrap_or(0));
         }
     }
-    s
+    let design = crate::diagnose::candidates::Design {
+        cols: vec![],
+        lag: 0.0,
+        channel: crate::diagnose::candidates::Channel::U,
+        dahl: None,
+        spans: vec![],
+        prior: vec![],
+    };
+    s.into_scored(vec![], design, theta)
 }

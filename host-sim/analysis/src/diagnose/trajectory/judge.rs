@@ -106,10 +106,6 @@ pub fn above_floor(mse: f64, n: usize, floor: f64, floor_dof: Option<usize>) -> 
     }
 }
 
-fn test(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
-    compare(reference, cand)
-}
-
 fn sig(t: (f64, f64, f64), alpha: f64) -> bool {
     t.1 < alpha && t.2 >= MIN_GAIN
 }
@@ -139,7 +135,7 @@ pub fn judge(
     let f = if f_is_s { s } else { r0 };
     let at_floor = f.scored.rmse() <= AT_FLOOR * floor;
 
-    let it = test(&r0.scored, &s.scored);
+    let it = compare(&r0.scored, &s.scored);
     let initial = Outcome {
         name: "initial_state",
         fit: 1,
@@ -159,7 +155,7 @@ pub fn judge(
             && (s.scored.rmse() <= UNEXPLAINED * floor || !above_floor(s.scored.mse(), s.scored.n, floor, floor_dof)),
         implausible: None,
     };
-    let pt = test(&s.scored, &p.scored);
+    let pt = compare(&s.scored, &p.scored);
     let params = Outcome {
         name: "parameters",
         fit: 2,
@@ -172,8 +168,8 @@ pub fn judge(
 
     let outcome = |k: usize, reference: &Scored| {
         let e = &fits[k];
-        let t = test(reference, &e.scored);
-        let t0 = test(&f.scored, &e.scored);
+        let t = compare(reference, &e.scored);
+        let t0 = compare(&f.scored, &e.scored);
         let last = e.effects.len() - 1;
         let implausible = lay.implausible(e.effects[last], e.base(lay), e.effect_values(lay, last));
         let name = e.effects[last].name();
@@ -225,7 +221,7 @@ fn pick_variant(lay: &Layout, fits: &[Fitted], outs: Vec<Outcome>, alpha: f64) -
     let best = *pool.iter().min_by(|a, b| mse(a).total_cmp(&mse(b)))?;
     let size = |o: &Outcome| fits[o.fit].size(lay);
     pool.into_iter()
-        .filter(|o| !sig(test(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
+        .filter(|o| !sig(compare(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
         .min_by(|a, b| size(a).cmp(&size(b)).then(mse(a).total_cmp(&mse(b))))
         .cloned()
 }
@@ -239,7 +235,7 @@ pub fn parsimonious(lay: &Layout, fits: &[Fitted], outs: &[Outcome], alpha: f64)
     let size = |o: &Outcome| fits[o.fit].size(lay);
     sig_outs
         .into_iter()
-        .filter(|o| !sig(test(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
+        .filter(|o| !sig(compare(&fits[o.fit].scored, &fits[best.fit].scored), alpha))
         .min_by(|a, b| size(a).cmp(&size(b)).then(mse(a).total_cmp(&mse(b))))
         .cloned()
 }
@@ -247,7 +243,7 @@ pub fn parsimonious(lay: &Layout, fits: &[Fitted], outs: &[Outcome], alpha: f64)
 /// The outcome of a two-effect fit `k` against the one-effect fit it extends.
 pub fn second(lay: &Layout, fits: &[Fitted], k: usize, first: usize, alpha: f64) -> Outcome {
     let e = &fits[k];
-    let t = test(&fits[first].scored, &e.scored);
+    let t = compare(&fits[first].scored, &e.scored);
     let last = e.effects.len() - 1;
     let implausible = lay
         .implausible(e.effects[last], e.base(lay), e.effect_values(lay, last))
@@ -284,13 +280,13 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<&'static str>, V
     // beats the file's model (an effect fitted on top of the refit that adds nothing is the
     // refit itself, not an alternative to it).
     let own_alts: Vec<&Outcome> = if j.verdict == "parameters" {
-        j.own.iter().filter(|o| o.implausible.is_none() && sig(test(f, &fits[o.fit].scored), j.alpha_each)).collect()
+        j.own.iter().filter(|o| o.implausible.is_none() && sig(compare(f, &fits[o.fit].scored), j.alpha_each)).collect()
     } else {
         Vec::new()
     };
     let mut alts: Vec<&'static str> = Vec::new();
     for o in all.iter().copied().filter(|o| o.significant).chain(own_alts) {
-        let t = test(&fits[o.fit].scored, &fits[chosen.fit].scored);
+        let t = compare(&fits[o.fit].scored, &fits[chosen.fit].scored);
         if o.name != chosen.name && !sig(t, j.alpha_each) && !alts.contains(&o.name) {
             alts.push(o.name);
         }

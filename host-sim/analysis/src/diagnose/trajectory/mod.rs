@@ -490,35 +490,14 @@ fn run_parallel<J: Job, T: Send, F>(jobs: &[J], work: F) -> Vec<T>
 where
     F: Fn(J) -> T + Sync,
 {
-    let cost = |k: Kind| match k {
+    let cost = |j: &J| match j.kind() {
         Kind::Ripple => 0,
         Kind::Stribeck | Kind::Backlash => 1,
         Kind::CableAbove | Kind::CableBelow => 2,
         _ => 3,
     };
-    let mut order: Vec<usize> = (0..jobs.len()).collect();
-    order.sort_by_key(|&i| cost(jobs[i].kind()));
-    let next = std::sync::atomic::AtomicUsize::new(0);
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
-    let mut out: Vec<(usize, T)> = std::thread::scope(|s| {
-        let hs: Vec<_> = (0..threads)
-            .map(|_| {
-                let (work, next, order) = (&work, &next, &order);
-                s.spawn(move || {
-                    let mut done = Vec::new();
-                    loop {
-                        let slot = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&pos) = order.get(slot) else { break };
-                        done.push((pos, work(jobs[pos])));
-                    }
-                    done
-                })
-            })
-            .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))).collect()
-    });
-    out.sort_by_key(|(pos, _)| *pos);
-    out.into_iter().map(|(_, f)| f).collect()
+    crate::diagnose::par::costliest_first(jobs, threads, cost, |&j| work(j))
 }
 
 /// A chosen effect whose held-out RMSE is within this factor of the floor leaves nothing a
