@@ -307,28 +307,12 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // A logged q̇: checked against q, kept when its error is the smaller.
     let (qd, qd_recipe) = match &log.qd {
         Some(v) => {
-            let short = || derive(Recipe { h: (r1.h / 4).max(2), ..r1 }, &log.q, &segments).0;
-            let (scale, diff) = compare_logged(v, &qd_q.values, typical(&qd_q.error()), &short, "qd", "q")?;
-            let own = own_noise(v, &segments, dt);
-            let noise = diff.max(own);
-            let lag = logged_lag(v, &qd_q.values);
-            if let Some(l) = lag {
-                notes.push(format!(
-                    "the logged qd lags the derivative of q by {l} samples (a filtered estimate): q's is used"
-                ));
-            }
-            if noise <= qd_q.effective_error() && consistent(scale) && lag.is_none() {
-                let info = logged_info(noise, scale, own >= 0.5 * diff);
-                (Deriv { values: v.clone(), noise: vec![noise; n], bias: 0.0, info }, None)
-            } else {
-                notes.push(format!(
-                    "the logged qd is noisier than the derivative of q ({noise:.3e} vs {:.3e} rad/s): q's is used",
-                    typical(&qd_q.error())
-                ));
-                let mut d = qd_q;
-                d.info.logged_noise_sd = Some(noise);
-                d.info.logged_scale = Some(scale);
-                (d, Some(r1))
+            let short = |_: &[f64]| derive(Recipe { h: (r1.h / 4).max(2), ..r1 }, &log.q, &segments).0;
+            let what =
+                LoggedColumn { name: "qd", of: "q", estimate: "the derivative of q", used: "q's", unit: "rad/s" };
+            match check_logged(v, qd_q, &short, &what, (&segments, dt), &mut notes)? {
+                (d, true) => (d, None),
+                (d, false) => (d, Some(r1)),
             }
         }
         None => (qd_q, Some(r1)),
@@ -353,40 +337,17 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     };
     let (qdd, qdd_recipe) = match &log.qdd {
         Some(a) => {
-            let best_err = typical(&qdd_best.error());
-            let short = || match qdd_recipe {
+            let short = |best: &[f64]| match qdd_recipe {
                 Some(r) => {
                     derive(Recipe { h: (r.h / 4).max(2), ..r }, if r.from_q { &log.q } else { &qd.values }, &segments).0
                 }
-                None => qdd_best.values.clone(),
+                None => best.to_vec(),
             };
-            let (scale, diff) = compare_logged(a, &qdd_best.values, best_err, &short, "qdd", "qd")?;
-            let own = own_noise(a, &segments, dt);
-            let noise = diff.max(own);
-            let lag = logged_lag(a, &qdd_best.values);
-            if let Some(l) = lag {
-                notes.push(format!(
-                    "the logged qdd lags the estimate by {l} samples (a filtered estimate): the estimate is used"
-                ));
-            }
-            if noise <= qdd_best.effective_error() && consistent(scale) && lag.is_none() {
-                (
-                    Deriv {
-                        values: a.clone(),
-                        noise: vec![noise; n],
-                        bias: 0.0,
-                        info: logged_info(noise, scale, own >= 0.5 * diff),
-                    },
-                    None,
-                )
-            } else {
-                notes.push(format!(
-                    "the logged qdd is noisier than the estimate ({noise:.3e} vs {best_err:.3e} rad/s²): the estimate is used"
-                ));
-                let mut d = qdd_best;
-                d.info.logged_noise_sd = Some(noise);
-                d.info.logged_scale = Some(scale);
-                (d, qdd_recipe)
+            let what =
+                LoggedColumn { name: "qdd", of: "qd", estimate: "the estimate", used: "the estimate", unit: "rad/s²" };
+            match check_logged(a, qdd_best, &short, &what, (&segments, dt), &mut notes)? {
+                (d, true) => (d, None),
+                (d, false) => (d, qdd_recipe),
             }
         }
         None => (qdd_best, qdd_recipe),
@@ -1113,6 +1074,57 @@ const FACTORS: [(f64, &str); 9] = [
     (1.0 / 60.0, "per second against per minute"),
     (-1.0, "the opposite sign"),
 ];
+
+/// How a logged derivative column is named in the checks' notes.
+struct LoggedColumn {
+    /// the column ("qd", "qdd")
+    name: &'static str,
+    /// the signal it is the derivative of ("q", "qd")
+    of: &'static str,
+    /// what it is weighed against, and what is used when it loses
+    estimate: &'static str,
+    used: &'static str,
+    unit: &'static str,
+}
+
+/// A logged derivative column against the estimate from the signal below it ([`compare_logged`],
+/// with `short` the estimate on a quarter window, given the estimate's values; its own noise, a
+/// lag): the column is used (`true`) when its error is no larger than the
+/// estimate's, its scale is consistent and it does not lag; otherwise the estimate is, with the
+/// column's measured noise and scale recorded, and a note says why.
+fn check_logged(
+    col: &[f64],
+    estimate: Deriv,
+    short: &dyn Fn(&[f64]) -> Vec<f64>,
+    what: &LoggedColumn,
+    (segments, dt): (&[std::ops::Range<usize>], f64),
+    notes: &mut Vec<String>,
+) -> Result<(Deriv, bool), PrepError> {
+    let est_err = typical(&estimate.error());
+    let short_of_estimate = || short(&estimate.values);
+    let (scale, diff) = compare_logged(col, &estimate.values, est_err, &short_of_estimate, what.name, what.of)?;
+    let own = own_noise(col, segments, dt);
+    let noise = diff.max(own);
+    let lag = logged_lag(col, &estimate.values);
+    if let Some(l) = lag {
+        notes.push(format!(
+            "the logged {} lags {} by {l} samples (a filtered estimate): {} is used",
+            what.name, what.estimate, what.used
+        ));
+    }
+    if noise <= estimate.effective_error() && consistent(scale) && lag.is_none() {
+        let info = logged_info(noise, scale, own >= 0.5 * diff);
+        return Ok((Deriv { values: col.to_vec(), noise: vec![noise; col.len()], bias: 0.0, info }, true));
+    }
+    notes.push(format!(
+        "the logged {} is noisier than {} ({noise:.3e} vs {est_err:.3e} {}): {} is used",
+        what.name, what.estimate, what.unit, what.used
+    ));
+    let mut d = estimate;
+    d.info.logged_noise_sd = Some(noise);
+    d.info.logged_scale = Some(scale);
+    Ok((d, false))
+}
 
 /// The logged column `v` against the estimate `e` (error `e_sd`): its scale (least squares
 /// slope where the estimate is well above its error) and its noise. A scale at a unit factor
