@@ -61,15 +61,10 @@ impl Gram {
     }
 
     /// Least squares with the coefficients marked in `nonneg` kept ≥ 0 (active set: the most
-    /// negative is held at 0 and the rest refitted, until none is negative). A physical joint
-    /// has no negative inertia or friction; the bounded fit is the best physical one.
-    pub fn solve_nonneg(&self, nonneg: &[bool]) -> (Vec<f64>, f64) {
-        self.solve_held(nonneg, &[], &[])
-    }
-
-    /// As [`Gram::solve_nonneg`], but a coefficient that would go negative is held at
-    /// `hold[i]` (0 where `hold` has no entry) and the others refitted around it: a term a
-    /// joint cannot lack (its inertia) keeps the file's value where the rows want none. The
+    /// negative is held and the rest refitted, until none is negative). A physical joint has no
+    /// negative inertia or friction; the bounded fit is the best physical one. A coefficient
+    /// that would go negative is held at `hold[i]` (0 where `hold` has no entry): a term a joint
+    /// cannot lack (its inertia) keeps the file's value where the rows want none. The
     /// coefficients marked in `fixed` are held at `hold` from the start (a term the rows cannot
     /// determine at all).
     pub fn solve_held(&self, nonneg: &[bool], hold: &[f64], fixed: &[bool]) -> (Vec<f64>, f64) {
@@ -426,8 +421,8 @@ mod tests {
         }
         assert!((b[0] - b1).abs() < 1e-4, "{b:?} vs {b1}");
         assert!((rss - yy).abs() < 1e-6 * g.yy, "{rss} vs {yy}");
-        // held at 0 it is the plain bounded fit
-        let (b0, _) = g.solve_nonneg(&[false, true]);
+        // held at 0 (no `hold` given) it is the plain bounded fit
+        let (b0, _) = g.solve_held(&[false, true], &[], &[]);
         assert_eq!(b0[1], 0.0);
     }
 

@@ -614,6 +614,8 @@ fn torque_floor(
             // Counted for a logged q̇ too: its white noise reaches the residual through the
             // band's steep slope only near rest, a few samples the (robust) variogram ignores.
             let dir = prep.direction[i];
+            // the speed with the way q goes where that is known
+            let v = if dir != 0 { f64::from(dir) * d.qd[i].abs() } else { d.qd[i] };
             let sgn_var = if prep.rest[i] && !pure_sign {
                 // a rest is |q̇| within the estimate's noise, not q̇ = 0: a joint that creeps
                 // inside the band there (held by friction c·q̇/band) has a friction anywhere in
@@ -621,10 +623,8 @@ fn torque_floor(
                 crate::prep::sign_variance(0.0, d.band, prep.report.qd.error_sd)
             } else if prep.rest[i] || dir != 0 && pure_sign {
                 0.0
-            } else if dir != 0 {
-                crate::prep::sign_variance(f64::from(dir) * d.qd[i].abs(), d.band, prep.qd_err[i])
             } else {
-                crate::prep::sign_variance(d.qd[i], d.band, prep.qd_err[i])
+                crate::prep::sign_variance(v, d.band, prep.qd_err[i])
             };
             j * j * sa * sa + slope * slope * sv * sv + c * c * sgn_var
         })
