@@ -212,3 +212,66 @@ fn presliding_is_found_in_a_dahl_free_response() {
     let sigma = emitted.explicit(joint_core::params::ParamId::PreslidingSigma).unwrap();
     assert!((sigma / 5.0 - 1.0).abs() < 0.2, "{}", d.emitted_model);
 }
+
+/// A pendulum `J·q̈ = u − A·sin q − b·q̇` by fourth-order Runge–Kutta at 10 kHz, sampled at
+/// `rate` Hz for `secs` s with white angle noise `sd`: `u` is a hand's push of `push` N·m over
+/// the first `t_push` s, never logged (the log holds `t, q` only).
+fn pushed_pendulum(push: f64, t_push: f64, rate: f64, secs: f64, sd: f64, seed: u64) -> JointLog {
+    const A: f64 = 1.2;
+    const JP: f64 = 0.01;
+    const BP: f64 = 0.004;
+    let f = |t: f64, q: f64, v: f64| {
+        let u = if t < t_push { push } else { 0.0 };
+        (u - A * q.sin() - BP * v) / JP
+    };
+    let h = 1e-4;
+    let (mut q, mut v, mut tt) = (0.3f64, 0.0f64, 0.0f64);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let n = (secs * rate) as usize;
+    let mut log = JointLog::default();
+    for i in 0..n {
+        let ts = i as f64 / rate;
+        while tt < ts - 1e-12 {
+            let k1 = (v, f(tt, q, v));
+            let k2 = (v + 0.5 * h * k1.1, f(tt + 0.5 * h, q + 0.5 * h * k1.0, v + 0.5 * h * k1.1));
+            let k3 = (v + 0.5 * h * k2.1, f(tt + 0.5 * h, q + 0.5 * h * k2.0, v + 0.5 * h * k2.1));
+            let k4 = (v + h * k3.1, f(tt + h, q + h * k3.0, v + h * k3.1));
+            q += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+            v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            tt += h;
+        }
+        log.t.push(ts);
+        log.q.push(q + sd * normal(&mut rng));
+    }
+    log
+}
+
+/// A free swing whose log starts while a hand still pushes (the Jensen swings start so): the
+/// energy rises with no logged input, so the diagnosis starts where it peaks and says so, and
+/// the file's weight, 15 % low, is `parameters` with the amplitude refitted. Released at rest,
+/// the same pendulum's log is diagnosed whole, without the warning.
+#[test]
+fn a_push_before_the_release_is_cut_off_and_named() {
+    let file = ModelFile::parse(
+        "[weight]\namplitude = 1.02\ns = 1.0\nphi = 0.0\n[inertia]\nj = 0.01\n[friction]\nb = 0.004\n",
+        "m",
+    )
+    .unwrap();
+    let pushed = pushed_pendulum(0.8, 0.25, 500.0, 5.0, 2e-4, 3);
+    let d = verdict(&pushed, &file);
+    let w = d.report.warnings.iter().find(|w| w.contains("energy rises")).cloned().unwrap_or_default();
+    eprintln!("pushed: {:?} refit {:?}\n  {w}", d.report.verdict, d.report.refit);
+    let from: f64 = w.rsplit("diagnosed from t = ").next().and_then(|s| s.trim_end_matches(" s").parse().ok()).unwrap();
+    // the push ends at 0.25 s; the energy peaks at the next turning point or passage at most
+    // half a period (0.29 s) later
+    assert!((0.25..0.55).contains(&from), "diagnosed from {from} s");
+    assert_eq!(d.report.verdict.effect, "parameters");
+    let a = d.report.refit["weight"]["amplitude"];
+    assert!((a / 1.2 - 1.0).abs() < 0.03, "refit amplitude {a}");
+
+    let released = pushed_pendulum(0.0, 0.0, 500.0, 5.0, 2e-4, 3);
+    let d = verdict(&released, &file);
+    eprintln!("released: {:?} warnings {:?}", d.report.verdict, d.report.warnings);
+    assert!(d.report.warnings.iter().all(|w| !w.contains("energy rises")));
+    assert_eq!(d.report.verdict.effect, "parameters");
+}

@@ -33,6 +33,7 @@
 mod fits;
 mod judge;
 mod lm;
+mod release;
 mod report;
 pub mod sim;
 mod split;
@@ -65,10 +66,13 @@ pub fn min_samples(model: &ModelFile) -> usize {
         .unwrap_or(100_000)
 }
 
-/// Values of the smallest effect fit: the start (2), the model's terms, one effect value.
+/// Values of the smallest effect fit: the start (2), the model's terms (a weight's `s` among
+/// them), one effect value.
 fn fit_size(model: &ModelFile) -> usize {
+    use super::candidates::Col;
     let base = super::candidates::base_from_model(model);
-    2 + base.cols.iter().filter(|c| **c != super::candidates::Col::Qdd).count() + 1
+    let s = base.cols.iter().any(|c| matches!(c, Col::SinSq(s) if *s != 0.0));
+    2 + base.cols.iter().filter(|c| **c != Col::Qdd).count() + usize::from(s) + 1
 }
 
 /// Trajectory mode on a prepared log.
@@ -94,9 +98,25 @@ pub fn diagnose(prep: &Prepared, model: &ModelFile, params: &ParamSet, opts: &Op
             fit_size(model) - 3,
         )));
     }
+    let mut seg = seg;
+    let released = free_release(prep, &seg, model).filter(|r| seg.len() - r.at >= min);
+    if let Some(r) = released {
+        seg.start += r.at;
+    }
     let w = Window::cut(prep, seg.clone(), model)?;
     let mut d = w.run(model, opts)?;
     d.report.samples = prep.log.len();
+    if let Some(r) = released {
+        d.report.warnings.push(format!(
+            "the log has no input, yet its energy rises by {:.0} % (more than the {:.0} % a free response's \
+             restoring law and noise allow) until t = {} s: something still drove the joint there (a hand, a \
+             release that was not at rest); the free response is diagnosed from t = {} s",
+            100.0 * r.gain,
+            100.0 * r.tol,
+            prep.log.t[seg.start],
+            prep.log.t[seg.start]
+        ));
+    }
     if seg.len() < prep.log.len() {
         d.report.warnings.push(format!(
             "the log has gaps: only its longest stretch without one ({} samples from t = {} s) was simulated",
@@ -105,6 +125,29 @@ pub fn diagnose(prep: &Prepared, model: &ModelFile, params: &ParamSet, opts: &Op
         ));
     }
     Ok(d)
+}
+
+/// Where the free response in `seg` begins when the log starts before it (see [`release`]);
+/// `None` for a driven log (a logged input that is not all zero) or one whose energy does not
+/// rise.
+fn free_release(prep: &Prepared, seg: &std::ops::Range<usize>, model: &ModelFile) -> Option<release::Release> {
+    if prep.log.u.as_deref().is_some_and(|u| u[seg.clone()].iter().any(|x| *x != 0.0)) {
+        return None;
+    }
+    let q = &prep.log.q[seg.clone()];
+    let lay = Layout::new(model, min_of(q), max_of(q), 1.0, false);
+    let moving: Vec<bool> = seg.clone().map(|i| !prep.rest[i] && !prep.ambiguous[i] && !prep.sign_unknown[i]).collect();
+    let half = prep.report.qd.half_window_s.max(prep.report.qdd.half_window_s);
+    let edge = (half / super::median_dt(&prep.log.t[seg.clone()])).ceil() as usize;
+    release::find(
+        &lay,
+        q,
+        &prep.qd()[seg.clone()],
+        &prep.qdd()[seg.clone()],
+        (&prep.qd_err[seg.clone()], &prep.qdd_err[seg.clone()]),
+        &moving,
+        edge,
+    )
 }
 
 /// The analysed stretch of the log.

@@ -120,7 +120,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         effects,
         verdict,
         selected,
-        refit: nest(refit_values(ctx.model, &ctx.lay.cols, refit_base)),
+        refit: nest(refit_values(ctx.model, ctx.lay, refit_base)),
         test: TestInfo {
             method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (six interleaved held-out blocks of 20, up to four units each, \
                      or one per sample when fewer; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
@@ -181,7 +181,7 @@ fn effect_params(ctx: &Ctx, f: &Fitted, k: usize, j: &Judged) -> BTreeMap<String
             put("qd_estimate_sd", ctx.prior.sd_v);
             put("chi2", j.start_chi2);
         } else {
-            for (key, v) in refit_values(ctx.model, &ctx.lay.cols, f.base(ctx.lay)) {
+            for (key, v) in refit_values(ctx.model, ctx.lay, f.base(ctx.lay)) {
                 put(&key, v);
             }
         }
@@ -329,7 +329,7 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
     let mut mf = ctx.model.clone();
     let refit_used = j.verdict == "parameters" || !j.chosen.is_empty();
     if refit_used {
-        for (k, v) in refit_values(ctx.model, &ctx.lay.cols, final_fit.base(ctx.lay)) {
+        for (k, v) in refit_values(ctx.model, ctx.lay, final_fit.base(ctx.lay)) {
             if let Some((sec, key)) = k.split_once('.') {
                 if let Some(d) = joint_core::params::PARAMS.iter().find(|p| p.section == sec && p.key == key) {
                     mf.set(d.id, v.clamp(f64::from(d.min), f64::from(d.max)), None);

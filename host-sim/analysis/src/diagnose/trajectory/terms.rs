@@ -90,7 +90,11 @@ impl Kind {
 #[derive(Clone, Debug)]
 pub struct Layout {
     pub cols: Vec<Col>,
+    /// the terms' values in the file: one per column, then the weight's `s` when it is free
     pub beta0: Vec<f64>,
+    /// the file's weight `s` when the model has a weight: the fits free it (after the columns),
+    /// since the restoring torque's shape is what a swing measures most closely
+    pub weight_s: Option<f64>,
     pub j: f64,
     /// the file's sign band (0: no `v_band`, the pure sign)
     pub band: f64,
@@ -114,9 +118,12 @@ impl Layout {
     /// scales with D/J only, and J stays fixed).
     pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64, driven: bool) -> Layout {
         let base = base_from_model(model);
-        let (cols, beta0): (Vec<Col>, Vec<f64>) =
+        let (cols, mut beta0): (Vec<Col>, Vec<f64>) =
             base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
         let v = |id| model.value(id);
+        let weight_s =
+            cols.iter().find_map(|c| if let Col::SinSq(s) = c { Some(*s) } else { None }).filter(|s| *s != 0.0);
+        beta0.extend(weight_s);
         let span = (qmax - qmin).max(1e-3);
         let k = if model.explicit(ParamId::SpringK).is_some() { v(ParamId::SpringK) } else { 0.0 };
         let w = if model.explicit(ParamId::WeightAmplitude).is_some() {
@@ -135,6 +142,7 @@ impl Layout {
         Layout {
             cols,
             beta0,
+            weight_s,
             j: v(ParamId::InertiaJ),
             band: model.explicit(ParamId::FrictionVBand).unwrap_or(0.0),
             file_sigma: model.explicit(ParamId::PreslidingSigma).filter(|s| *s > 0.0),
@@ -153,8 +161,9 @@ impl Layout {
         self.cols.contains(&c)
     }
 
+    /// How many values the model's terms take in θ: one per column, and the weight's `s`.
     pub fn nb(&self) -> usize {
-        self.cols.len()
+        self.cols.len() + usize::from(self.weight_s.is_some())
     }
 
     pub fn span(&self) -> f64 {
@@ -204,6 +213,12 @@ impl Layout {
                 f64::NEG_INFINITY
             });
             hi.push(f64::INFINITY);
+        }
+        // the weight's `s` within a factor of two of the file's (a unit error is the
+        // preparation's to refuse, not a fit's to absorb)
+        if let Some(s) = self.weight_s {
+            lo.push((0.5 * s).min(2.0 * s));
+            hi.push((0.5 * s).max(2.0 * s));
         }
         (lo, hi)
     }
@@ -325,6 +340,9 @@ impl Layout {
             }
         }
         if has_weight {
+            if self.weight_s.is_some() {
+                weight.0 = th.get(2 + self.cols.len()).copied().unwrap_or(weight.0);
+            }
             law.weight = Some(weight);
         }
         let mut off = 2 + nb;
@@ -416,8 +434,9 @@ fn push_ripple(law: &mut Law, p: f64, s: Option<f64>, c: Option<f64>) {
     }
 }
 
-/// The model's terms at coefficient vector `b` (the layout's columns), as "section.key".
-pub fn refit_values(model: &ModelFile, cols: &[Col], b: &[f64]) -> Vec<(String, f64)> {
+/// The model's terms at `b` (the layout's term values), as "section.key".
+pub fn refit_values(model: &ModelFile, lay: &Layout, b: &[f64]) -> Vec<(String, f64)> {
+    let cols = &lay.cols;
     let v = |id| model.value(id);
     let mut out = Vec::new();
     let c = |want: Col| cols.iter().position(|x| *x == want).and_then(|k| b.get(k).copied());
@@ -460,6 +479,9 @@ pub fn refit_values(model: &ModelFile, cols: &[Col], b: &[f64]) -> Vec<(String, 
     if let (Some(bs), Some(bc)) = (c(Col::SinSq(ws)), c(Col::CosSq(ws))) {
         out.push(("weight.amplitude".into(), bs.hypot(bc)));
         out.push(("weight.phi".into(), bc.atan2(bs)));
+        if let Some(s) = lay.weight_s.and_then(|_| b.get(cols.len())) {
+            out.push(("weight.s".into(), *s));
+        }
     }
     let k = c(Col::Q);
     if let Some(k) = k {
