@@ -71,7 +71,7 @@ pub fn min_samples(model: &ModelFile) -> usize {
 fn fit_size(model: &ModelFile) -> usize {
     use super::candidates::Col;
     let base = super::candidates::base_from_model(model);
-    let s = base.cols.iter().any(|c| matches!(c, Col::SinSq(s) if *s != 0.0));
+    let s = terms::free_weight_s(&base.cols).is_some();
     2 + base.cols.iter().filter(|c| **c != Col::Qdd).count() + usize::from(s) + 1
 }
 

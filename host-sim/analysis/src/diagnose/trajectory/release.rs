@@ -29,7 +29,7 @@ pub struct Release {
 }
 
 /// The release of a free response over `q, qd, qdd` (the prepared columns of the window) with
-/// their errors, or `None` when the log does not oscillate or its energy does not rise beyond
+/// their errors (`lay` laid out over the same `q`: its `qmin, qmax` are the angles travelled), or `None` when the log does not oscillate or its energy does not rise beyond
 /// what the model's error and the noise allow. `moving[i]`: the sample is neither at rest nor of
 /// unknown direction; `edge`: samples at the log's start whose derivatives are one-sided.
 pub fn find(
@@ -121,7 +121,7 @@ pub fn find(
     let e = |i: usize| 0.5 * qd[i] * qd[i] + kappa * v(q[i]);
     // the energy's zero: the bottom of the potential over the angles travelled (V is defined
     // up to a constant)
-    let (lo, hi) = q.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    let (lo, hi) = (lay.qmin, lay.qmax);
     let e_min = (0..=400).map(|k| kappa * v(lo + (hi - lo) * k as f64 / 400.0)).fold(f64::INFINITY, f64::min);
     let (at, e_at) =
         (first..end).filter(|&i| moving[i]).map(|i| (i, e(i) - e_min)).max_by(|a, b| a.1.total_cmp(&b.1))?;

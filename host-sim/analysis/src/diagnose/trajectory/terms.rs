@@ -121,8 +121,7 @@ impl Layout {
         let (cols, mut beta0): (Vec<Col>, Vec<f64>) =
             base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
         let v = |id| model.value(id);
-        let weight_s =
-            cols.iter().find_map(|c| if let Col::SinSq(s) = c { Some(*s) } else { None }).filter(|s| *s != 0.0);
+        let weight_s = free_weight_s(&cols);
         beta0.extend(weight_s);
         let span = (qmax - qmin).max(1e-3);
         let k = if model.explicit(ParamId::SpringK).is_some() { v(ParamId::SpringK) } else { 0.0 };
@@ -419,6 +418,11 @@ impl Layout {
             _ => None,
         }
     }
+}
+
+/// The file's weight `s` among `cols`, when the fits free it (a weight with `s ≠ 0`).
+pub fn free_weight_s(cols: &[Col]) -> Option<f64> {
+    cols.iter().find_map(|c| if let Col::SinSq(s) = c { Some(*s) } else { None }).filter(|s| *s != 0.0)
 }
 
 fn push_ripple(law: &mut Law, p: f64, s: Option<f64>, c: Option<f64>) {
