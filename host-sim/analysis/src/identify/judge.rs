@@ -99,7 +99,7 @@ pub(super) fn friction_status(fit: Option<&friction::FrictionFit>, n_points: usi
                     test,
                 )
             } else {
-                let why = if first { why.clone() } else { "with the curve".to_string() };
+                let why = if first || term != Status::Determined { why.clone() } else { "with the curve".to_string() };
                 first = false;
                 let t = (term != Status::Determined).then_some(test);
                 ParamStatus {
