@@ -1,10 +1,11 @@
 //! The shared preparation stage against a known q̈ (issue 20): a three-tone motion sampled at
-//! 100 Hz–2 kHz, with white or AR(1)-coloured angle noise, `t, q` only. Printed per case: the
-//! smoother's half-window, the derived q̈'s RMS error against the truth (interior samples) and
-//! the error the report states. Asserted: the derived q̈ is within 10 % of the motion's q̈
-//! (RMS), and the stated error is within a factor of three of the real one either way, so a
-//! report's floor built on it neither hides nor invents a gap. White noise holds; coloured
-//! noise does not yet (its test is ignored, with the figures).
+//! 100 Hz–2 kHz with 1 mrad of angle noise, `t, q` only, the noise white or coloured (AR(1) at a
+//! fixed coefficient per sample, first-order noise at a fixed corner in hertz, and noise
+//! filtered twice). Printed per case: the smoother's half-window, the derived q̈'s RMS error
+//! against the truth (interior samples) and the error the report states. Asserted: the derived
+//! q̈ is within 10 % of the motion's q̈ (RMS; 15 % for the twice-filtered noise), and the stated
+//! error is within a factor of three of the real one either way, so a report's floor built on
+//! it neither hides nor invents a gap.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use joint_analysis::log::JointLog;
@@ -13,6 +14,21 @@ use rand::{Rng, SeedableRng};
 
 /// (amplitude rad, frequency Hz)
 const TONES: [(f64, f64); 3] = [(0.6, 0.3), (0.3, 0.8), (0.1, 1.7)];
+const RATES: [f64; 5] = [100.0, 250.0, 500.0, 1000.0, 2000.0];
+const NOISE_SD: f64 = 1e-3;
+
+/// The angle noise's colour.
+#[derive(Clone, Copy, Debug)]
+enum Noise {
+    White,
+    /// AR(1) with this coefficient per sample (its corner moves with the rate)
+    Ar1(f64),
+    /// white noise through `order` first-order low-passes with this corner, Hz
+    LowPass {
+        order: usize,
+        corner_hz: f64,
+    },
+}
 
 fn normal(rng: &mut impl Rng) -> f64 {
     let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
@@ -23,16 +39,40 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
-/// The log at `rate` Hz over `secs` s with noise of standard deviation `sd`, AR(1) with
-/// coefficient `phi` (0: white), and the true q̈ at its samples.
-fn case(rate: f64, secs: f64, sd: f64, phi: f64, seed: u64) -> (JointLog, Vec<f64>) {
+/// `n` samples of the noise at `rate`, scaled to [`NOISE_SD`].
+fn noise(kind: Noise, rate: f64, n: usize, seed: u64) -> Vec<f64> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (phi, stages) = match kind {
+        Noise::White => (0.0, 0),
+        Noise::Ar1(phi) => (phi, 1),
+        Noise::LowPass { order, corner_hz } => ((-std::f64::consts::TAU * corner_hz / rate).exp(), order),
+    };
+    let mut state = vec![0.0; stages];
+    // a second of warm-up, so the filters start in their steady state
+    let warm = rate as usize;
+    let mut e: Vec<f64> = (0..n + warm)
+        .map(|_| {
+            let mut x = normal(&mut rng);
+            for s in state.iter_mut() {
+                *s = phi * *s + (1.0 - phi) * x;
+                x = *s;
+            }
+            x
+        })
+        .skip(warm)
+        .collect();
+    let sd = rms(&e);
+    e.iter_mut().for_each(|x| *x *= NOISE_SD / sd);
+    e
+}
+
+/// The log at `rate` Hz over `secs` s with the noise, and the true q̈ at its samples.
+fn case(rate: f64, secs: f64, kind: Noise, seed: u64) -> (JointLog, Vec<f64>) {
     let n = (rate * secs) as usize;
-    let innov = sd * (1.0 - phi * phi).sqrt();
-    let mut e = sd * normal(&mut rng);
+    let e = noise(kind, rate, n, seed);
     let mut log = JointLog::default();
     let mut qdd = Vec::with_capacity(n);
-    for i in 0..n {
+    for (i, ei) in e.iter().enumerate() {
         let t = i as f64 / rate;
         let (mut q, mut a) = (0.0, 0.0);
         for (amp, f) in TONES {
@@ -40,52 +80,86 @@ fn case(rate: f64, secs: f64, sd: f64, phi: f64, seed: u64) -> (JointLog, Vec<f6
             q += amp * (w * t).sin();
             a -= amp * w * w * (w * t).sin();
         }
-        e = phi * e + innov * normal(&mut rng);
         log.t.push(t);
-        log.q.push(q + e);
+        log.q.push(q + ei);
         qdd.push(a);
     }
     (log, qdd)
 }
 
-/// Prints one row per rate and asserts it (see the module's doc).
-fn check(name: &str, phi: f64) {
+/// (real q̈ error / motion's q̈ RMS, stated / real) at one rate, printed.
+fn one(kind: Noise, rate: f64) -> (f64, f64) {
+    let (log, truth) = case(rate, 20.0, kind, rate as u64);
+    let p = prep::prepare(&log).unwrap();
+    assert_eq!(p.log.len(), truth.len(), "{rate} Hz {kind:?}: samples dropped");
+    // interior: the smoother's one-sided ends are reported as worse and left out here
+    let h = (p.report.qdd.half_window_s * rate).ceil() as usize;
+    let err: Vec<f64> = (h..truth.len() - h).map(|i| p.qdd()[i] - truth[i]).collect();
+    let (e, scale) = (rms(&err), rms(&truth[h..truth.len() - h]));
+    let stated = p.report.qdd.error_sd;
+    eprintln!(
+        "{rate:7.0} | {:38} | {:14.1} | {e:.4} ({stated:.4}) | {:.2} %",
+        format!("{kind:?}"),
+        p.report.qdd.half_window_s * 1e3,
+        100.0 * e / scale
+    );
+    (e / scale, stated / e)
+}
+
+/// Every rate for every noise in `kinds`: asserts the error within `limit` of the motion's
+/// q̈ and the stated error within 3× of the real one.
+fn check(kinds: &[Noise], limit: f64) {
+    eprintln!("rate Hz | noise                                  | half-window ms | q̈ error rad/s² (stated) | of q̈ RMS");
     let mut worst: f64 = 0.0;
-    eprintln!("rate Hz | noise       | half-window ms | q̈ error rad/s² (stated) | of q̈ RMS");
-    for rate in [100.0, 250.0, 500.0, 1000.0, 2000.0] {
-        let (log, truth) = case(rate, 20.0, 1e-3, phi, rate as u64);
-        let p = prep::prepare(&log).unwrap();
-        assert_eq!(p.log.len(), truth.len(), "{rate} Hz {name}: samples dropped");
-        // interior: the smoother's one-sided ends are reported as worse and left out here
-        let h = (p.report.qdd.half_window_s * rate).ceil() as usize;
-        let err: Vec<f64> = (h..truth.len() - h).map(|i| p.qdd()[i] - truth[i]).collect();
-        let (e, scale) = (rms(&err), rms(&truth[h..truth.len() - h]));
-        let stated = p.report.qdd.error_sd;
-        eprintln!(
-            "{rate:7.0} | {name:11} | {:14.1} | {e:.4} ({stated:.4}) | {:.2} %",
-            p.report.qdd.half_window_s * 1e3,
-            100.0 * e / scale
-        );
-        assert!(e < 0.1 * scale, "{rate} Hz {name}: q̈ error {e} of {scale}");
-        assert!(stated < 3.0 * e && e < 3.0 * stated, "{rate} Hz {name}: stated {stated}, real {e}");
-        worst = worst.max(e / scale);
+    let mut failures = Vec::new();
+    for &kind in kinds {
+        for rate in RATES {
+            let (rel, stated) = one(kind, rate);
+            worst = worst.max(rel);
+            if !(rel < limit && stated < 3.0 && stated > 1.0 / 3.0) {
+                failures.push(format!("{rate} Hz {kind:?}: error {:.1} %, stated/real {stated:.2}", 100.0 * rel));
+            }
+        }
     }
-    eprintln!("worst q̈ error ({name}): {:.2} % of the motion's q̈", 100.0 * worst);
+    eprintln!("worst q̈ error: {:.2} % of the motion's q̈", 100.0 * worst);
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// White angle noise (1 mrad): 2.5–4.8 % of the motion's q̈, stated within 12 %.
 #[test]
 fn derived_qdd_against_the_truth_from_100_hz_to_2_khz_white_noise() {
-    check("white", 0.0);
+    check(&[Noise::White], 0.10);
 }
 
-/// AR(1) angle noise (coefficient 0.9, 1 mrad): a noise whose spectrum falls with frequency.
-/// Measured 2026-11-25: 20 % (100 Hz), 133 % (250 Hz, half-window 8 ms), 531 % (500 Hz, 4 ms),
-/// 16–17 % at 1–2 kHz with the stated error 10× below the real one. The spectrum's noise
-/// estimate takes this noise's slope for motion; not fixed yet, so this test is ignored and
-/// the gap is named in issue 20's note. Run it with `--ignored`.
+/// First-order coloured angle noise, whose spectrum falls with frequency (f⁻² above its
+/// corner): AR(1) at 0.5, 0.9 and 0.99 per sample, and corners fixed at 5, 20 and 60 Hz.
+/// Before the preparation modelled a falling noise (measured 2026-11-25, AR(1) 0.9): 20 % at
+/// 100 Hz, 133 % at 250 Hz, 531 % at 500 Hz (a ±4 ms window), 16–17 % at 1–2 kHz with the
+/// stated error 10× below the real one. Now: 2.6–5.7 %, stated within 20 %.
 #[test]
-#[ignore = "fails: AR(1)-coloured angle noise is read as motion at 250-500 Hz (issue 20 open)"]
 fn derived_qdd_against_the_truth_from_100_hz_to_2_khz_coloured_noise() {
-    check("AR(1) 0.9", 0.9);
+    let kinds = [
+        Noise::Ar1(0.5),
+        Noise::Ar1(0.9),
+        Noise::Ar1(0.99),
+        Noise::LowPass { order: 1, corner_hz: 5.0 },
+        Noise::LowPass { order: 1, corner_hz: 20.0 },
+        Noise::LowPass { order: 1, corner_hz: 60.0 },
+    ];
+    check(&kinds, 0.10);
+}
+
+/// Noise filtered twice (an angle from a tracking observer) falls as steeply as motion (f⁻⁴),
+/// and the spectrum alone takes it for motion; a 50 ms window's view of the motion tells them
+/// apart (`prep::prepare`). Corners at 20 and 60 Hz: 4.6–5.8 % (before: up to 3000 % with a
+/// ±1 ms window). A corner within two octaves of the motion (5 Hz against tones up to 1.7 Hz)
+/// is not separated at 100 Hz–1 kHz (15–65 %, the stated error within 25 % of the real one, so
+/// a report's floor says so): printed, not asserted.
+#[test]
+fn derived_qdd_against_the_truth_with_a_twice_filtered_noise() {
+    check(&[Noise::LowPass { order: 2, corner_hz: 20.0 }, Noise::LowPass { order: 2, corner_hz: 60.0 }], 0.15);
+    eprintln!("not separated (printed only):");
+    for rate in RATES {
+        one(Noise::LowPass { order: 2, corner_hz: 5.0 }, rate);
+    }
 }

@@ -91,6 +91,8 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
 /// `unexplained`, with a refit that agrees with the file's values (J ≈ 1.19, c ≈ 0.31; before the
 /// preparation knew coloured noise, a ±2 ms q̈ diluted J to 0.25 and that refit was the verdict),
 /// and residual evidence that shows the structure left (autocorrelation far outside the band).
+/// The gap is 2.8× the floor (1.07 against 0.38 N·m) since the preparation models the angle's
+/// falling noise (3.2× before, with a white-noise floor of 0.33).
 /// A progressive "cable spring" scores best, with a negative linear stiffness: a double well no
 /// harness makes, so it is marked and not named.
 #[test]
@@ -107,7 +109,7 @@ fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let log = convert(Format::PandaGaz, &text, "panda", &opts).unwrap().log;
     let model = ModelFile::parse("[inertia]\nj = 1.16\n[friction]\nc = 0.273\nv_band = 0.2\n", "panda1.toml").unwrap();
     let r = diagnose(&log, &model, &Options::default()).unwrap().report;
-    assert!(r.gap.holdout_rmse > 3.0 * r.gap.noise_floor, "{:?}", r.gap);
+    assert!(r.gap.holdout_rmse > 2.0 * r.gap.noise_floor, "{:?}", r.gap);
     assert_eq!(r.verdict.effect, "unexplained", "a coupling gap named: {:?}", r.verdict);
     let cable = r.effects.iter().find(|e| e.effect == "cable_spring").unwrap();
     assert!(cable.implausible.is_some() && !cable.significant, "{:?}", cable.params);

@@ -57,12 +57,25 @@ pub enum Order {
 /// The estimate's error at half-width `h`: (noise variance, bias) for a signal with white
 /// noise `sigma` whose 4th and 5th derivatives have RMS `d4`, `d5`.
 pub fn error_at(h: usize, dt: f64, order: Order, sigma: f64, d4: f64, d5: f64) -> Option<(f64, f64)> {
+    error_with(h, dt, order, &|w: &[f64]| sigma * sigma * w.iter().map(|x| x * x).sum::<f64>(), d4, d5)
+}
+
+/// As [`error_at`], with the noise variance of the estimator's weights given by `noise_var`
+/// (a coloured noise's: see `spectrum::NoiseModel::filtered_variance`).
+pub fn error_with(
+    h: usize,
+    dt: f64,
+    order: Order,
+    noise_var: &dyn Fn(&[f64]) -> f64,
+    d4: f64,
+    d5: f64,
+) -> Option<(f64, f64)> {
     let (w1, w2) = weights(h, dt)?;
     let (w, k, dk) = match order {
         Order::First => (w1, 5, d5),
         Order::Second => (w2, 4, d4),
     };
-    let var = sigma * sigma * w.iter().map(|x| x * x).sum::<f64>();
+    let var = noise_var(&w);
     let fact: f64 = (1..=k).map(|i| i as f64).product();
     let moment: f64 = w.iter().enumerate().map(|(i, wj)| wj * ((i as f64 - h as f64) * dt).powi(k) / fact).sum::<f64>();
     Some((var, (moment * dk).abs()))
@@ -78,10 +91,23 @@ pub fn choose_half_width(
     d5: f64,
     h_max: usize,
 ) -> Option<(usize, f64, f64)> {
+    choose_half_width_with(dt, order, &|w: &[f64]| sigma * sigma * w.iter().map(|x| x * x).sum::<f64>(), d4, d5, h_max)
+}
+
+/// As [`choose_half_width`], with the noise variance of the estimator's weights given by
+/// `noise_var`.
+pub fn choose_half_width_with(
+    dt: f64,
+    order: Order,
+    noise_var: &dyn Fn(&[f64]) -> f64,
+    d4: f64,
+    d5: f64,
+    h_max: usize,
+) -> Option<(usize, f64, f64)> {
     let mut best: Option<(usize, f64, f64)> = None;
     let mut h = 2usize;
     while h <= h_max.max(2) {
-        if let Some((var, bias)) = error_at(h, dt, order, sigma, d4, d5) {
+        if let Some((var, bias)) = error_with(h, dt, order, noise_var, d4, d5) {
             if best.map(|(_, v, b)| var + bias * bias < v + b * b).unwrap_or(true) {
                 best = Some((h, var, bias));
             }

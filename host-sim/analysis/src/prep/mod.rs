@@ -244,7 +244,6 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     }
     let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
     let quantum = resolution_sd(&log.q);
-    let q_noise = q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| s.noise_sd).max(quantum);
     lap("spectrum, resolution");
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
     let mut q_spec = q_spec;
@@ -277,20 +276,74 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             }
         }
     }
+    // A noise filtered twice before it was logged (an angle from a tracking observer, a
+    // low-passed potentiometer) falls with frequency as steeply as a motion does, and the
+    // spectrum alone takes it for motion: a q̈ of hundreds of rad/s² up to hundreds of hertz,
+    // and a window of two samples. A wide window's q̈ sees the motion without that noise: when
+    // the spectrum's q̈ is over three times the wide window's and its band over five times the
+    // wide window's frequency (or 1.5 times and twenty times: a motion's q̈ seen through
+    // ±50 ms loses little below a few hertz, and matches the spectrum's within 5 % when the
+    // noise is white), the motion ends two octaves above that frequency and all above it is
+    // noise.
+    if quantum == 0.0 {
+        if let (Some(s), Some(r)) = (q_spec.as_ref(), longest(&segments)) {
+            let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
+            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
+            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+            let w = if v1 > 0.0 { v2 / v1 } else { 0.0 };
+            let (ratio, spread) = (s.deriv_rms[1] / v2.max(1e-300), s.bandwidth_hz / (w / std::f64::consts::TAU));
+            if w > 0.0 && ((ratio > 3.0 && spread > 5.0) || (ratio > 1.5 && spread > 20.0)) {
+                let edge = 4.0 * w / std::f64::consts::TAU;
+                if let Some(again) = spectrum::analyse_below(&log.q[r.clone()], dt, Some(edge)) {
+                    notes.push(format!(
+                        "q's spectrum stands above its white noise up to {:.0} Hz, but a 50 ms window sees its motion at                          {:.1} Hz: above {edge:.1} Hz it is read as a coloured noise, not motion",
+                        s.bandwidth_hz,
+                        w / std::f64::consts::TAU
+                    ));
+                    q_spec = Some(again);
+                }
+            }
+        }
+    }
+    // a coloured noise (see `spectrum::NoiseModel`) counts whole in the bands a still joint
+    // stays within; the windows below weigh its spectrum through their own weights
+    let coloured = q_spec.as_ref().map(|s| s.noise.clone()).filter(|m| !m.is_white());
+    let q_noise = q_spec
+        .as_ref()
+        .map_or_else(|| diff_noise(&log.q), |s| coloured.as_ref().map_or(s.noise_sd, |m| m.total_sd()))
+        .max(quantum);
     let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
     let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
 
     // q̇ and q̈ from q.
-    let pick = |order| lpr::choose_half_width(dt, order, q_noise, d(4), d(5), h_max);
-    let (h1, _, bias1) = pick(lpr::Order::First).unwrap_or((2, 0.0, 0.0));
-    let (h2, _, bias2) = pick(lpr::Order::Second).unwrap_or((2, 0.0, 0.0));
+    // White noise: σ²·Σw². Coloured: Σᵢⱼ wᵢwⱼ·r(i−j) from the noise's autocovariance, and the
+    // recipe's σ is the white noise that would give the chosen window the same variance (so
+    // the per-sample errors, ends included, keep their white-noise gains).
+    let autocov = coloured.map(|m| m.autocovariance(2 * h_max + 1));
+    let noise_var = |w: &[f64]| match &autocov {
+        Some(r) => spectrum::NoiseModel::filtered_variance(r, w),
+        None => q_noise * q_noise * w.iter().map(|x| x * x).sum::<f64>(),
+    };
+    let pick = |order| {
+        let (h, var, bias) =
+            lpr::choose_half_width_with(dt, order, &noise_var, d(4), d(5), h_max).unwrap_or((2, 0.0, 0.0));
+        let gain = lpr::weights(h, dt).map_or(0.0, |(w1, w2)| {
+            let w = if order == lpr::Order::First { w1 } else { w2 };
+            w.iter().map(|x| x * x).sum::<f64>()
+        });
+        let sigma = if autocov.is_some() && gain > 0.0 { (var / gain).sqrt() } else { q_noise };
+        (h, sigma, bias)
+    };
+    let (h1, sigma1, bias1) = pick(lpr::Order::First);
+    let (h2, sigma2, bias2) = pick(lpr::Order::Second);
     let derive = |r: Recipe, x: &[f64], pieces: &[std::ops::Range<usize>]| {
         let (mut v, mut s) = (vec![0.0; n], vec![0.0; n]);
         estimate_deriv(&log.t, x, pieces, r, &mut v, &mut s);
         (v, s)
     };
-    let r1 = Recipe { from_q: true, second: false, h: h1, sigma: q_noise };
-    let r2 = Recipe { from_q: true, second: true, h: h2, sigma: q_noise };
+    let r1 = Recipe { from_q: true, second: false, h: h1, sigma: sigma1 };
+    let r2 = Recipe { from_q: true, second: true, h: h2, sigma: sigma2 };
     // q̇ and q̈ are independent fits: one on each core
     let ((v1, s1), (v2, s2)) = std::thread::scope(|sc| {
         let second = sc.spawn(|| derive(r2, &log.q, &segments));

@@ -16,8 +16,12 @@ use rustfft::FftPlanner;
 /// The noise level and the motion's derivative sizes of one signal.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SignalSpectrum {
-    /// white noise on the signal (standard deviation, the signal's unit)
+    /// white noise on the signal (standard deviation, the signal's unit): the level of its top
+    /// quarter of the band
     pub noise_sd: f64,
+    /// the noise's spectrum over the whole band: white at `noise_sd`, or coloured (see
+    /// [`NoiseModel`])
+    pub noise: NoiseModel,
     /// RMS of the signal's k-th derivative, k = 1..=6 (index k − 1), from the motion bins
     pub deriv_rms: [f64; 6],
     /// highest frequency where the motion stands above the noise, Hz
@@ -30,6 +34,14 @@ pub const MIN_SAMPLES: usize = 64;
 /// The spectrum of `x` sampled every `dt` seconds (nearly uniformly), or `None` for fewer
 /// than [`MIN_SAMPLES`] samples.
 pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
+    analyse_below(x, dt, None)
+}
+
+/// As [`analyse`], told that the motion ends at `motion_edge_hz` (when given): everything
+/// above it is noise, whatever its slope (a noise filtered twice before it was logged falls as
+/// steeply as a motion does, and only another view of the motion can tell them apart; see
+/// `prep::prepare`).
+pub fn analyse_below(x: &[f64], dt: f64, motion_edge_hz: Option<f64>) -> Option<SignalSpectrum> {
     if x.len() < MIN_SAMPLES || !(dt > 0.0) {
         return None;
     }
@@ -50,10 +62,13 @@ pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
     let (_, m, _) = ratios.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
     let sigma2 = m.max(0.0);
     let df = freqs.get(1).copied().unwrap_or(nyq);
+    let noise = noise_model(&freqs, &psd, dt, sigma2, x, motion_edge_hz);
+    // the noise in the rough derivative's spectrum at f
+    let noise_at = |f: f64| noise.level(f) * shape(f);
     // Motion: bins clearly above the noise (3×), from the lowest frequency up to where a whole
     // octave stays below it. Energy above that is not motion but the tones an encoder's
     // quantisation makes (a joint moving at v crosses steps of size Δ at v/Δ Hz).
-    let above: Vec<bool> = freqs.iter().zip(&psd).map(|(&f, &p)| f > 0.0 && p > 3.0 * sigma2 * shape(f)).collect();
+    let above: Vec<bool> = freqs.iter().zip(&psd).map(|(&f, &p)| f > 0.0 && p > 3.0 * noise_at(f)).collect();
     let mut end = freqs.len();
     for (k, &f) in freqs.iter().enumerate() {
         if f <= 0.0 || above[k] {
@@ -66,6 +81,7 @@ pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
         }
     }
     let end = end.min(coloured_noise_edge(&freqs, &psd, nyq));
+    let end = motion_edge_hz.map_or(end, |e| end.min(freqs.partition_point(|&f| f <= e)));
     let mut sums = [0.0f64; 6];
     let mut bandwidth = 0.0f64;
     for k in 0..end {
@@ -73,7 +89,7 @@ pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
         if !above[k] {
             continue;
         }
-        let noise = sigma2 * shape(f);
+        let noise = noise_at(f);
         // The first difference attenuates by sinc(f·dt): undo it for the derivative's spectrum.
         let sinc = {
             let a = std::f64::consts::PI * f * dt;
@@ -93,7 +109,164 @@ pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
         bandwidth = bandwidth.max(f);
     }
     let deriv_rms = sums.map(f64::sqrt);
-    Some(SignalSpectrum { noise_sd: sigma2.sqrt(), deriv_rms, bandwidth_hz: bandwidth })
+    Some(SignalSpectrum { noise_sd: sigma2.sqrt(), noise, deriv_rms, bandwidth_hz: bandwidth })
+}
+
+/// The noise on a signal as a spectrum: its level `R(f)` in the units of a white noise's
+/// variance (a white noise of standard deviation σ has `R = σ²` at every frequency), given at a
+/// few frequencies and interpolated between them on log–log axes, flat beyond them.
+///
+/// White noise is one level. A noise that was filtered before it was logged (an angle
+/// interpolated or low-passed by the drive, a slow mechanical wobble) has more power at low
+/// frequencies than its top quarter shows: read as white, its slope looks like motion up to
+/// tens of hertz, the derivative window chosen for that "motion" is a few samples wide, and the
+/// q̈ it gives is mostly noise (measured: 5× the motion's q̈ at 500 Hz with an AR(1) angle
+/// noise). The coloured model keeps that slope as noise.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseModel {
+    /// (frequency Hz, level), increasing in frequency; never empty
+    points: Vec<(f64, f64)>,
+    dt: f64,
+}
+
+impl NoiseModel {
+    /// White noise of standard deviation `sd`, sampled every `dt` seconds.
+    pub fn white(sd: f64, dt: f64) -> Self {
+        Self { points: vec![(0.0, sd * sd)], dt }
+    }
+
+    /// Whether the model is one level.
+    pub fn is_white(&self) -> bool {
+        self.points.len() == 1
+    }
+
+    /// The level `R(f)` (variance units of a white noise).
+    pub fn level(&self, f: f64) -> f64 {
+        let p = &self.points;
+        let (Some(first), Some(last)) = (p.first(), p.last()) else {
+            return 0.0;
+        };
+        if p.len() == 1 || f <= first.0 {
+            return first.1;
+        }
+        if f >= last.0 {
+            return last.1;
+        }
+        let k = p.partition_point(|(g, _)| *g <= f).clamp(1, p.len() - 1);
+        let ((f0, l0), (f1, l1)) = (p[k - 1], p[k]);
+        if !(f0 > 0.0 && l0 > 0.0 && l1 > 0.0) {
+            return l0.max(l1);
+        }
+        let u = (f / f0).ln() / (f1 / f0).ln();
+        (l0.ln() + u * (l1.ln() - l0.ln())).exp()
+    }
+
+    /// The noise's autocovariance at lags `0..=max_lag` samples: the inverse Fourier transform
+    /// of its one-sided density `2·dt·R(f)` on a grid of at least 4096 points.
+    pub fn autocovariance(&self, max_lag: usize) -> Vec<f64> {
+        let len = (4 * max_lag + 4).next_power_of_two().max(4096);
+        let df = 1.0 / (len as f64 * self.dt);
+        // two-sided density dt·R(|f|) at every grid point, summed with e^{+i2πkm/len}
+        let mut buf: Vec<Complex<f64>> =
+            (0..len).map(|k| Complex::new(self.dt * self.level(k.min(len - k) as f64 * df), 0.0)).collect();
+        FftPlanner::new().plan_fft_inverse(len).process(&mut buf);
+        buf.iter().take(max_lag + 1).map(|c| c.re * df).collect()
+    }
+
+    /// The variance this noise gives a linear filter with weights `w` (consecutive samples),
+    /// from its autocovariance `r` (at least `w.len()` lags).
+    pub fn filtered_variance(r: &[f64], w: &[f64]) -> f64 {
+        let mut var = 0.0;
+        for (i, wi) in w.iter().enumerate() {
+            for (j, wj) in w.iter().enumerate() {
+                var += wi * wj * r.get(i.abs_diff(j)).copied().unwrap_or(0.0);
+            }
+        }
+        var
+    }
+
+    /// The noise's standard deviation (all of the band).
+    pub fn total_sd(&self) -> f64 {
+        if self.is_white() {
+            return self.level(0.0).sqrt();
+        }
+        self.autocovariance(0).first().copied().unwrap_or(0.0).max(0.0).sqrt()
+    }
+}
+
+/// A noise falls with frequency by at most this factor per octave (in `R`) before it is taken
+/// for motion: a once-filtered noise falls by 4 (f⁻²); a moving joint's angle, whose q̈ is
+/// bounded, by 16 or more (f⁻⁴: a q̇ that jumps at an impact; smooth motion falls faster still).
+const NOISE_SLOPE_PER_OCTAVE: f64 = 5.5;
+
+/// The noise's spectrum (see [`NoiseModel`]): the median level `R` of each octave, walked down
+/// from Nyquist while it rises no faster than a filtered noise can; the first octave that rises
+/// faster is motion, and the noise below it is held at the last level. The model is coloured
+/// only when that walk rises above three times the top quarter's level over at least two
+/// octaves that each rise (one jump is the edge of a broadband motion, not a noise's slope),
+/// and the coloured noise is at most 1 % of the signal's variance (a motion of steps has an f⁻²
+/// spectrum too, and is all of the signal); otherwise it is white at the top quarter's level.
+///
+/// Told where the motion ends, every octave above that edge is noise and the model is coloured
+/// whenever they rise above three times the top quarter's level (still within the 1 % bound).
+fn noise_model(freqs: &[f64], psd: &[f64], dt: f64, sigma2: f64, x: &[f64], edge: Option<f64>) -> NoiseModel {
+    let white = NoiseModel { points: vec![(0.0, sigma2)], dt };
+    let nyq = 0.5 / dt;
+    let shape = |f: f64| {
+        let s = 2.0 * (std::f64::consts::PI * f * dt).sin() / dt;
+        2.0 * dt * s * s
+    };
+    // octave medians of R, from the top down: (centre Hz, median)
+    let mut octaves: Vec<(f64, f64)> = Vec::new();
+    let mut hi = nyq;
+    loop {
+        let lo = 0.5 * hi;
+        let mut r: Vec<f64> = freqs
+            .iter()
+            .zip(psd)
+            .filter(|(f, _)| **f >= lo && **f < hi && **f > 0.0)
+            .map(|(f, p)| p / shape(*f).max(1e-300))
+            .collect();
+        if r.len() < 4 {
+            break;
+        }
+        let mid = r.len() / 2;
+        let (_, m, _) = r.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        octaves.push(((lo * hi).sqrt(), *m));
+        hi = lo;
+    }
+    if !(sigma2 > 0.0) || octaves.len() < 3 {
+        return white;
+    }
+    let mut kept: Vec<(f64, f64)> = vec![(0.875 * nyq, sigma2)];
+    let mut rises = 0usize;
+    let mut prev = sigma2;
+    for &(f, m) in &octaves {
+        match edge {
+            Some(e) if f < e * std::f64::consts::SQRT_2 => break,
+            None if m > NOISE_SLOPE_PER_OCTAVE * prev => break,
+            _ => {}
+        }
+        if m > 1.5 * prev {
+            rises += 1;
+        }
+        kept.push((f, m));
+        prev = m;
+    }
+    let peak = kept.iter().map(|p| p.1).fold(0.0f64, f64::max);
+    if peak <= 3.0 * sigma2 || (rises < 2 && edge.is_none()) {
+        return white;
+    }
+    kept.reverse();
+    let model = NoiseModel { points: kept, dt };
+    let n = x.len().max(1) as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
+    let total = model.total_sd();
+    if total * total > 0.01 * var {
+        return white;
+    }
+    model
 }
 
 /// Where a noise that is not white begins, as a bin index (`freqs.len()` when there is none).
@@ -255,5 +428,47 @@ mod tests {
         let (w1, w2) = (std::f64::consts::TAU * 0.3, std::f64::consts::TAU * 1.1);
         let want = ((0.8 * w1 * w1).powi(2) + (0.3 * w2 * w2).powi(2)).sqrt() / 2f64.sqrt();
         assert!((s.deriv_rms[1] / want - 1.0).abs() < 0.3, "q̈ rms {} vs {want}", s.deriv_rms[1]);
+    }
+
+    #[test]
+    fn white_noise_model_is_its_variance_at_lag_zero_only() {
+        let m = NoiseModel::white(2e-3, 1e-3);
+        let r = m.autocovariance(8);
+        assert!((r[0] / 4e-6 - 1.0).abs() < 1e-9, "{}", r[0]);
+        assert!(r[1..].iter().all(|x| x.abs() < 1e-15), "{r:?}");
+        let w = [0.5, -1.0, 2.0];
+        let var = NoiseModel::filtered_variance(&r, &w);
+        assert!((var / (4e-6 * 5.25) - 1.0).abs() < 1e-9, "{var}");
+        assert!((m.total_sd() - 2e-3).abs() < 1e-12);
+    }
+
+    /// AR(1) angle noise (0.95 per sample, 1 ms steps: a corner near 8 Hz) under a slow motion:
+    /// the model is coloured, its total matches the noise's standard deviation, its lag-one
+    /// correlation is the coefficient, and the motion's q̈ is the tone's, not the noise's.
+    #[test]
+    fn an_ar1_noise_is_modelled_as_a_falling_spectrum() {
+        let dt = 1e-3;
+        let n = 60_000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let (phi, sd) = (0.95f64, 1e-3);
+        let innov = sd * (1.0 - phi * phi).sqrt();
+        let mut e = 0.0;
+        let (a, w) = (0.4, std::f64::consts::TAU * 0.5);
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                e = phi * e + innov * g;
+                a * (w * i as f64 * dt).sin() + e
+            })
+            .collect();
+        let s = analyse(&x, dt).unwrap();
+        assert!(!s.noise.is_white());
+        assert!((s.noise.total_sd() / sd - 1.0).abs() < 0.25, "total {}", s.noise.total_sd());
+        let r = s.noise.autocovariance(1);
+        assert!((r[1] / r[0] - phi).abs() < 0.05, "lag-one correlation {}", r[1] / r[0]);
+        let want = a * w * w / 2f64.sqrt();
+        assert!((s.deriv_rms[1] / want - 1.0).abs() < 0.1, "q̈ rms {} vs {want}", s.deriv_rms[1]);
+        // read as white, the noise's slope was motion: q̈ many times the tone's
+        assert!(s.bandwidth_hz < 5.0, "bandwidth {}", s.bandwidth_hz);
     }
 }
