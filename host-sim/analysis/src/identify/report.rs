@@ -429,25 +429,8 @@ fn free_stretch<'a>(
 /// How each log's q̇ and q̈ were obtained, in a line or two per log.
 pub fn preparation_text(id: &Identified, cutoff_hz: f64) -> String {
     let mut s = String::new();
-    let what = |d: &crate::prep::DerivInfo| {
-        if d.source == "logged" {
-            format!("logged (noise {:.2e})", d.error_sd)
-        } else {
-            format!("{}, local cubic ±{:.1} ms (error {:.2e})", d.source, 1e3 * d.half_window_s, d.error_sd)
-        }
-    };
     for (k, p) in id.preparation.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "log {}: {} of {} samples, {:.1} Hz, {} stretch(es); q̇ {} rad/s; q̈ {} rad/s²",
-            k + 1,
-            p.samples,
-            p.samples_in,
-            p.median_rate_hz,
-            p.segments.len(),
-            what(&p.qd),
-            what(&p.qdd)
-        );
+        let _ = writeln!(s, "log {}: {}", k + 1, p.summary());
         for n in &p.notes {
             let _ = writeln!(s, "       {n}");
         }

@@ -48,6 +48,28 @@ pub enum PrepError {
     Refused(String),
 }
 
+impl PrepReport {
+    /// One line: samples kept, rate, stretches, and where q̇ and q̈ come from with their errors.
+    pub fn summary(&self) -> String {
+        let what = |d: &DerivInfo| {
+            if d.source == "logged" {
+                format!("logged (noise {:.2e})", d.error_sd)
+            } else {
+                format!("{}, local cubic ±{:.1} ms (error {:.2e})", d.source, 1e3 * d.half_window_s, d.error_sd)
+            }
+        };
+        format!(
+            "{} of {} samples, {:.1} Hz, {} stretch(es); q̇ {} rad/s; q̈ {} rad/s²",
+            self.samples,
+            self.samples_in,
+            self.median_rate_hz,
+            self.segments.len(),
+            what(&self.qd),
+            what(&self.qdd)
+        )
+    }
+}
+
 /// One stretch of the log without a gap (indices into the prepared arrays).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SegmentInfo {
@@ -90,6 +112,11 @@ pub struct PrepReport {
     /// share of the samples left out as undecided next to a rest
     pub ambiguous_share: f64,
     pub stale_dropped: usize,
+    /// rows left out for a value no joint produces (a logger glitch); see `glitch_lines`
+    pub glitches_dropped: usize,
+    /// the file lines (header = line 1) of those rows, the first 20
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub glitch_lines: Vec<usize>,
     pub segments: Vec<SegmentInfo>,
     pub median_rate_hz: f64,
     /// noise on q (white part, including quantisation), rad
@@ -210,7 +237,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             eprintln!("[prep] {what}: {:.3} s", t_start.elapsed().as_secs_f64());
         }
     };
-    let (log, stale) = drop_stale(log);
+    let (log, glitches) = drop_glitches(log)?;
+    let (log, stale) = drop_stale(&log);
     let n = log.len();
     if n < 2 {
         return Err(PrepError::Refused(format!("the log has {n} usable samples")));
@@ -227,6 +255,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let mut segments = split_at_gaps(&log.t, dt);
     let jumps = split_at_jumps(&log.q, &mut segments);
     let mut notes = Vec::new();
+    if !glitches.is_empty() {
+        notes.push(glitch_note(&glitches));
+    }
     if stale > 0 {
         notes.push(format!("{stale} stale samples (a row repeating the one before it) dropped"));
     }
@@ -562,6 +593,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         rest_share,
         ambiguous_share,
         stale_dropped: stale,
+        glitches_dropped: glitches.len(),
+        glitch_lines: glitches.iter().take(20).map(|g| g.row + 2).collect(),
         segments: segments
             .iter()
             .map(|r| SegmentInfo { from_t: out.t[r.start], to_t: out.t[r.end - 1], samples: r.len() })
@@ -978,6 +1011,123 @@ fn transitions(
     (dir, amb)
 }
 
+/// Beyond this magnitude no joint column (rad, rad/s, rad/s², N·m, °C) holds a measurement.
+const ABSURD: f64 = 1e9;
+/// A value farther beyond its column's central 98 % than this many times that range's width
+/// is a glitch: an impact's torque spike or a fast move stays within a few widths.
+const GLITCH_WIDTHS: f64 = 50.0;
+/// More rows than this share with glitches: the log is refused, not repaired.
+const MAX_GLITCH_SHARE: f64 = 0.01;
+
+/// One cell no joint produces.
+#[derive(Clone, Debug, PartialEq)]
+struct Glitch {
+    /// row index in the log as read (file line = row + 2)
+    row: usize,
+    column: String,
+    value: f64,
+    /// the column's central 98 % (1st and 99th percentiles)
+    central: (f64, f64),
+}
+
+/// Finds cells no joint produces — beyond [`ABSURD`], or farther beyond the column's central
+/// 98 % than [`GLITCH_WIDTHS`] times its width (a column whose central 98 % is one value is
+/// held to the absolute bound only) — and drops their rows. More than [`MAX_GLITCH_SHARE`] of
+/// the rows: the log is refused (a unit or a column mix-up, not glitches). Reported by line.
+fn drop_glitches(log: &JointLog) -> Result<(JointLog, Vec<Glitch>), PrepError> {
+    let n = log.len();
+    let mut cols: Vec<(&str, &[f64])> = vec![("q", &log.q)];
+    for (name, c) in [("qd", &log.qd), ("qdd", &log.qdd), ("u", &log.u), ("tau", &log.tau), ("temp", &log.temp)] {
+        if let Some(v) = c {
+            cols.push((name, v));
+        }
+    }
+    for (name, v) in &log.others {
+        cols.push((name, v));
+    }
+    let mut found: Vec<Glitch> = Vec::new();
+    for (name, v) in cols {
+        let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        if sorted.is_empty() {
+            continue;
+        }
+        sorted.sort_by(f64::total_cmp);
+        let at = |p: f64| sorted[((p * (sorted.len() - 1) as f64).round() as usize).min(sorted.len() - 1)];
+        let (lo, hi) = (at(0.01), at(0.99));
+        let w = hi - lo;
+        for (row, &x) in v.iter().enumerate() {
+            let beyond = w > 0.0 && (x > hi + GLITCH_WIDTHS * w || x < lo - GLITCH_WIDTHS * w);
+            if !x.is_finite() || x.abs() > ABSURD || beyond {
+                found.push(Glitch { row, column: name.to_string(), value: x, central: (lo, hi) });
+            }
+        }
+    }
+    if found.is_empty() {
+        return Ok((log.clone(), found));
+    }
+    found.sort_by_key(|g| g.row);
+    let mut rows: Vec<usize> = found.iter().map(|g| g.row).collect();
+    rows.dedup();
+    if rows.len() as f64 > MAX_GLITCH_SHARE * n as f64 {
+        return Err(PrepError::Refused(format!(
+            "{} of {n} rows hold values no joint produces ({}): more than {:.0} % of the log, so it is refused rather than repaired (a column in other units, or a logger fault?)",
+            rows.len(),
+            describe_glitches(&found, 3),
+            100.0 * MAX_GLITCH_SHARE
+        )));
+    }
+    // one glitch per row in the result (the first column named)
+    found.dedup_by_key(|g| g.row);
+    let keep: Vec<usize> = (0..n).filter(|i| rows.binary_search(i).is_err()).collect();
+    Ok((select_rows(log, &keep), found))
+}
+
+fn describe_glitches(g: &[Glitch], k: usize) -> String {
+    let mut parts: Vec<String> = g
+        .iter()
+        .take(k)
+        .map(|g| {
+            format!(
+                "line {}, column `{}`: {:e}, against the column's central 98 % of [{:.4}, {:.4}]",
+                g.row + 2,
+                g.column,
+                g.value,
+                g.central.0,
+                g.central.1
+            )
+        })
+        .collect();
+    if g.len() > k {
+        parts.push(format!("and {} more", g.len() - k));
+    }
+    parts.join("; ")
+}
+
+fn glitch_note(g: &[Glitch]) -> String {
+    format!(
+        "{} row(s) dropped for a value no joint produces (beyond {ABSURD:e}, or {GLITCH_WIDTHS}× the column's central 98 % beyond it): {}",
+        g.len(),
+        describe_glitches(g, 5)
+    )
+}
+
+/// The rows `keep` (increasing) of `log`.
+fn select_rows(log: &JointLog, keep: &[usize]) -> JointLog {
+    let pick = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    let pick_opt = |v: &Option<Vec<f64>>| v.as_ref().map(|v| pick(v));
+    JointLog {
+        t: pick(&log.t),
+        q: pick(&log.q),
+        qd: pick_opt(&log.qd),
+        qdd: pick_opt(&log.qdd),
+        u: pick_opt(&log.u),
+        tau: pick_opt(&log.tau),
+        temp: pick_opt(&log.temp),
+        others: log.others.iter().map(|(k, v)| (k.clone(), pick(v))).collect(),
+        unknown: log.unknown.clone(),
+    }
+}
+
 /// Drops rows whose measured values all repeat the previous row's.
 fn drop_stale(log: &JointLog) -> (JointLog, usize) {
     let n = log.len();
@@ -997,20 +1147,7 @@ fn drop_stale(log: &JointLog) -> (JointLog, usize) {
     if dropped == 0 {
         return (log.clone(), 0);
     }
-    let pick = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-    let pick_opt = |v: &Option<Vec<f64>>| v.as_ref().map(|v| pick(v));
-    let out = JointLog {
-        t: pick(&log.t),
-        q: pick(&log.q),
-        qd: pick_opt(&log.qd),
-        qdd: pick_opt(&log.qdd),
-        u: pick_opt(&log.u),
-        tau: pick_opt(&log.tau),
-        temp: pick_opt(&log.temp),
-        others: log.others.iter().map(|(k, v)| (k.clone(), pick(v))).collect(),
-        unknown: log.unknown.clone(),
-    };
-    (out, dropped)
+    (select_rows(log, &keep), dropped)
 }
 
 /// Median time step (robust to jitter and the odd gap).
@@ -1288,6 +1425,32 @@ mod tests {
         // inside a band 10× the error: the clamp is linear, variance (σ/b)²
         let v = sign_variance(0.0, 0.1, 0.01);
         assert!((v / 0.01 - 1.0).abs() < 0.02, "{v}");
+    }
+
+    /// A logger glitch (1e300, or a value 1000 times the column's range) is left out with its
+    /// line; an impact spike ten times the range is kept; glitches in over 1 % of the rows refuse
+    /// the log with the first lines named.
+    #[test]
+    fn glitched_cells_are_dropped_by_line_and_impacts_kept() {
+        let n = 2000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let q: Vec<f64> = t.iter().map(|&x| (3.0 * x).sin()).collect();
+        let mut tau: Vec<f64> = t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect();
+        tau[100] = 1e300;
+        tau[700] = 800.0;
+        tau[1200] = 9.0; // an impact: 9 N·m against a ±0.5 N·m range
+        let log = JointLog { tau: Some(tau.clone()), u: Some(vec![0.0; n]), ..log_of(t.clone(), q.clone()) };
+        let p = prepare(&log).unwrap();
+        assert_eq!(p.report.glitches_dropped, 2);
+        assert_eq!(p.report.glitch_lines, vec![102, 702]);
+        assert_eq!(p.log.len(), n - 2);
+        assert!(p.log.tau.as_ref().unwrap().contains(&9.0));
+        assert!(p.report.notes.iter().any(|s| s.contains("line 102, column `tau`: 1e300")), "{:?}", p.report.notes);
+        for i in (0..n).step_by(40) {
+            tau[i] = -1e12;
+        }
+        let e = prepare(&JointLog { tau: Some(tau), u: Some(vec![0.0; n]), ..log_of(t, q) }).unwrap_err();
+        assert!(e.to_string().contains("line 2, column `tau`: -1e12"), "{e}");
     }
 
     #[test]

@@ -120,6 +120,12 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
         r.split.method,
         secs
     );
+    if let Some(p) = &r.prep {
+        say!(o, "preparation: {}", p.summary());
+        for n in &p.notes {
+            say!(o, "  {n}");
+        }
+    }
     if let Some(rt) = &r.split.rest_tail {
         say!(
             o,
