@@ -208,7 +208,8 @@ impl Master {
             return Ok(r.get(4..4 + n).unwrap_or(&[]).to_vec());
         }
         let total = if r[0] & 0x01 != 0 { Some(u32::from_le_bytes([r[4], r[5], r[6], r[7]]) as usize) } else { None };
-        let mut out = Vec::with_capacity(total.unwrap_or(64));
+        // the announced size is the node's word: reserve no more than 64 KiB before the data come
+        let mut out = Vec::with_capacity(total.unwrap_or(64).min(1 << 16));
         let mut toggle = 0u8;
         loop {
             let s = self.transact(node, index, sub, [0x60 | (toggle << 4), 0, 0, 0, 0, 0, 0, 0])?;
