@@ -37,6 +37,8 @@ pub struct Seen {
     pub state: Option<NmtState>,
     pub last_us: u64,
     pub heartbeats: u64,
+    /// boot-up messages heard (the node started or reset)
+    pub boots: u64,
 }
 
 /// See the module documentation.
@@ -117,8 +119,11 @@ impl Master {
         if (HEARTBEAT_BASE + 1..=HEARTBEAT_BASE + 127).contains(&id) && f.dlc() == 1 {
             let node = (id - HEARTBEAT_BASE) as u8;
             if node != self.host_id {
-                let e = self.seen.entry(node).or_insert(Seen { state: None, last_us: now, heartbeats: 0 });
+                let e = self.seen.entry(node).or_insert(Seen { state: None, last_us: now, heartbeats: 0, boots: 0 });
                 e.state = f.data().first().and_then(|&b| NmtState::from_heartbeat_byte(b));
+                if f.data().first() == Some(&0x00) {
+                    e.boots += 1;
+                }
                 e.last_us = now;
                 e.heartbeats += 1;
             }
@@ -188,6 +193,12 @@ impl Master {
                 }
             }
         }
+    }
+
+    /// Abort whatever SDO transfer `node` may still hold for `index:sub` (before a retry, so the
+    /// server starts the next one clean).
+    pub fn abort_transfer(&mut self, node: u8, index: u16, sub: u8) {
+        self.abort(node, index, sub, Abort::Timeout);
     }
 
     fn abort(&mut self, node: u8, index: u16, sub: u8, a: Abort) {

@@ -50,6 +50,72 @@ struct Pending {
     frame: CanFrame,
 }
 
+/// Faults the bus injects (issue 16): frames lost on the wire, alone or in bursts, a device
+/// that resets when the master sends a given frame, an adapter that goes away.
+#[derive(Default)]
+pub struct Faults {
+    /// chance that a frame, once it has crossed the wire, reaches nobody (EMI past the
+    /// controller's retransmissions, a receive overrun); applies to every sender
+    pub loss: f64,
+    /// a lost frame takes this many following frames with it (0: single losses)
+    pub burst: u32,
+    /// seed of the loss draws (xorshift64*; 0 is taken as 1)
+    pub seed: u64,
+    /// reset a device (a brown-out: its RAM state lost, parameters from its storage, boot-up)
+    /// when the master sends a frame that `when` picks
+    pub reset: Option<ResetOn>,
+    /// the adapter stops answering after this many more master frames: `send` fails with an
+    /// I/O error and nothing is received
+    pub adapter_dies_after: Option<u64>,
+    /// frames lost so far
+    pub lost: u64,
+    burst_left: u32,
+}
+
+/// See [`Faults::reset`].
+pub struct ResetOn {
+    pub device: usize,
+    /// picks the master frame; returns true once per reset wanted
+    pub when: Box<dyn FnMut(&CanFrame) -> bool + Send>,
+    /// the reset comes before the device sees that frame (lost with the power), else right after
+    /// the device handled it (its reply is lost)
+    pub before: bool,
+    /// resets done
+    pub done: u32,
+}
+
+impl Faults {
+    /// Lose frames at `loss` (bursts of `burst` more), drawn from `seed`.
+    pub fn lossy(loss: f64, burst: u32, seed: u64) -> Faults {
+        Faults { loss, burst, seed: seed.max(1), ..Faults::default() }
+    }
+
+    fn draw(&mut self) -> f64 {
+        // xorshift64*: deterministic per seed, no dependency
+        let mut x = self.seed.max(1);
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.seed = x;
+        (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Whether the frame that just crossed the wire is lost.
+    fn lose(&mut self) -> bool {
+        if self.burst_left > 0 {
+            self.burst_left -= 1;
+            self.lost += 1;
+            return true;
+        }
+        if self.loss > 0.0 && self.draw() < self.loss {
+            self.burst_left = self.burst;
+            self.lost += 1;
+            return true;
+        }
+        false
+    }
+}
+
 /// See the module documentation.
 pub struct SimBus {
     bitrate: u32,
@@ -67,6 +133,8 @@ pub struct SimBus {
     master_sent: u64,
     /// frames the master sent that were lost to `cut_master_after`
     pub master_lost: u64,
+    /// injected faults (none by default)
+    pub faults: Faults,
 }
 
 /// Default device turnaround: 20 µs, the order of an SDO reply on a 170 MHz Cortex-M4 (a few
@@ -88,6 +156,7 @@ impl SimBus {
             cut_master_after: None,
             master_sent: 0,
             master_lost: 0,
+            faults: Faults::default(),
         }
     }
 
@@ -171,12 +240,37 @@ impl SimBus {
             if let Some((end, src, f)) = self.in_flight {
                 if end <= now {
                     self.in_flight = None;
+                    if self.faults.lose() {
+                        continue;
+                    }
+                    let mut reset = None;
+                    if let (Some(r), Src::Master) = (self.faults.reset.as_mut(), src) {
+                        if (r.when)(&f) {
+                            r.done += 1;
+                            reset = Some((r.device, r.before));
+                        }
+                    }
                     for (i, (dev, _)) in self.devices.iter().enumerate() {
                         if src == Src::Device(i) {
                             continue;
                         }
+                        let reset_here = reset.filter(|(d, _)| *d == i);
                         if let Ok(mut d) = dev.lock() {
-                            d.on_frame(now / 1000, &f, &mut out);
+                            if reset_here.is_some_and(|(_, before)| before) {
+                                // the power goes with the frame: an NMT reset-node is the same
+                                // restart (parameters from storage, boot-up)
+                                if let Some(nmt) = CanFrame::new(0, &[RESET_NODE, 0]) {
+                                    d.on_frame(now / 1000, &nmt, &mut out);
+                                }
+                            } else {
+                                d.on_frame(now / 1000, &f, &mut out);
+                                if reset_here.is_some() {
+                                    out.clear();
+                                    if let Some(nmt) = CanFrame::new(0, &[RESET_NODE, 0]) {
+                                        d.on_frame(now / 1000, &nmt, &mut out);
+                                    }
+                                }
+                            }
                         }
                         for r in out.drain(..) {
                             self.seq += 1;
@@ -218,8 +312,17 @@ impl SimBus {
     }
 }
 
+/// NMT command "reset node" (CiA 301).
+const RESET_NODE: u8 = 0x81;
+
 impl Bus for SimBus {
     fn send(&mut self, f: &CanFrame) -> std::io::Result<()> {
+        if let Some(n) = self.faults.adapter_dies_after.as_mut() {
+            if *n == 0 {
+                return Err(std::io::Error::new(std::io::ErrorKind::BrokenPipe, "the CAN adapter stopped answering"));
+            }
+            *n -= 1;
+        }
         self.master_sent += 1;
         if self.cut_master_after.is_some_and(|n| self.master_sent > n) {
             self.master_lost += 1;
@@ -230,6 +333,9 @@ impl Bus for SimBus {
     }
 
     fn recv(&mut self, timeout: Duration) -> std::io::Result<Option<CanFrame>> {
+        if self.faults.adapter_dies_after == Some(0) {
+            return Err(std::io::Error::new(std::io::ErrorKind::BrokenPipe, "the CAN adapter stopped answering"));
+        }
         if let Some(f) = self.inbox.pop_front() {
             return Ok(Some(f));
         }

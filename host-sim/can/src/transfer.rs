@@ -44,6 +44,8 @@ pub struct PushReport {
     /// bus-clock time from the first request to the last response, µs
     pub elapsed_us: u64,
     pub saved: bool,
+    /// SDO transfers tried again after a lost frame
+    pub retries: u32,
 }
 
 enum Op {
@@ -94,6 +96,46 @@ fn series_ops(s: &RawSeries) -> Vec<(u16, u8, Vec<u8>, String)> {
     v
 }
 
+/// Attempts per SDO transfer when the bus loses frames: CiA 301 lets a client abort a transfer
+/// that timed out and start it again (the server drops its half-done transfer on the new
+/// initiate, and applies a download only once it is complete), so a lost frame costs a retry,
+/// not the push.
+pub const SDO_ATTEMPTS: u32 = 8;
+
+/// Whether a failed transfer may be tried again: no answer, or an answer that shows the two
+/// sides out of step (a lost segment's toggle, a late reply) — never a refusal of the value.
+fn retryable(e: &SdoError) -> bool {
+    match e {
+        SdoError::Timeout { .. } | SdoError::Protocol { .. } => true,
+        SdoError::Abort { code, .. } => {
+            [Abort::Toggle.code(), Abort::Command.code(), Abort::Timeout.code()].contains(code)
+        }
+        SdoError::Io(_) => false,
+    }
+}
+
+/// `op` with up to [`SDO_ATTEMPTS`] tries, aborting the server's transfer between them; the
+/// retries are counted in `retries`.
+fn retry<T>(
+    m: &mut Master,
+    node: u8,
+    at: (u16, u8),
+    retries: &mut u32,
+    mut op: impl FnMut(&mut Master) -> Result<T, SdoError>,
+) -> Result<T, SdoError> {
+    let mut k = 1;
+    loop {
+        match op(m) {
+            Err(e) if k < SDO_ATTEMPTS && retryable(&e) => {
+                m.abort_transfer(node, at.0, at.1);
+                *retries += 1;
+                k += 1;
+            }
+            r => return r,
+        }
+    }
+}
+
 /// Push `raw` to `node`. `progress` is called after every SDO transfer.
 pub fn push(
     m: &mut Master,
@@ -138,17 +180,29 @@ pub fn push(
     let t0 = m.bus.now_us();
     let total = ops.len();
     let mut transfers = 0usize;
+    let mut retries = 0u32;
     for (k, op) in ops.into_iter().enumerate() {
         let what = match op {
             Op::Write { index, sub, data, what, safety } => {
                 transfers += 1;
-                match m.write(node, index, sub, &data) {
+                let mut written = retry(m, node, (index, sub), &mut retries, |m| m.write(node, index, sub, &data));
+                if safety
+                    && opts.pre_operational
+                    && written.as_ref().is_err_and(|e| e.abort_code() == Some(Abort::DeviceState.code()))
+                {
+                    // NMT is unconfirmed: the command may have been lost on the bus. Again, once.
+                    m.nmt(node, NMT_PRE_OPERATIONAL)?;
+                    m.listen(std::time::Duration::from_millis(2))?;
+                    retries += 1;
+                    written = retry(m, node, (index, sub), &mut retries, |m| m.write(node, index, sub, &data));
+                }
+                match written {
                     Ok(()) => {}
                     Err(e) if safety && e.abort_code() == Some(Abort::DeviceState.code()) => {
                         // Refused because the node is not pre-operational: fine if the value is
                         // already the one we want (checked by the read-back), else say how.
                         transfers += 1;
-                        let cur = m.read(node, index, sub)?;
+                        let cur = retry(m, node, (index, sub), &mut retries, |m| m.read(node, index, sub))?;
                         if cur != data {
                             anyhow::bail!(
                                 "node {node}: {what} is safety-relevant and differs ({} → {}); it can only change in pre-operational: push again with --pre-operational",
@@ -163,7 +217,8 @@ pub fn push(
             }
             Op::Verify { index, sub, data, what } => {
                 transfers += 1;
-                let back = m.read(node, index, sub).map_err(|e| anyhow::anyhow!("reading back {what}: {e}"))?;
+                let back = retry(m, node, (index, sub), &mut retries, |m| m.read(node, index, sub))
+                    .map_err(|e| anyhow::anyhow!("reading back {what}: {e}"))?;
                 if back != data {
                     anyhow::bail!("node {node}: {what} reads back {back:02X?}, {data:02X?} was written");
                 }
@@ -171,7 +226,10 @@ pub fn push(
             }
             Op::Commit => {
                 transfers += 1;
-                if let Err(e) = m.write(node, od::COMMIT, 0, &[1]) {
+                if let Err(e) = retry(m, node, (od::COMMIT, 0), &mut retries, |m| m.write(node, od::COMMIT, 0, &[1])) {
+                    if retryable(&e) {
+                        anyhow::bail!("node {node}: no confirmation of the commit ({e}): whether the new set runs is not known yet");
+                    }
                     let why = m.read_string(node, od::COMMIT_ERROR, 3).unwrap_or_default();
                     anyhow::bail!("node {node} refused the parameter set, the old set stays in force: {why} ({e})");
                 }
@@ -179,8 +237,10 @@ pub fn push(
             }
             Op::Save => {
                 transfers += 1;
-                m.write(node, od::STORE_PARAMETERS, 1, &od::SAVE_SIGNATURE.to_le_bytes())
-                    .map_err(|e| anyhow::anyhow!("save: {e}"))?;
+                retry(m, node, (od::STORE_PARAMETERS, 1), &mut retries, |m| {
+                    m.write(node, od::STORE_PARAMETERS, 1, &od::SAVE_SIGNATURE.to_le_bytes())
+                })
+                .map_err(|e| anyhow::anyhow!("save: {e}"))?;
                 "save".to_string()
             }
         };
@@ -192,6 +252,7 @@ pub fn push(
         bits: m.sdo_bits - bits0,
         elapsed_us: m.bus.now_us() - t0,
         saved: opts.save,
+        retries,
     })
 }
 
@@ -202,15 +263,22 @@ fn f32_at(b: &[u8], i: usize) -> f32 {
 /// Read the node's parameter set (the staged values, which equal the running ones unless
 /// `pending`). Returns the set and whether staged changes are pending.
 pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
+    pull_counting(m, node, &mut 0)
+}
+
+/// [`pull`], every read retried on a lost frame (counted in `retries`).
+fn pull_counting(m: &mut Master, node: u8, retries: &mut u32) -> Result<(RawParams, bool), SdoError> {
+    let mut read =
+        |m: &mut Master, index: u16, sub: u8| retry(m, node, (index, sub), retries, |m| m.read(node, index, sub));
     let mut raw = RawParams::defaults();
     for i in 0..PARAM_COUNT {
         let Some(id) = ParamId::from_index(i) else { continue };
-        let b = m.read(node, od::PARAM_BASE + i as u16, 0)?;
+        let b = read(m, od::PARAM_BASE + i as u16, 0)?;
         raw.set(id, f32_at(&b, 0));
     }
     let mut t = RawTable::EMPTY;
-    let byte = |m: &mut Master, s: u8| -> Result<u8, SdoError> {
-        Ok(m.read(node, od::TABLE_SHAPE, s)?.first().copied().unwrap_or(0))
+    let mut byte = |m: &mut Master, s: u8| -> Result<u8, SdoError> {
+        Ok(read(m, od::TABLE_SHAPE, s)?.first().copied().unwrap_or(0))
     };
     t.n_axes = byte(m, 1)?;
     if t.n_axes > 0 {
@@ -222,34 +290,127 @@ pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
         }
         t.has_sigma = byte(m, 10)? == 1;
         t.residual = byte(m, 11)? == 1;
-        let g = m.read(node, od::TABLE_GRID, 0)?;
+        let g = read(m, od::TABLE_GRID, 0)?;
         for (a, row) in t.grid.iter_mut().enumerate() {
             for (k, x) in row.iter_mut().enumerate() {
                 *x = f32_at(&g, a * AXIS_POINTS_MAX + k);
             }
         }
-        let tq = m.read(node, od::TABLE_TORQUE, 0)?;
+        let tq = read(m, od::TABLE_TORQUE, 0)?;
         for (k, x) in t.torque.iter_mut().enumerate() {
             *x = f32_at(&tq, k);
         }
         if t.has_sigma {
-            let s = m.read(node, od::TABLE_SIGMA, 0)?;
+            let s = read(m, od::TABLE_SIGMA, 0)?;
             for (k, x) in t.sigma.iter_mut().enumerate() {
                 *x = f32_at(&s, k);
             }
         }
     }
     raw.table = t;
-    let n = m.read(node, od::SERIES_COUNT, 0)?.first().copied().unwrap_or(0);
+    let n = read(m, od::SERIES_COUNT, 0)?.first().copied().unwrap_or(0);
     raw.series.n_terms = n;
     if n > 0 {
-        let d = m.read(node, od::SERIES_TERMS, 0)?;
+        let d = read(m, od::SERIES_TERMS, 0)?;
         for (k, c) in d.chunks_exact(TERM_BYTES).enumerate() {
             raw.series.set_term_bytes(k, c);
         }
     }
-    let pending = m.read(node, od::PENDING, 0)?.first().copied().unwrap_or(0) == 1;
+    let pending = read(m, od::PENDING, 0)?.first().copied().unwrap_or(0) == 1;
     Ok((raw, pending))
+}
+
+/// Which parameter set runs on the joint after a push, as read back from it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum InForce {
+    /// the pushed set, read back whole with nothing pending
+    New,
+    /// not the pushed set: the one the joint ran before (its commit is all or nothing), or the
+    /// stored set it loaded when it reset
+    Previous,
+    /// the joint could not be read back: nobody knows
+    Unknown(String),
+}
+
+/// A push and what it left on the joint.
+#[derive(Clone, Debug)]
+pub struct Verified {
+    /// the last attempt's figures, when it ran to the end
+    pub report: Option<PushReport>,
+    /// whole pushes started (a joint that reset mid-push is pushed again, up to 3 times)
+    pub attempts: u32,
+    /// SDO transfers tried again, all attempts and the read-back together
+    pub retries: u32,
+    pub in_force: InForce,
+    /// why the push did not complete (also set when the new set runs but a save failed)
+    pub error: Option<String>,
+}
+
+impl Verified {
+    /// The new set runs and everything asked for (the save included) was done.
+    pub fn ok(&self) -> bool {
+        self.in_force == InForce::New && self.error.is_none()
+    }
+}
+
+/// Whole pushes to start when the joint resets in the middle of one.
+pub const PUSH_ATTEMPTS: u32 = 3;
+
+/// [`push`], then read the joint's set back to say which one runs: the pushed one, the previous
+/// one, or unknown (the joint did not answer). Lost frames are retried per transfer; a push
+/// that failed has its staged values discarded (commit object ← 0) before the read-back, so
+/// what is read is what runs; a joint that reset during the push (boot-up heard) is pushed
+/// again. Never reports the new set without having read it back whole.
+pub fn push_verified(
+    m: &mut Master,
+    node: u8,
+    raw: &RawParams,
+    opts: PushOptions,
+    progress: &mut dyn FnMut(&Progress),
+) -> Verified {
+    let mut attempts = 0;
+    let mut retries = 0;
+    loop {
+        attempts += 1;
+        let boots0 = m.seen.get(&node).map_or(0, |s| s.boots);
+        let pushed = push(m, node, raw, opts, progress);
+        let (report, error) = match pushed {
+            Ok(r) => {
+                retries += r.retries;
+                (Some(r), None)
+            }
+            Err(e) => (None, Some(e.to_string())),
+        };
+        let read_back = (|| {
+            if error.is_some() {
+                retry(m, node, (od::COMMIT, 0), &mut retries, |m| m.write(node, od::COMMIT, 0, &[0]))?;
+            }
+            pull_counting(m, node, &mut retries)
+        })();
+        let rebooted = m.seen.get(&node).map_or(0, |s| s.boots) > boots0;
+        let in_force = match read_back {
+            Ok((running, false)) if running == *raw => InForce::New,
+            Ok((_, false)) if rebooted && attempts < PUSH_ATTEMPTS => continue,
+            Ok((_, false)) => InForce::Previous,
+            Ok((_, true)) => InForce::Unknown(format!(
+                "node {node} still holds staged changes after they were discarded: what runs cannot be read back"
+            )),
+            Err(e) => InForce::Unknown(format!("reading the set back from node {node} failed: {e}")),
+        };
+        let error = match (&in_force, error) {
+            (InForce::Previous, None) => Some(format!(
+                "node {node} runs a set other than the one pushed{}",
+                if rebooted { " (it reset during the push and loaded its stored set)" } else { "" }
+            )),
+            (InForce::New, Some(e)) if report.is_none() && !opts.save => {
+                // the commit landed though its confirmation was lost: the push did its job
+                let _ = e;
+                None
+            }
+            (_, e) => e,
+        };
+        return Verified { report, attempts, retries, in_force, error };
+    }
 }
 
 /// The wire-time minimum of a push's SDO frames at `bitrate`, µs.

@@ -8,7 +8,10 @@ use joint_formats::model_file::ModelFile;
 use std::path::PathBuf;
 
 /// Push a model TOML to a joint node: every parameter is staged by SDO, read back, and the
-/// set is committed as a whole (the joint checks it and keeps its old set if it fails). A model
+/// set is committed as a whole (the joint checks it and keeps its old set if it fails). Then
+/// the joint's set is read back: the command succeeds only when the new set runs, and says
+/// which set runs when it fails (the previous one, or unknown when the joint stops
+/// answering). Lost frames are retried; a joint that resets mid-push is pushed again. A model
 /// that fails the plausibility gate (an [inertia] j ≤ 0, negative friction or spring terms) is
 /// refused before any CAN traffic unless --force.
 ///
@@ -68,13 +71,47 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     );
     bar.set_prefix(format!("node {}", a.node));
     let opts = PushOptions { pre_operational: a.pre_operational, save: a.save };
-    let r = transfer::push(&mut m, a.node, &raw, opts, &mut |p| {
+    let v = transfer::push_verified(&mut m, a.node, &raw, opts, &mut |p| {
         bar.set_length(p.total as u64);
         bar.set_position(p.done as u64);
         bar.set_message(p.what.clone());
     });
     bar.finish_and_clear();
-    let r = r?;
+    let in_force = match &v.in_force {
+        transfer::InForce::New => "new".to_string(),
+        transfer::InForce::Previous => "previous".to_string(),
+        transfer::InForce::Unknown(_) => "unknown".to_string(),
+    };
+    if !v.ok() {
+        let what = match &v.in_force {
+            transfer::InForce::New => format!("the new set runs on node {} (read back whole), but", a.node),
+            transfer::InForce::Previous => {
+                format!(
+                    "node {} runs its previous set, not the pushed one (read back whole; commits are all or nothing):",
+                    a.node
+                )
+            }
+            transfer::InForce::Unknown(why) => format!("which set runs on node {} is not known ({why}):", a.node),
+        };
+        if a.json {
+            let j = serde_json::json!({
+                "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(), "ok": false,
+                "in_force": in_force, "attempts": v.attempts, "retries": v.retries, "error": v.error,
+            });
+            println!("{j}");
+        }
+        anyhow::bail!("{what} {}", v.error.as_deref().unwrap_or("the push did not complete"));
+    }
+    let Some(r) = v.report else {
+        // the commit's confirmation was lost but the read-back shows the new set whole
+        println!(
+            "pushed {} to node {}: the commit's confirmation was lost, the read-back shows the new set running ({} retries)",
+            a.model.display(),
+            a.node,
+            v.retries
+        );
+        return Ok(());
+    };
     let bitrate = match &a.bus.bus {
         joint_can::BusSpec::Slcan { bitrate, .. } => *bitrate,
         _ => a.bus.bitrate,
@@ -83,14 +120,15 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     let ratio = r.elapsed_us as f64 / wire;
     if a.json {
         let j = serde_json::json!({
-            "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(),
+            "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(), "ok": true,
             "sdo_transfers": r.sdo_transfers, "frames": r.frames, "bits": r.bits,
             "elapsed_us": r.elapsed_us, "wire_minimum_us": wire, "ratio": ratio, "saved": r.saved,
+            "in_force": in_force, "attempts": v.attempts, "retries": v.retries,
         });
         println!("{j}");
     } else {
         println!(
-            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3}){}",
+            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3}){}; read back: the new set runs{}",
             a.model.display(),
             a.node,
             m.bus.describe(),
@@ -100,7 +138,12 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
             bitrate / 1000,
             wire / 1000.0,
             ratio,
-            if r.saved { ", saved" } else { "" }
+            if r.saved { ", saved" } else { "" },
+            if v.retries > 0 || v.attempts > 1 {
+                format!(" ({} transfers retried, {} pushes)", v.retries, v.attempts)
+            } else {
+                String::new()
+            }
         );
     }
     Ok(())
