@@ -362,3 +362,73 @@ fn a_glitched_cell_is_left_out_by_line_and_many_refuse_the_log() {
         &["rows hold values no joint produces", "line 2, column `tau`", "refused rather than repaired"],
     );
 }
+
+/// Issue 16's reproduction: a log that excites nothing (the joint held at one angle). Before,
+/// it got a verdict and a refit `friction.a` of −5.6·10⁸. At 1 s steps it is refused (too slow
+/// for a joint's dynamics); at 100 Hz the report lists the terms the log cannot determine, with
+/// the test that would pin each, every refit keeps them at the file's values, and only what a
+/// held joint shows — a constant torque — is refitted (the offset).
+#[test]
+fn a_log_that_excites_nothing_lists_what_it_cannot_determine() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, MODEL).unwrap();
+    let write = |name: &str, dt: f64, n: usize| {
+        let mut s = String::from("t,q,u,tau\n");
+        let held = 2.5 * (0.802f64 * 1.0).sin() - 0.3 + 0.5;
+        for i in 0..n {
+            // a deterministic ±0.01 N·m wobble for the torque sensor's noise
+            let e = 0.01 * ((i * 7919 % 200) as f64 / 100.0 - 1.0);
+            s += &format!("{},1.0,{},{}\n", i as f64 * dt, held + e, 0.0);
+        }
+        let p = dir.path().join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    };
+    let slow = write("slow.csv", 1.0, 300);
+    refused(&slow, &model, &["too slow to resolve a joint's dynamics"]);
+    let held = write("held.csv", 0.01, 3000);
+    let v = run_json(&held, &model, &[]);
+    let nd: Vec<String> = v["not_determined"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|u| u["params"].as_array().unwrap().iter().map(|p| p.as_str().unwrap().to_string()))
+        .collect();
+    for p in ["inertia.j", "friction.a", "friction.b", "friction.c", "weight.amplitude"] {
+        assert!(nd.iter().any(|x| x == p), "{p} not listed: {}", v["not_determined"]);
+    }
+    assert!(v["not_determined"][0]["test"].as_str().unwrap().contains("trunk §3"));
+    let refit = &v["refit"];
+    let file = ModelFile::parse(MODEL, "m").unwrap();
+    for (sec, key) in
+        [("inertia", "j"), ("friction", "a"), ("friction", "b"), ("friction", "c"), ("weight", "amplitude")]
+    {
+        let want = file.get(sec, key).unwrap();
+        let got = refit[sec][key].as_f64().unwrap_or(want);
+        assert!((got - want).abs() < 1e-9, "{sec}.{key}: refit {got}, file {want}");
+    }
+    let c0 = refit["offset"]["c0"].as_f64().unwrap();
+    assert!((c0 - 0.2).abs() < 0.02, "the constant goes to the offset: {c0}");
+    assert!(!v.to_string().contains("e+08") && !v.to_string().contains("e8,"), "{v}");
+
+    // One speed, one direction (a ramp at 0.4 rad/s over 1.6 rad): the friction terms are the
+    // offset's constant and q̈ is nothing (a refit once gave J = 2.3e7 from its rounding), while
+    // the weight, swept over the ramp, is determined and refitted.
+    let mut s = String::from("t,q,u,tau\n");
+    for i in 0..4000 {
+        let (t, q) = (i as f64 * 1e-3, 0.2 + 0.4 * i as f64 * 1e-3);
+        let u = 0.5 * 0.16 + 2.0 * 0.4 + 1.0 + 2.5 * (0.802 * q).sin() - 0.3 + 0.3 + 0.01 * (i as f64 * 1.7).sin();
+        s += &format!("{t},{q},{u},0\n");
+    }
+    let ramp = dir.path().join("ramp.csv");
+    std::fs::write(&ramp, s).unwrap();
+    let v = run_json(&ramp, &model, &[]);
+    let nd = v["not_determined"].to_string();
+    for p in ["inertia.j", "friction.a", "friction.b", "friction.c"] {
+        assert!(nd.contains(p), "{p} not listed: {nd}");
+    }
+    assert!(!nd.contains("weight"), "{nd}");
+    let (j, amp) = (v["refit"]["inertia"]["j"].as_f64().unwrap(), v["refit"]["weight"]["amplitude"].as_f64().unwrap());
+    assert!((j - 0.4).abs() < 1e-9 && (amp - 2.5).abs() < 0.01, "J {j}, amplitude {amp}");
+}

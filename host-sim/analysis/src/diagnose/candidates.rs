@@ -48,6 +48,10 @@ pub struct Data {
     /// the final fits remove its share from the q̈ column's Gram diagonal, so the inertia is not
     /// shrunk by the noise in its regressor (errors in variables)
     pub qdd_noise_var: f64,
+    /// variance of the noise on q and on the q̇ used (the preparation's), for the excitation
+    /// check: a model column that varies over the rows only within its noise is not excited
+    pub q_noise_var: f64,
+    pub qd_noise_var: f64,
 }
 
 /// Variance of white noise on a sampled signal from its first differences, robustly:

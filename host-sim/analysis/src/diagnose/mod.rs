@@ -260,6 +260,10 @@ pub struct Report {
     pub unknown_columns: Vec<String>,
     /// optional: vocabulary effects that were not tried on this model/log, and why
     pub not_applicable: Vec<NotApplicable>,
+    /// optional: the model's terms this log does not excite (no motion, one speed or direction,
+    /// one angle): every refit keeps them at the file's values; with the test that would pin them
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_determined: Vec<NotDetermined>,
     /// optional: physically impossible values in the refit of the model's own terms, each
     /// naming the parameter (the log does not determine it; the verdict is read with care)
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -291,6 +295,80 @@ pub(crate) fn refit_warnings(effects: &[EffectOut]) -> Vec<String> {
         }
     }
     w
+}
+
+/// A model term the log does not determine ([`select::unexcited`]).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct NotDetermined {
+    /// the model's parameters (`friction.b`, `weight.amplitude`, …)
+    pub params: Vec<String>,
+    pub why: String,
+    /// what log would pin it
+    pub test: &'static str,
+}
+
+/// The model's own terms the rows of the refit do not excite, as the report lists them.
+fn not_determined(d: &Data, sel: &Selection, split: &Split) -> Vec<NotDetermined> {
+    use candidates::Col;
+    let des = &sel.refit.scored.design;
+    let idx = candidates::thin_idx(&split.train, 150_000);
+    let g = des.gram(d, &idx);
+    let flags = select::unexcited(des, d, &g);
+    let p = g.p;
+    let range = {
+        let mut q: Vec<f64> = idx.iter().filter_map(|&i| d.q.get(i as usize).copied()).collect();
+        q.sort_by(f64::total_cmp);
+        let at = |f: f64| q.get(((q.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(0.0);
+        at(0.99) - at(0.01)
+    };
+    let mut out: Vec<NotDetermined> = Vec::new();
+    for (k, col) in des.cols.iter().enumerate() {
+        if !flags.get(k).copied().unwrap_or(false) {
+            continue;
+        }
+        let zero = !(g.g.get(k * p + k).copied().unwrap_or(0.0) > 0.0);
+        let (params, why, test): (&[&str], String, &'static str) = match col {
+            Col::Qdd => (
+                &["inertia.j"],
+                if zero {
+                    "the joint does not accelerate in this log".into()
+                } else {
+                    "q̈ stays within its noise here (no acceleration), or is a combination of the other terms".into()
+                },
+                "move the joint back and forth with strong accelerations for several seconds (trunk §3.4)",
+            ),
+            Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Dahl { .. } => (
+                match col {
+                    Col::QdAbsQd => &["friction.a"],
+                    Col::Qd => &["friction.b"],
+                    _ => &["friction.c"],
+                },
+                if zero {
+                    "the joint does not move in this log".into()
+                } else {
+                    "q̇ takes one speed or one direction here: the term is a constant, the offset's".into()
+                },
+                "constant-velocity plateaus at several speeds both ways (a speed sweep over the working range, trunk §3.2)",
+            ),
+            Col::SinSq(_) | Col::CosSq(_) => (
+                &["weight.amplitude", "weight.phi"],
+                format!("q spans {range:.3} rad: the weight's sine is a constant there, the offset's"),
+                "hold the joint still at 5+ angles spread over its range (static poses, trunk §3.3)",
+            ),
+            Col::Q | Col::DeadZone { .. } => (
+                &["spring.k"],
+                format!("q spans {range:.3} rad: the spring's torque is a constant there, the offset's"),
+                "hold the joint at angles on both sides of its rest with the torque measured (elastic joint, Fig. 5)",
+            ),
+            _ => continue,
+        };
+        let params: Vec<String> = params.iter().map(|s| s.to_string()).collect();
+        if out.iter().any(|o| o.params == params) {
+            continue;
+        }
+        out.push(NotDetermined { params, why, test });
+    }
+    out
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -473,6 +551,8 @@ fn torque_mode(
         wcos: Vec::new(),
         load: Vec::new(),
         qdd_noise_var: prep.qdd_noise_var(),
+        q_noise_var: prep.report.q_noise_sd.powi(2),
+        qd_noise_var: prep.qd_err.iter().map(|e| e * e).sum::<f64>() / prep.qd_err.len().max(1) as f64,
     };
     if model.explicit(ParamId::WeightAmplitude).is_some() {
         let (ws, wc): (Vec<f64>, Vec<f64>) = data.q.iter().map(|&q| (data.ws * q).sin_cos()).unzip();
@@ -933,7 +1013,9 @@ fn build_report(
     effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
     let mut warnings = refit_warnings(&effects);
-    if select::inertia_held(&sel.refit.scored) {
+    let unexcited = not_determined(d, sel, split);
+    let inertia_unexcited = unexcited.iter().any(|u| u.params.iter().any(|p| p == "inertia.j"));
+    if select::inertia_held(&sel.refit.scored) && !inertia_unexcited {
         let noise = if d.qdd_noise_var > 0.0 {
             format!(" (its white noise ≈ {:.3} rad/s²)", d.qdd_noise_var.sqrt())
         } else {
@@ -1039,6 +1121,7 @@ fn build_report(
         resid,
         unknown_columns: log.unknown.clone(),
         not_applicable: torque_not_applicable(base, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
+        not_determined: unexcited,
         warnings,
         prep: None,
     }

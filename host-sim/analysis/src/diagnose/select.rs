@@ -256,11 +256,8 @@ impl<'a> Round<'a> {
     pub fn refit(&self, split: &Split, bits: &[u32], n_regimes: usize) -> Scored {
         let mut g = self.fit.g.clone();
         eiv_correct(&mut g, &self.fit.des, self.d);
-        let (beta, _) = g.solve_held(
-            &physical_signs(&self.fit.des),
-            &physical_holds(&self.fit.des),
-            &undetermined(&self.fit.des, self.d, &g),
-        );
+        let und = undetermined(&self.fit.des, self.d, &g);
+        let (beta, _) = g.solve_held(&physical_signs(&self.fit.des), &holds(&self.fit.des, &und), &und);
         self.score_current(beta, split, bits, n_regimes)
     }
 
@@ -271,7 +268,8 @@ impl<'a> Round<'a> {
         let des = Design::new(self.d, self.base, &effects);
         let mut g = self.fit.gram_with(&self.fit.delta(&e));
         eiv_correct(&mut g, &des, self.d);
-        let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, self.d, &g));
+        let und = undetermined(&des, self.d, &g);
+        let (beta, _) = g.solve_held(&physical_signs(&des), &holds(&des, &und), &und);
         let acc = self.accumulate(&self.hold.delta(&e), &beta, split, bits, n_regimes);
         acc.into_scored(effects, des, beta)
     }
@@ -313,7 +311,8 @@ pub fn fit_and_score(
     let des = Design::new(d, base, effects);
     let mut g = des.gram(d, fit_idx);
     eiv_correct(&mut g, &des, d);
-    let (beta, _) = g.solve_held(&physical_signs(&des), &physical_holds(&des), &undetermined(&des, d, &g));
+    let und = undetermined(&des, d, &g);
+    let (beta, _) = g.solve_held(&physical_signs(&des), &holds(&des, &und), &und);
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
@@ -347,6 +346,28 @@ pub fn physical_holds(des: &Design) -> Vec<f64> {
         .map(|(k, c)| match c {
             Col::Qdd => des.prior.get(k).copied().unwrap_or(0.0).max(0.0),
             _ => 0.0,
+        })
+        .collect()
+}
+
+/// The values held coefficients keep: the file's value for a term the rows do not determine
+/// (`und`, never below 0 for a term no joint has negative), else [`physical_holds`].
+pub fn holds(des: &Design, und: &[bool]) -> Vec<f64> {
+    let signs = physical_signs(des);
+    physical_holds(des)
+        .into_iter()
+        .enumerate()
+        .map(|(k, h)| {
+            if und.get(k).copied().unwrap_or(false) {
+                let p = des.prior.get(k).copied().unwrap_or(0.0);
+                if signs.get(k).copied().unwrap_or(false) {
+                    p.max(0.0)
+                } else {
+                    p
+                }
+            } else {
+                h
+            }
         })
         .collect()
 }
@@ -389,19 +410,106 @@ fn eiv_correct(g: &mut super::fit::Gram, des: &Design, d: &Data) {
 /// the rows would shrink the inertia towards 0 by the noise share (regression dilution) and the
 /// correction is not trusted, so the inertia stays at the file's value ([`physical_holds`])
 /// when it has one.
+/// The model's own terms the log does not excite ([`unexcited`]) are held at the file's value
+/// too: a refit cannot move what the rows do not determine.
 pub fn undetermined(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
     let p = g.p;
+    let structural = unexcited(des, d, g);
     des.cols
         .iter()
         .zip(&des.prior)
         .enumerate()
         .map(|(k, (c, &prior))| {
-            *c == super::candidates::Col::Qdd
+            let noisy_qdd = *c == super::candidates::Col::Qdd
                 && prior > 0.0
                 && d.qdd_noise_var > 0.0
-                && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk)
+                && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk);
+            noisy_qdd || structural.get(k).copied().unwrap_or(false)
         })
         .collect()
+}
+
+/// The model's own columns (not the offset; q̈ only when it is absent or exactly another
+/// column's, its noise has its own rule in [`undetermined`]) whose variation over
+/// the rows of `g` is, within three times its noise (or to 1e-6 of its energy), a combination
+/// of the other model columns: a log with no motion (the friction columns are zero), one speed
+/// or one direction (q̇ and sign(q̇) are the offset), or one angle (the weight's sine is the
+/// offset, the spring's q too). Their coefficient is whatever the rows' noise says; the refit
+/// keeps the file's value and the report lists them ([`unexcited_terms`]).
+pub fn unexcited(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
+    use super::candidates::Col;
+    let p = g.p;
+    let base_end = des.spans.first().map_or(des.cols.len(), |s| s.0).min(p);
+    // the Gram is filled in its upper triangle only
+    let at = |r: usize, c: usize| g.g.get(r.min(c) * p + r.max(c)).copied().unwrap_or(0.0);
+    let qd_rms = (d.qd.iter().map(|v| v * v).sum::<f64>() / d.qd.len().max(1) as f64).sqrt();
+    (0..p)
+        .map(|k| {
+            let Some(&col) = des.cols.get(k) else { return false };
+            if k >= base_end || col == Col::Const {
+                return false;
+            }
+            let gkk = at(k, k);
+            if !(gkk > 0.0) {
+                return true;
+            }
+            let others: Vec<usize> = (0..base_end).filter(|&j| j != k && at(j, j) > 0.0).collect();
+            // the column's noise, with a floor no joint's motion is below (a q̈ of 1e-6 rad/s²
+            // RMS is the rounding of a constant-speed ramp, not an acceleration)
+            let noise = match col {
+                Col::Qdd => 1e-12,
+                Col::Qd => d.qd_noise_var.max(1e-14),
+                Col::QdAbsQd => (4.0 * qd_rms * qd_rms * d.qd_noise_var).max(1e-14),
+                Col::SinSq(s) | Col::CosSq(s) => (s * s * d.q_noise_var).max(1e-16),
+                Col::Q | Col::DeadZone { .. } => d.q_noise_var.max(1e-16),
+                _ => 0.0,
+            };
+            residual_energy(&at, k, &others) <= (1e-6 * gkk).max(9.0 * g.n as f64 * noise)
+        })
+        .collect()
+}
+
+/// `G_kk − G_kO·G_OO⁻¹·G_Ok`: the energy of column `k` the columns `others` do not explain.
+/// `G_OO` gets a ridge of 1e-10 of its largest diagonal (columns collinear among themselves,
+/// a constant sine beside the offset, then share the work instead of making it singular);
+/// Gaussian elimination with partial pivoting.
+fn residual_energy(at: &dyn Fn(usize, usize) -> f64, k: usize, others: &[usize]) -> f64 {
+    let m = others.len();
+    let w = m + 1;
+    let scale = others.iter().map(|&j| at(j, j)).fold(0.0f64, f64::max).max(1e-300);
+    let mut a: Vec<f64> = Vec::with_capacity(m * w);
+    for (ri, &r) in others.iter().enumerate() {
+        for (ci, &c) in others.iter().enumerate() {
+            a.push(at(r, c) + if ri == ci { 1e-10 * scale } else { 0.0 });
+        }
+        a.push(at(r, k));
+    }
+    for col in 0..m {
+        let piv = (col..m).max_by(|&i, &j| a[i * w + col].abs().total_cmp(&a[j * w + col].abs())).unwrap_or(col);
+        for c in 0..w {
+            a.swap(col * w + c, piv * w + c);
+        }
+        let d = a[col * w + col];
+        if d == 0.0 {
+            continue;
+        }
+        for r in col + 1..m {
+            let f = a[r * w + col] / d;
+            if f != 0.0 {
+                for c in col..w {
+                    a[r * w + c] -= f * a[col * w + c];
+                }
+            }
+        }
+    }
+    let mut x = vec![0.0; m];
+    for i in (0..m).rev() {
+        let d = a[i * w + i];
+        let rhs = a[i * w + m] - (i + 1..m).map(|c| a[i * w + c] * x[c]).sum::<f64>();
+        x[i] = if d != 0.0 { rhs / d } else { 0.0 };
+    }
+    let explained: f64 = others.iter().zip(&x).map(|(&j, &xj)| at(j, k) * xj).sum();
+    (at(k, k) - explained).max(0.0)
 }
 
 fn unit_t(diffs: &[f64]) -> (f64, f64) {
@@ -841,6 +949,8 @@ mod tests {
             ws,
             load: (0..n).map(|i| 1.0 + (i % 7) as f64).collect(),
             qdd_noise_var: 0.01,
+            q_noise_var: 1e-8,
+            qd_noise_var: 1e-4,
         };
         let cols = vec![Col::Qdd, Col::QdAbsQd, Col::Qd, Col::Sgn, Col::SinSq(ws), Col::CosSq(ws), Col::Q, Col::Const];
         let beta0 = vec![0.4, 0.1, 2.0, 1.0, 2.5, 0.0, 0.5, -0.45];

@@ -188,6 +188,13 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
             String::new()
         }
     );
+    if !r.not_determined.is_empty() {
+        say!(o, "not determined by this log (every refit keeps the file's values):");
+        for u in &r.not_determined {
+            say!(o, "  {}: {}", u.params.join(", "), u.why);
+            say!(o, "    to pin it: {}", u.test);
+        }
+    }
     for w in &r.warnings {
         say!(o, "warning: {w}");
     }

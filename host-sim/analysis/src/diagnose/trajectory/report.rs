@@ -133,6 +133,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         resid: Some(resid(ctx, &r0v, &ra)),
         unknown_columns: ctx.log.unknown.clone(),
         not_applicable: not_applicable(ctx),
+        not_determined: Vec::new(),
         warnings,
         prep: None,
     };
