@@ -8,7 +8,12 @@ use std::process::Command;
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
 fn jointctl(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_jointctl"))
+        .current_dir(ROOT)
+        .env_remove("JOINTCTL_BUS")
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn json(o: &std::process::Output) -> serde_json::Value {
@@ -18,7 +23,7 @@ fn json(o: &std::process::Output) -> serde_json::Value {
 
 #[test]
 fn push_json_reports_timing_within_budget() {
-    let v = json(&jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--json"]));
+    let v = json(&jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--bus", "sim", "--json"]));
     assert_eq!(v["node"], 5);
     let ratio = v["ratio"].as_f64().unwrap();
     assert!((1.0..=1.2).contains(&ratio), "{v}");
@@ -30,7 +35,7 @@ fn push_of_an_invalid_model_names_the_key_and_sends_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("bad.toml");
     std::fs::write(&p, "[compensation]\nfraction = 1.5\n").unwrap();
-    let o = jointctl(&["push", p.to_str().unwrap(), "--node", "5"]);
+    let o = jointctl(&["push", p.to_str().unwrap(), "--node", "5", "--bus", "sim"]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("fraction"), "{err}");
@@ -44,6 +49,8 @@ fn log_writes_a_joint_log_the_spec_reader_accepts() {
         "log",
         "--node",
         "5",
+        "--bus",
+        "sim",
         "--seconds",
         "0.5",
         "--start",
@@ -62,7 +69,7 @@ fn log_writes_a_joint_log_the_spec_reader_accepts() {
 fn log_without_start_says_why_nothing_came() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("none.csv");
-    let o = jointctl(&["log", "--node", "5", "--seconds", "0.2", "--out", out.to_str().unwrap()]);
+    let o = jointctl(&["log", "--node", "5", "--bus", "sim", "--seconds", "0.2", "--out", out.to_str().unwrap()]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("operational"));
     assert!(!out.exists());
@@ -70,11 +77,12 @@ fn log_without_start_says_why_nothing_came() {
 
 #[test]
 fn scan_and_watch_json() {
-    let v = json(&jointctl(&["scan", "--sim-node", "3", "--sim-node", "4", "--seconds", "0.3", "--json"]));
+    let v =
+        json(&jointctl(&["scan", "--bus", "sim", "--sim-node", "3", "--sim-node", "4", "--seconds", "0.3", "--json"]));
     let nodes: Vec<u64> = v["nodes"].as_array().unwrap().iter().map(|n| n["node"].as_u64().unwrap()).collect();
     assert_eq!(nodes, vec![3, 4]);
     assert_eq!(v["nodes"][0]["device_name"], "joint-node");
-    let o = jointctl(&["watch", "--sim-node", "3", "--seconds", "0.5", "--start", "--json"]);
+    let o = jointctl(&["watch", "--bus", "sim", "--sim-node", "3", "--seconds", "0.5", "--start", "--json"]);
     let last = String::from_utf8_lossy(&o.stdout).lines().last().unwrap().to_string();
     let w: serde_json::Value = serde_json::from_str(&last).unwrap();
     assert_eq!(w["nodes"][0]["state"], "operational");
@@ -116,4 +124,52 @@ fn sim_refuses_the_in_process_bus_and_bad_node_ids() {
     let o = jointctl(&["sim", "--bus", "slcan:/nonexistent/tty", "--node", "5", "--seconds", "0.1"]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/tty"));
+}
+
+/// Issue 21's first reproduction: `push`, `pull` and `save` without `--bus` used to run on the
+/// simulated bus and print "pushed … saved", exit 0, with nothing leaving the machine. Now every
+/// CAN command refuses without a bus, a configured default (`JOINTCTL_BUS`) must name a real one,
+/// and on `--bus sim` every output says it is simulated.
+#[test]
+fn can_commands_need_a_bus_and_the_simulation_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.toml");
+    let o_s = out.to_str().unwrap();
+    for args in [
+        vec!["push", "examples/models/trunk-right.toml", "--node", "5", "--save"],
+        vec!["pull", "--node", "5", "--out", o_s],
+        vec!["save", "--node", "5"],
+        vec!["scan", "--seconds", "0.1"],
+        vec!["watch", "--seconds", "0.1"],
+        vec!["log", "--node", "5", "--seconds", "0.1", "--out", o_s],
+    ] {
+        let o = jointctl(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} ran without a bus");
+        assert!(err.contains("no bus given") && err.contains("--bus sim"), "{args:?}: {err}");
+        let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+            .current_dir(ROOT)
+            .env("JOINTCTL_BUS", "sim")
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{args:?} ran on JOINTCTL_BUS=sim");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("must name a real bus"));
+    }
+    assert!(!out.exists(), "a refused command wrote its output");
+    let o = jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--bus", "sim", "--save"]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("[simulated bus: in-process joints, not hardware]"));
+    let v = json(&jointctl(&["pull", "--node", "5", "--bus", "sim", "--out", o_s, "--json"]));
+    assert_eq!(v["simulated"], true);
+    let o = jointctl(&["save", "--node", "5", "--bus", "sim"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("simulated bus"));
+    // a configured real bus is taken (and fails here for want of the adapter, naming it)
+    let o = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+        .current_dir(ROOT)
+        .env("JOINTCTL_BUS", "slcan:/nonexistent/tty")
+        .args(["save", "--node", "5"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("/nonexistent/tty"));
 }

@@ -362,10 +362,10 @@ fn eds_and_pull_write_through_the_same_rules() {
     let o = jointctl(d.path(), &["eds", "--out", "j.eds"]);
     assert!(!o.status.success() && stderr(&o).contains("read-only"), "{}", stderr(&o));
     assert_eq!(fs::read_to_string(d.path().join("j.eds")).unwrap(), "keep");
-    let o = jointctl(d.path(), &["pull", "--node", "5", "--name", "j5", "--out", "-"]);
+    let o = jointctl(d.path(), &["pull", "--node", "5", "--bus", "sim", "--name", "j5", "--out", "-"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).starts_with("name = \"j5\""));
     assert!(stderr(&o).contains("pulled node 5 into -"), "{}", stderr(&o));
-    let o = jointctl(d.path(), &["pull", "--node", "5", "--out", "-", "--json"]);
+    let o = jointctl(d.path(), &["pull", "--node", "5", "--bus", "sim", "--out", "-", "--json"]);
     assert!(!o.status.success() && stderr(&o).contains("both write to stdout"), "{}", stderr(&o));
 }

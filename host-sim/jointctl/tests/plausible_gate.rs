@@ -54,7 +54,7 @@ fn push_refuses_negative_friction_and_stiffness_naming_them() {
     let dir = tempfile::tempdir().unwrap();
     // The core's own check refuses negatives too; the gate is first and says why.
     let m = write(dir.path(), "m.toml", "[inertia]\nj = 1.0\n");
-    let o = jointctl(&["push", m.to_str().unwrap(), "--node", "5"]);
+    let o = jointctl(&["push", m.to_str().unwrap(), "--node", "5", "--bus", "sim"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let mf = ModelFile::parse("[friction]\nb = -1.0\n[spring]\nk = -2.0\n", "x").unwrap();
     let v = joint_analysis::plausible::check(&mf, &[]);
@@ -66,7 +66,7 @@ fn push_refuses_negative_friction_and_stiffness_naming_them() {
 fn push_force_sends_it_and_warns() {
     let dir = tempfile::tempdir().unwrap();
     let m = write(dir.path(), "m.toml", REPRO);
-    let o = jointctl(&["push", m.to_str().unwrap(), "--node", "5", "--force"]);
+    let o = jointctl(&["push", m.to_str().unwrap(), "--node", "5", "--bus", "sim", "--force"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("implausible model pushed (--force)"), "{}", stderr(&o));
 }

@@ -10,12 +10,17 @@ use joint_can::BusSpec;
 use joint_core::canopen::node::MemoryStorage;
 use std::sync::{Arc, Mutex};
 
+/// The environment variable that may name the bus when `--bus` is not given.
+pub const BUS_ENV: &str = "JOINTCTL_BUS";
+
 #[derive(Debug, Clone, Args)]
 pub struct BusArgs {
-    /// CAN bus: sim (in-process simulated bus with simulated joints), slcan:PATH[@BITRATE]
-    /// (Lawicel serial adapter or pty), socketcan:IFACE
-    #[arg(long, value_name = "BUS", default_value = "sim")]
-    pub bus: BusSpec,
+    /// CAN bus (required: no command talks to a simulation unless told to): slcan:PATH[@BITRATE]
+    /// (Lawicel serial adapter or pty), socketcan:IFACE, or sim (in-process simulated bus with
+    /// simulated joints). Without --bus, the environment variable JOINTCTL_BUS may name a real
+    /// bus (never sim)
+    #[arg(long, value_name = "BUS")]
+    pub bus: Option<BusSpec>,
     /// Bitrate of the simulated bus, bit/s (10000..=1000000, classic CAN; slcan takes it after
     /// @, socketcan from the interface)
     #[arg(long, value_name = "BIT/S", default_value_t = 1_000_000, value_parser = super::num::bitrate(super::num::CAN_BITRATE))]
@@ -25,7 +30,7 @@ pub struct BusArgs {
 /// A master on the chosen bus. On `sim`, `nodes` get simulated joints (in memory, table
 /// defaults), and the shared bus handle is returned too.
 pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Option<SharedSimBus>)> {
-    match &args.bus {
+    match &args.spec()? {
         BusSpec::Sim => {
             let mut bus = SimBus::new(args.bitrate);
             for &n in nodes {
@@ -44,6 +49,44 @@ pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Opti
             Ok((m, Some(shared)))
         }
         spec => Ok((Master::new(joint_can::open(spec)?), None)),
+    }
+}
+
+impl BusArgs {
+    /// The bus asked for: `--bus`, else `JOINTCTL_BUS` when it names a real bus. Forgetting
+    /// `--bus` used to run the command on the simulation and print "pushed … saved".
+    pub fn spec(&self) -> anyhow::Result<BusSpec> {
+        if let Some(b) = &self.bus {
+            return Ok(b.clone());
+        }
+        match std::env::var(BUS_ENV) {
+            Ok(v) if !v.trim().is_empty() => match v.trim().parse::<BusSpec>() {
+                Ok(BusSpec::Sim) => anyhow::bail!(
+                    "{BUS_ENV}=sim: a configured default must name a real bus (slcan:PATH, socketcan:IFACE); pass \
+                     --bus sim to use the simulated joints"
+                ),
+                Ok(b) => Ok(b),
+                Err(e) => anyhow::bail!("{BUS_ENV}={v}: {e}"),
+            },
+            _ => anyhow::bail!(
+                "no bus given: pass --bus slcan:PATH[@BITRATE], --bus socketcan:IFACE, or --bus sim for the in-process \
+                 simulated joints (or set {BUS_ENV} to a real bus)"
+            ),
+        }
+    }
+
+    /// What a human output appends on the simulated bus, so no result reads as hardware's.
+    pub fn sim_note(&self) -> &'static str {
+        if self.is_sim() {
+            " [simulated bus: in-process joints, not hardware]"
+        } else {
+            ""
+        }
+    }
+
+    /// Whether the command runs on the simulated bus (every output says so).
+    pub fn is_sim(&self) -> bool {
+        matches!(self.spec(), Ok(BusSpec::Sim))
     }
 }
 

@@ -97,9 +97,21 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
     outs.write(out, text.as_bytes())?;
     let mut o = outs.human();
     if a.json {
-        say!(o, "{}", serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string()}));
+        say!(
+            o,
+            "{}",
+            serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string(), "simulated": a.bus.is_sim()})
+        );
     } else {
-        say!(o, "node {}: {} samples in {:.1} s → {}", a.node, rows.len(), a.seconds, a.out.display());
+        say!(
+            o,
+            "node {}: {} samples in {:.1} s → {}{}",
+            a.node,
+            rows.len(),
+            a.seconds,
+            a.out.display(),
+            a.bus.sim_note()
+        );
     }
     Ok(())
 }

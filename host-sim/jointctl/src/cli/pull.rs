@@ -62,14 +62,16 @@ pub fn run(a: &PullArgs) -> anyhow::Result<()> {
             outs.human(),
             "{}",
             serde_json::json!({"node": a.node, "out": a.out.display().to_string(), "pending": pending,
+                "simulated": a.bus.is_sim(),
                 "table_axes": raw.table.n_axes, "values": values})
         );
     } else {
         say!(
             outs.human(),
-            "pulled node {} into {}{}",
+            "pulled node {} into {}{}{}",
             a.node,
             a.out.display(),
+            a.bus.sim_note(),
             if pending { " (staged values)" } else { "" }
         );
     }

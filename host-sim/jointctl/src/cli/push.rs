@@ -96,6 +96,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
         if a.json {
             let j = serde_json::json!({
                 "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(), "ok": false,
+                "simulated": a.bus.is_sim(),
                 "in_force": in_force, "attempts": v.attempts, "retries": v.retries, "error": v.error,
             });
             println!("{j}");
@@ -112,7 +113,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     };
-    let bitrate = match &a.bus.bus {
+    let bitrate = match &a.bus.spec()? {
         joint_can::BusSpec::Slcan { bitrate, .. } => *bitrate,
         _ => a.bus.bitrate,
     };
@@ -121,6 +122,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     if a.json {
         let j = serde_json::json!({
             "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(), "ok": true,
+            "simulated": a.bus.is_sim(),
             "sdo_transfers": r.sdo_transfers, "frames": r.frames, "bits": r.bits,
             "elapsed_us": r.elapsed_us, "wire_minimum_us": wire, "ratio": ratio, "saved": r.saved,
             "in_force": in_force, "attempts": v.attempts, "retries": v.retries,
@@ -128,7 +130,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
         println!("{j}");
     } else {
         println!(
-            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3}){}; read back: the new set runs{}",
+            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3}){}{}; read back: the new set runs{}",
             a.model.display(),
             a.node,
             m.bus.describe(),
@@ -139,6 +141,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
             wire / 1000.0,
             ratio,
             if r.saved { ", saved" } else { "" },
+            a.bus.sim_note(),
             if v.retries > 0 || v.attempts > 1 {
                 format!(" ({} transfers retried, {} pushes)", v.retries, v.attempts)
             } else {

@@ -22,9 +22,9 @@ pub fn run(a: &SaveArgs) -> anyhow::Result<()> {
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
     m.write(a.node, od::STORE_PARAMETERS, 1, &od::SAVE_SIGNATURE.to_le_bytes())?;
     if a.json {
-        println!("{}", serde_json::json!({"node": a.node, "saved": true}));
+        println!("{}", serde_json::json!({"node": a.node, "saved": true, "simulated": a.bus.is_sim()}));
     } else {
-        println!("node {}: parameters saved", a.node);
+        println!("node {}: parameters saved{}", a.node, a.bus.sim_note());
     }
     Ok(())
 }

@@ -43,8 +43,9 @@ pub fn run(a: &ScanArgs) -> anyhow::Result<()> {
         }));
     }
     if a.json {
-        println!("{}", serde_json::json!({"bus": m.bus.describe(), "nodes": rows}));
+        println!("{}", serde_json::json!({"bus": m.bus.describe(), "simulated": a.bus.is_sim(), "nodes": rows}));
     } else {
+        println!("on {}{}", m.bus.describe(), a.bus.sim_note());
         println!("{:>4}  {:<16} {:<20} {:>10} {:>10}", "node", "state", "name", "product", "revision");
         for r in &rows {
             let s = |k: &str| r[k].as_str().unwrap_or("?").to_string();

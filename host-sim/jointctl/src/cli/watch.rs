@@ -62,9 +62,9 @@ pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
             .collect();
         let t = (now - t0) as f64 * 1e-6;
         if a.json {
-            println!("{}", serde_json::json!({"t": t, "nodes": rows}));
+            println!("{}", serde_json::json!({"t": t, "simulated": a.bus.is_sim(), "nodes": rows}));
         } else {
-            println!("t = {t:.1} s");
+            println!("t = {t:.1} s{}", a.bus.sim_note());
             println!(
                 "{:>4}  {:<16} {:>8} {:>9} {:>9} {:>9}  faults",
                 "node", "state", "hb ms", "q rad", "qd rad/s", "tau N·m"
