@@ -255,10 +255,14 @@ fn store_and_restore_signatures() {
     let out = b.run(Some((0x000, &[0x81, ID])));
     assert_eq!(out[0], (0x705, vec![0x00]));
     assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
-    // "load": stored set forgotten, defaults staged
+    // "load": stored set forgotten; the running set and the staged values stay until the reset
+    // (CiA 301), so no later commit applies the defaults behind the user's back
     assert_eq!(b.sdo([0x23, 0x11, 0x10, 0x01, b'l', b'o', b'a', b'd']), vec![0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0]);
     assert!(b.node.storage().stored.is_none());
-    assert_eq!(b.node.staged().get(ParamId::FrictionC), 0.0);
+    assert_eq!(b.node.staged().get(ParamId::FrictionC), 2.5);
+    assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
+    assert_eq!(b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])[0], 0x60); // a commit changes nothing
+    assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
     b.run(Some((0x000, &[0x81, ID])));
     assert_eq!(b.node.params().get(ParamId::FrictionC), 0.0);
 }

@@ -23,15 +23,29 @@ use std::path::PathBuf;
 #[allow(clippy::large_enum_variant)]
 pub enum SimStorage {
     Memory(MemoryStorage),
-    File(PathBuf),
+    /// a model TOML; `damaged` is set when the last load found the file but could not read a
+    /// parameter set from it (truncated, garbage, a value the table refuses)
+    File {
+        path: PathBuf,
+        damaged: bool,
+    },
+}
+
+impl SimStorage {
+    /// Storage in the model TOML at `path` (absent: nothing stored yet).
+    pub fn file(path: PathBuf) -> SimStorage {
+        SimStorage::File { path, damaged: false }
+    }
 }
 
 impl ParamStorage for SimStorage {
     fn save(&mut self, set: &ParamSet) -> Result<(), StorageError> {
         match self {
             SimStorage::Memory(m) => m.save(set),
-            SimStorage::File(p) => {
-                let text = ModelFile::from_raw(set.raw(), None, &[]).to_toml_string();
+            SimStorage::File { path: p, .. } => {
+                let body = ModelFile::from_raw(set.raw(), None, &[]).to_toml_string();
+                // a CRC over the rest, first: a file cut short keeps this line and fails it
+                let text = format!("{STORE_HEADER}{:08x}\n{body}", joint_core::store::crc32(body.as_bytes()));
                 // replaced atomically, like the board's A/B records: a crash mid-save keeps the old set
                 joint_formats::output::write_file(p, |w| w.write_all(text.as_bytes())).map_err(|_| StorageError::Failed)
             }
@@ -40,13 +54,39 @@ impl ParamStorage for SimStorage {
     fn load(&mut self) -> Option<RawParams> {
         match self {
             SimStorage::Memory(m) => m.load(),
-            SimStorage::File(p) => ModelFile::read_file(p).ok()?.raw_params().ok(),
+            SimStorage::File { path, damaged } => {
+                // a missing file is nothing stored; a file that does not read is a damaged store,
+                // which boots on the defaults with PARAMS_CORRUPT raised (and its EMCY), never silently
+                *damaged = false;
+                if !path.exists() {
+                    return None;
+                }
+                let name = path.display().to_string();
+                let raw = std::fs::read_to_string(&*path).ok().and_then(|text| {
+                    // a file the joint saved carries its CRC; one written by hand need not
+                    if let Some(rest) = text.strip_prefix(STORE_HEADER) {
+                        let (crc, body) = rest.split_once('\n')?;
+                        if u32::from_str_radix(crc.trim(), 16).ok()? != joint_core::store::crc32(body.as_bytes()) {
+                            return None;
+                        }
+                    }
+                    ModelFile::parse(&text, &name).ok()?.raw_params().ok()
+                });
+                *damaged = raw.is_none();
+                raw
+            }
+        }
+    }
+    fn load_fault(&self) -> joint_core::safety::Faults {
+        match self {
+            SimStorage::File { damaged: true, .. } => joint_core::safety::Faults::PARAMS_CORRUPT,
+            _ => joint_core::safety::Faults::NONE,
         }
     }
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         match self {
             SimStorage::Memory(m) => m.restore_defaults(),
-            SimStorage::File(p) => match std::fs::remove_file(p) {
+            SimStorage::File { path: p, .. } => match std::fs::remove_file(p) {
                 Ok(()) => Ok(()),
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
                 Err(_) => Err(StorageError::Failed),
@@ -54,6 +94,9 @@ impl ParamStorage for SimStorage {
         }
     }
 }
+
+/// First line of a store file the simulated joint wrote: its CRC-32 over the rest follows.
+const STORE_HEADER: &str = "# joint parameter store, crc32 ";
 
 const TICK_US: u64 = 1000;
 const PLANT_SUBSTEPS: u32 = 10;

@@ -284,3 +284,53 @@ fn a_joint_reads_another_joints_angle_from_its_tpdo() {
     assert!(moved > 0.05, "joint 5 should move: {moved}");
     assert!(worst < 0.02, "joint 6 saw joint 5's angle within {worst} rad");
 }
+
+/// Issue 21's reproduction: a damaged `--store-dir` file (truncated, garbage, an unknown
+/// section, a value the table refuses) booted the joint on the defaults with no fault and no
+/// EMCY. Now it boots on the defaults with PARAMS_CORRUPT raised (PARAMS_REJECTED for a set the
+/// table refuses) and its EMCY sent; a missing file is simply nothing stored. Files the joint
+/// saves carry a CRC line first, so one cut short is caught.
+#[test]
+fn a_damaged_store_file_boots_on_defaults_with_its_fault_and_emcy() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(root().join("examples/models/trunk-right.toml")).unwrap();
+    // a store file as the joint writes it (with its CRC line), by a save on a file store
+    let saved_path = dir.path().join("saved.toml");
+    {
+        let mut st = SimStorage::file(saved_path.clone());
+        let set = ModelFile::parse(&good, "m").unwrap().param_set().unwrap();
+        st.save(&set).unwrap();
+    }
+    let saved = std::fs::read_to_string(&saved_path).unwrap();
+    let cases: [(&str, Option<String>, bool); 6] = [
+        ("missing", None, false),
+        ("truncated", Some(saved[..saved.len() / 2].to_string()), true),
+        ("garbage", Some("\u{0}\u{1}[[[ not toml".into()), true),
+        ("unknown section", Some(format!("{good}\n[flux_capacitor]\nk = 1\n")), true),
+        ("refused value", Some("[friction]\nc = 1e30\n".into()), true),
+        ("a saved file edited", Some(saved.replace("c = ", "c = 1")), true),
+    ];
+    for (name, text, damaged) in cases {
+        let path = dir.path().join(format!("{}.toml", name.replace(' ', "_")));
+        if let Some(t) = &text {
+            std::fs::write(&path, t).unwrap();
+        }
+        let mut bus = SimBus::new(1_000_000);
+        let j = Arc::new(Mutex::new(JointSim::new(7, None, SimStorage::file(path), 0)));
+        bus.attach(j.clone());
+        let bus = SharedSimBus(Arc::new(Mutex::new(bus)));
+        let mut m = Master::new(Box::new(bus.clone()));
+        m.listen(Duration::from_millis(50)).unwrap();
+        let faults = j.lock().unwrap().node.safety().faults();
+        // unreadable: PARAMS_CORRUPT; read but refused by the table's check: PARAMS_REJECTED
+        let want = if name == "refused value" { Faults::PARAMS_REJECTED } else { Faults::PARAMS_CORRUPT };
+        assert_eq!(faults.contains(want), damaged, "{name}: {faults:?}");
+        let emcy = m.emcy.iter().any(|(n, _, d)| *n == 7 && u16::from_le_bytes([d[0], d[1]]) != 0);
+        assert_eq!(emcy, damaged, "{name}: EMCY {:?}", m.emcy);
+        assert_eq!(j.lock().unwrap().node.params().raw(), &RawParams::defaults(), "{name}: not on the defaults");
+    }
+    // and the intact saved file boots its set, no fault
+    let j = JointSim::new(7, None, SimStorage::file(saved_path), 0);
+    assert!(j.node.safety().faults().is_empty());
+    assert_eq!(j.node.params().raw(), &ModelFile::parse(&good, "m").unwrap().raw_params().unwrap());
+}

@@ -1064,8 +1064,9 @@ impl<S: ParamStorage> Node<S> {
         if u != od::LOAD_SIGNATURE {
             return Err(Abort::CannotStore);
         }
+        // CiA 301: the defaults take effect at the next reset. The running set stays, and so
+        // does what is staged (staging the defaults let the next commit, anyone's, apply them).
         self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
-        self.staged = RawParams::defaults();
         Ok(())
     }
 

@@ -81,7 +81,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         .iter()
         .map(|&n| {
             let storage = match &a.store_dir {
-                Some(d) => SimStorage::File(store_file(d, n)),
+                Some(d) => SimStorage::file(store_file(d, n)),
                 None => SimStorage::Memory(MemoryStorage::default()),
             };
             JointSim::new(n, plant.as_ref(), storage, now0)
