@@ -63,6 +63,12 @@ fn log_writes_a_joint_log_the_spec_reader_accepts() {
     assert!((48..=52).contains(&rows), "{v}");
     let log = joint_formats::log::JointLog::read_file(&out).unwrap();
     assert_eq!(log.len() as u64, rows);
+    // fault bits and NMT state ride along as optional columns; nothing before the first TPDO2
+    // (whose q̈ and temperature a row would otherwise hold as placeholders)
+    assert_eq!(log.unknown, vec!["faults".to_string(), "nmt".to_string()]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.lines().skip(1).all(|l| l.ends_with(",0") || l.ends_with(",5") || l.ends_with(",127")), "{text}");
+    assert!(v["tpdo1_before_first_tpdo2"].as_u64().is_some(), "{v}");
 }
 
 #[test]

@@ -50,21 +50,28 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
     }
     let t0 = m.bus.now_us();
     let end = t0 + (a.seconds * 1e6) as u64;
-    let mut rows: Vec<(f64, Tpdo1, Tpdo2)> = Vec::new();
-    let mut last2 = Tpdo2::default();
+    let mut rows: Vec<(f64, Tpdo1, Tpdo2, u8)> = Vec::new();
+    // q̈, the measured torque and the temperature come in TPDO2: no row before the first one
+    // (a placeholder would read as data: q̈ = 0, 0 °C)
+    let mut last2: Option<Tpdo2> = None;
+    let mut before_tpdo2 = 0usize;
     let id1 = TPDO1_BASE + u16::from(a.node);
     let id2 = id1 + 0x100;
     while m.bus.now_us() < end {
         let left = end - m.bus.now_us();
         m.recv(Duration::from_micros(left))?;
+        let nmt = m.seen.get(&a.node).and_then(|s| s.state).map_or(0, |s| s.heartbeat_byte());
         for (t, f) in m.other.drain(..) {
             if f.id() == id2 {
                 if let Some(p) = Tpdo2::decode(f.data()) {
-                    last2 = p;
+                    last2 = Some(p);
                 }
             } else if f.id() == id1 {
                 if let Some(p) = Tpdo1::decode(f.data()) {
-                    rows.push(((t - t0) as f64 * 1e-6, p, last2));
+                    match last2 {
+                        Some(p2) => rows.push(((t - t0) as f64 * 1e-6, p, p2, nmt)),
+                        None => before_tpdo2 += 1,
+                    }
                 }
             }
         }
@@ -77,9 +84,12 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
             m.bus.describe()
         );
     }
-    let mut text = String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp\n" } else { "t,q,qd,qdd,u,temp\n" });
+    // `faults` (the TPDO's fault bits) and `nmt` (the heartbeat's state byte) are optional
+    // columns of the spec's reader: kept aside, so a faulted stretch is visible in the log
+    let mut text =
+        String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp,faults,nmt\n" } else { "t,q,qd,qdd,u,temp,faults,nmt\n" });
     let mut last_t = f64::NEG_INFINITY;
-    for (t, p1, p2) in &rows {
+    for (t, p1, p2, nmt) in &rows {
         // the spec needs strictly increasing time: two TPDOs in the same µs keep the first
         if *t <= last_t {
             continue;
@@ -87,11 +97,14 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         last_t = *t;
         if a.load_cell {
             text.push_str(&format!(
-                "{t:.6},{},{},{},{},{},{}\n",
-                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature
+                "{t:.6},{},{},{},{},{},{},{},{nmt}\n",
+                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature, p1.faults
             ));
         } else {
-            text.push_str(&format!("{t:.6},{},{},{},{},{}\n", p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature));
+            text.push_str(&format!(
+                "{t:.6},{},{},{},{},{},{},{nmt}\n",
+                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature, p1.faults
+            ));
         }
     }
     outs.write(out, text.as_bytes())?;
@@ -100,16 +113,22 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         say!(
             o,
             "{}",
-            serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string(), "simulated": a.bus.is_sim()})
+            serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string(),
+                "simulated": a.bus.is_sim(), "tpdo1_before_first_tpdo2": before_tpdo2})
         );
     } else {
         say!(
             o,
-            "node {}: {} samples in {:.1} s → {}{}",
+            "node {}: {} samples in {:.1} s → {}{}{}",
             a.node,
             rows.len(),
             a.seconds,
             a.out.display(),
+            if before_tpdo2 > 0 {
+                format!(" ({before_tpdo2} TPDO1 before the first TPDO2 not logged: no q̈ or temperature yet)")
+            } else {
+                String::new()
+            },
             a.bus.sim_note()
         );
     }
