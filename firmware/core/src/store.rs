@@ -218,6 +218,17 @@ fn payload_len(raw: &RawParams) -> usize {
     PAYLOAD_LEN + model_block_len(raw)
 }
 
+/// CRC-32 of a parameter set: over its record payload (the bytes a save writes), so the host
+/// and the joint compute the same number from the same set. Names a set on the bus (0x2204)
+/// and in a commit (0x2205).
+pub fn set_crc(raw: &RawParams) -> u32 {
+    let mut c = Crc32::new();
+    for i in 0..payload_len(raw) {
+        c.update(&[payload_byte(raw, i)]);
+    }
+    c.finish()
+}
+
 /// The id a parameter is stored under: CRC-32 of its name.
 pub fn name_id(name: &str) -> u32 {
     crc32(name.as_bytes())

@@ -274,3 +274,39 @@ fn sdo_timeout_aborts_a_stalled_transfer() {
     let out = b.advance_ms(1001);
     assert!(out.contains(&(0x585, vec![0x80, 0x02, 0x21, 0x00, 0x00, 0x00, 0x04, 0x05])), "{out:02X?}");
 }
+
+/// A commit that names its set (0x2205 ← CRC of the staged set, readable at 0x2204:2) commits
+/// only that set: a value staged in between (another master on the bus) makes it refuse, with
+/// commit error 7, and nothing goes live. 0x2204:1 says which set runs.
+#[test]
+fn a_commit_by_crc_commits_only_the_named_set() {
+    let mut b = Bench::new();
+    let read_u32 = |b: &mut Bench, sub: u8| {
+        let r = b.sdo([0x40, 0x04, 0x22, sub, 0, 0, 0, 0]);
+        assert_eq!(r[0], 0x43, "{r:02X?}");
+        u32::from_le_bytes([r[4], r[5], r[6], r[7]])
+    };
+    let active0 = read_u32(&mut b, 1);
+    assert_eq!(read_u32(&mut b, 2), active0, "nothing staged: the two agree");
+    let v = 2.5f32.to_le_bytes();
+    b.sdo([0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]); // friction_c
+    let named = read_u32(&mut b, 2);
+    assert_ne!(named, active0);
+    // another master stages a value before the commit
+    let w = 0.5f32.to_le_bytes();
+    b.sdo([0x23, 0x01, 0x20, 0x00, w[0], w[1], w[2], w[3]]); // friction_b
+    let c = named.to_le_bytes();
+    let r = b.sdo([0x23, 0x05, 0x22, 0x00, c[0], c[1], c[2], c[3]]);
+    assert_eq!(r, vec![0x80, 0x05, 0x22, 0x00, 0x22, 0x00, 0x00, 0x08], "refused: device state");
+    assert_eq!(b.node.params().get(ParamId::FrictionC), 0.0, "nothing went live");
+    assert_eq!(read_u32(&mut b, 1), active0);
+    let r = b.sdo([0x40, 0x01, 0x22, 0x01, 0, 0, 0, 0]);
+    assert_eq!(r[4], 7, "commit error 7: {r:02X?}");
+    // naming what is staged now commits it, and 0x2204:1 says so
+    let now = read_u32(&mut b, 2);
+    let c = now.to_le_bytes();
+    assert_eq!(b.sdo([0x23, 0x05, 0x22, 0x00, c[0], c[1], c[2], c[3]])[0], 0x60);
+    assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
+    assert_eq!(read_u32(&mut b, 1), now);
+    assert_eq!(now, joint_core::store::set_crc(b.node.params().raw()), "the host computes the same CRC");
+}

@@ -66,6 +66,21 @@ pub struct SlcanBus {
     rx: Receiver<CanFrame>,
     t0: Instant,
     path: String,
+    /// tells the reader thread to stop (it checks at every read timeout, 50 ms)
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for SlcanBus {
+    /// Close the CAN channel and wait for the reader thread, so the port (and its exclusive
+    /// lock) is free when the bus is gone: a command run right after can open it.
+    fn drop(&mut self) {
+        let _ = self.port.write_all(b"C\r");
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(h) = self.reader.take() {
+            let _ = h.join();
+        }
+    }
 }
 
 impl SlcanBus {
@@ -80,10 +95,15 @@ impl SlcanBus {
         port.write_all(format!("C\rS{code}\rO\r").as_bytes()).map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
         let mut reader = port.try_clone().map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
         let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stopped = stop.clone();
+        let reader = std::thread::spawn(move || {
             let mut line = Vec::with_capacity(32);
             let mut buf = [0u8; 256];
             loop {
+                if stopped.load(std::sync::atomic::Ordering::Relaxed) {
+                    return;
+                }
                 match reader.read(&mut buf) {
                     Ok(0) => std::thread::sleep(Duration::from_millis(1)),
                     Ok(n) => {
@@ -109,7 +129,7 @@ impl SlcanBus {
                 }
             }
         });
-        Ok(SlcanBus { port, rx, t0: Instant::now(), path: path.to_string() })
+        Ok(SlcanBus { port, rx, t0: Instant::now(), path: path.to_string(), stop, reader: Some(reader) })
     }
 }
 

@@ -16,6 +16,7 @@ use joint_core::canopen::od;
 use joint_core::canopen::sdo::Abort;
 use joint_core::params::{ParamId, RawParams, RawSeries, RawTable, PARAMS, PARAM_COUNT};
 use joint_core::series::{TERMS_MAX, TERM_BYTES};
+use joint_core::store::set_crc;
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 
 /// One step of a push, for progress bars.
@@ -226,7 +227,12 @@ pub fn push(
             }
             Op::Commit => {
                 transfers += 1;
-                if let Err(e) = retry(m, node, (od::COMMIT, 0), &mut retries, |m| m.write(node, od::COMMIT, 0, &[1])) {
+                // the commit names the set it commits: the node refuses it if anything wrote to
+                // the staged set since it was read back (another master on the bus)
+                let crc = set_crc(raw).to_le_bytes();
+                if let Err(e) =
+                    retry(m, node, (od::COMMIT_CRC, 0), &mut retries, |m| m.write(node, od::COMMIT_CRC, 0, &crc))
+                {
                     if retryable(&e) {
                         anyhow::bail!("node {node}: no confirmation of the commit ({e}): whether the new set runs is not known yet");
                     }
@@ -356,11 +362,12 @@ impl Verified {
 /// Whole pushes to start when the joint resets in the middle of one.
 pub const PUSH_ATTEMPTS: u32 = 3;
 
-/// [`push`], then read the joint's set back to say which one runs: the pushed one, the previous
-/// one, or unknown (the joint did not answer). Lost frames are retried per transfer; a push
-/// that failed has its staged values discarded (commit object ← 0) before the read-back, so
-/// what is read is what runs; a joint that reset during the push (boot-up heard) is pushed
-/// again. Never reports the new set without having read it back whole.
+/// [`push`], then ask the joint which set runs (the CRC of its set in force, 0x2204:1, against
+/// the pushed set's): the pushed one, the previous one, or unknown (the joint did not answer).
+/// Lost frames are retried per transfer; a push that failed has its staged values discarded
+/// (commit object ← 0) first, so nothing half-pushed waits for anyone's commit; a joint that
+/// reset during the push (boot-up heard) is pushed again. Never reports the new set unless the
+/// joint's own CRC of what runs says so.
 pub fn push_verified(
     m: &mut Master,
     node: u8,
@@ -381,21 +388,26 @@ pub fn push_verified(
             }
             Err(e) => (None, Some(e.to_string())),
         };
+        // what runs: the CRC of the set in force (0x2204:1) against the pushed set's; a failed
+        // push first discards what it staged, so nothing half-pushed waits for a commit
         let read_back = (|| {
             if error.is_some() {
                 retry(m, node, (od::COMMIT, 0), &mut retries, |m| m.write(node, od::COMMIT, 0, &[0]))?;
             }
-            pull_counting(m, node, &mut retries)
+            let b = retry(m, node, (od::PARAMS_CRC, 1), &mut retries, |m| m.read(node, od::PARAMS_CRC, 1))?;
+            Ok::<u32, SdoError>(u32::from_le_bytes([
+                b.first().copied().unwrap_or(0),
+                b.get(1).copied().unwrap_or(0),
+                b.get(2).copied().unwrap_or(0),
+                b.get(3).copied().unwrap_or(0),
+            ]))
         })();
         let rebooted = m.seen.get(&node).map_or(0, |s| s.boots) > boots0;
         let in_force = match read_back {
-            Ok((running, false)) if running == *raw => InForce::New,
-            Ok((_, false)) if rebooted && attempts < PUSH_ATTEMPTS => continue,
-            Ok((_, false)) => InForce::Previous,
-            Ok((_, true)) => InForce::Unknown(format!(
-                "node {node} still holds staged changes after they were discarded: what runs cannot be read back"
-            )),
-            Err(e) => InForce::Unknown(format!("reading the set back from node {node} failed: {e}")),
+            Ok(crc) if crc == set_crc(raw) => InForce::New,
+            Ok(_) if rebooted && attempts < PUSH_ATTEMPTS => continue,
+            Ok(_) => InForce::Previous,
+            Err(e) => InForce::Unknown(format!("reading the set in force from node {node} failed: {e}")),
         };
         let error = match (&in_force, error) {
             (InForce::Previous, None) => Some(format!(

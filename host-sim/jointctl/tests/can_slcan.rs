@@ -80,4 +80,47 @@ fn scan_push_pull_over_a_socat_pty_pair() {
             .unwrap();
     let got = joint_formats::model_file::ModelFile::read_file(&out).unwrap().raw_params().unwrap();
     assert_eq!(got, want);
+
+    // status names the set in force by its CRC and says whether the pushed model is it
+    let model = "examples/models/trunk-right.toml";
+    let st = |node: &str| {
+        let o = jointctl(&["status", "--node", node, "--bus", &bus, "--model", model, "--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let v = st("6");
+    assert_eq!((v["model_in_force"].as_bool(), v["staged_pending"].as_bool()), (Some(true), Some(false)), "{v}");
+    let crc6 = v["active_crc"].as_str().unwrap().to_string();
+    assert_eq!(st("5")["model_in_force"], false);
+
+    // Issue 21: a push refused at commit (a safety-relevant value on an operational joint)
+    // used to leave its values staged, so reads returned them and a later commit by anyone
+    // made them live. Now the push says which set runs and leaves nothing staged.
+    let o = jointctl(&["watch", "--bus", &bus, "--sim-node", "6", "--seconds", "0.2", "--start"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let unsafe_model = dir.path().join("ratio.toml");
+    let text = std::fs::read_to_string(Path::new(ROOT).join(model)).unwrap();
+    std::fs::write(&unsafe_model, text.replace("fraction = 0.7", "fraction = 0.35")).unwrap();
+    let o = jointctl(&["push", unsafe_model.to_str().unwrap(), "--node", "6", "--bus", &bus]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a safety-relevant change went through on an operational joint");
+    assert!(err.contains("runs its previous set"), "{err}");
+    let v = st("6");
+    assert_eq!(v["active_crc"].as_str().unwrap(), crc6, "{v}");
+    assert_eq!(v["staged_pending"], false, "the refused push left a staged set: {v}");
+
+    // a staged set another tool left (written here by hand over the same pty): status shows
+    // it, discard drops it, the set in force never changed
+    {
+        let spec: joint_can::BusSpec = bus.parse().unwrap();
+        let mut m = joint_can::master::Master::new(joint_can::open(&spec).unwrap());
+        m.write(6, 0x2002, 0, &3.0f32.to_le_bytes()).unwrap(); // friction_c, staged only
+    }
+    let v = st("6");
+    assert_eq!(v["staged_pending"], true, "{v}");
+    let o = jointctl(&["discard", "--node", "6", "--bus", &bus, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((d["dropped"].as_bool(), d["active_crc"].as_str()), (Some(true), Some(crc6.as_str())), "{d}");
+    assert_eq!(st("6")["staged_pending"], false);
 }

@@ -959,7 +959,9 @@ impl<S: ParamStorage> Node<S> {
             Key::TableSigma => Value::Big(Big::Sigma),
             Key::SeriesCount => put_u8(self.staged.series.n_terms),
             Key::SeriesTerms => Value::Big(Big::Series),
-            Key::Commit | Key::ClearFaults => return Err(Abort::WriteOnly),
+            Key::Commit | Key::ClearFaults | Key::CommitCrc => return Err(Abort::WriteOnly),
+            Key::ActiveCrc => put_u32(crate::store::set_crc(self.active.current().raw())),
+            Key::StagedCrc => put_u32(crate::store::set_crc(&self.staged)),
             Key::ErrorCode => put_u8(self.commit_error.as_ref().map_or(0, |e| e.code)),
             Key::ErrorParam => put_u16(self.commit_error.as_ref().map_or(0xFFFF, |e| e.param)),
             Key::ErrorMessage => Value::Big(Big::ErrorMessage),
@@ -1015,6 +1017,20 @@ impl<S: ParamStorage> Node<S> {
             Key::TableShape(s) => self.write_shape(s, u as u8),
             Key::TableGrid | Key::TableTorque | Key::TableSigma => self.stage_table(info.key, data),
             Key::SeriesCount | Key::SeriesTerms => self.stage_series(info.key, u, data),
+            Key::CommitCrc => {
+                let staged = crate::store::set_crc(&self.staged);
+                if u != staged {
+                    self.set_commit_error(
+                        7,
+                        0xFFFF,
+                        format_args!(
+                            "the staged set is {staged:08x}, not the {u:08x} named: written to since (another master?)"
+                        ),
+                    );
+                    return Err(Abort::DeviceState);
+                }
+                self.commit()
+            }
             Key::Commit => match u {
                 1 => self.commit(),
                 0 => {

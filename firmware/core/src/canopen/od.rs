@@ -126,6 +126,12 @@ pub enum Key {
     ErrorMessage,
     ClearFaults,
     Pending,
+    /// 0x2204 sub 1: CRC of the set in force ([`crate::store::set_crc`])
+    ActiveCrc,
+    /// 0x2204 sub 2: CRC of the staged set
+    StagedCrc,
+    /// 0x2205: commit the staged set if its CRC is the one written
+    CommitCrc,
     /// sub-index of 0x2300
     JointState(u8),
     AssistCmd,
@@ -185,6 +191,11 @@ pub const COMMIT: u16 = 0x2200;
 pub const COMMIT_ERROR: u16 = 0x2201;
 pub const CLEAR_FAULTS: u16 = 0x2202;
 pub const PENDING: u16 = 0x2203;
+/// sub 1: CRC-32 of the set in force, sub 2: of the staged set
+pub const PARAMS_CRC: u16 = 0x2204;
+/// write the staged set's CRC-32: commits it only if it is that set (a commit that names what
+/// it commits, so another master's writes in between can never go live with it)
+pub const COMMIT_CRC: u16 = 0x2205;
 pub const JOINT_STATE: u16 = 0x2300;
 pub const HOST_COMMAND: u16 = 0x2310;
 pub const OTHER_ANGLES: u16 = 0x2311;
@@ -293,7 +304,7 @@ pub fn indices() -> impl Iterator<Item = u16> {
         PRODUCER_HEARTBEAT,
         IDENTITY,
     ];
-    const HIGH: [u16; 13] = [
+    const HIGH: [u16; 15] = [
         TABLE_SHAPE,
         TABLE_GRID,
         TABLE_TORQUE,
@@ -304,6 +315,8 @@ pub fn indices() -> impl Iterator<Item = u16> {
         COMMIT_ERROR,
         CLEAR_FAULTS,
         PENDING,
+        PARAMS_CRC,
+        COMMIT_CRC,
         JOINT_STATE,
         HOST_COMMAND,
         OTHER_ANGLES,
@@ -370,6 +383,8 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         COMMIT_ERROR => o("params_commit_error", Record, SUBS_3),
         CLEAR_FAULTS => o("clear_faults", Var, SUB0),
         PENDING => o("params_pending", Var, SUB0),
+        PARAMS_CRC => o("params_crc", Record, SUBS_2),
+        COMMIT_CRC => o("params_commit_crc", Var, SUB0),
         JOINT_STATE => o("joint_state", Record, SUBS_8),
         HOST_COMMAND => o("host_command", Record, SUBS_1),
         OTHER_ANGLES => o("other_joint_angles", Array, SUBS_3),
@@ -461,6 +476,11 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         },
         CLEAR_FAULTS => mk("clear_faults", Unsigned8, Wo, Key::ClearFaults),
         PENDING => mk("params_pending", Unsigned8, Ro, Key::Pending),
+        PARAMS_CRC => match sub {
+            1 => mk("active_crc", Unsigned32, Ro, Key::ActiveCrc),
+            _ => mk("staged_crc", Unsigned32, Ro, Key::StagedCrc),
+        },
+        COMMIT_CRC => mk("params_commit_crc", Unsigned32, Wo, Key::CommitCrc),
         JOINT_STATE => {
             let name = JOINT_STATE_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             let dtype = if sub == JS_FAULTS || sub == JS_GAIN { Unsigned16 } else { Integer16 };

@@ -41,6 +41,7 @@ pub mod save;
 pub mod scan;
 pub mod sim_bus;
 pub mod simulate;
+pub mod status;
 pub mod watch;
 
 #[derive(Debug, Parser)]
@@ -76,6 +77,8 @@ pub enum Command {
     Push(push::PushArgs),
     Pull(pull::PullArgs),
     Save(save::SaveArgs),
+    Status(status::StatusArgs),
+    Discard(status::DiscardArgs),
     Scan(scan::ScanArgs),
     Watch(watch::WatchArgs),
     Log(log_can::LogArgs),
@@ -99,6 +102,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Push(args) => push::run(&args),
         Command::Pull(args) => pull::run(&args),
         Command::Save(args) => save::run(&args),
+        Command::Status(args) => status::run_status(&args),
+        Command::Discard(args) => status::run_discard(&args),
         Command::Scan(args) => scan::run(&args),
         Command::Watch(args) => watch::run(&args),
         Command::Log(args) => log_can::run(&args),
