@@ -124,3 +124,47 @@ fn scan_push_pull_over_a_socat_pty_pair() {
     assert_eq!((d["dropped"].as_bool(), d["active_crc"].as_str()), (Some(true), Some(crc6.as_str())), "{d}");
     assert_eq!(st("6")["staged_pending"], false);
 }
+
+/// Issue 21: `jointctl sim` exited ("Operation timed out") when the master stopped reading the
+/// pty. Here the master starts the joint (so it streams TPDOs at 100 Hz) and then never reads:
+/// the pty and socat's buffers fill, the simulated joint drops what the bus will not take,
+/// counts it, and serves to the end.
+#[test]
+fn sim_keeps_serving_when_the_master_stops_reading() {
+    use std::io::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("A"), dir.path().join("B"));
+    let _socat = Kill(
+        Command::new("socat")
+            .args([
+                "-d",
+                "-d",
+                &format!("pty,raw,echo=0,link={}", a.display()),
+                &format!("pty,raw,echo=0,link={}", b.display()),
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    wait_for(&a);
+    wait_for(&b);
+    let sim = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+        .current_dir(ROOT)
+        .args(["sim", "--bus", &format!("slcan:{}", b.display()), "--node", "5", "--seconds", "8", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    // TPDO1 and TPDO2 every 1 ms (event timers 0x1800/0x1801 sub 5), NMT start for node 5, as
+    // slcan "t" frames; then silence: nothing on this side ever reads
+    let mut pa = std::fs::OpenOptions::new().write(true).open(&a).unwrap();
+    pa.write_all(b"t60582B00180501000000\rt60582B01180501000000\rt00020105\r").unwrap();
+    let o = sim.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "sim died under a stalled master: {err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    println!("sim under a stalled master: {v}");
+    assert!(v["frames_dropped"].as_u64().unwrap() > 0, "the buffers never filled: {v}");
+    assert!(v["seconds"].as_f64().unwrap() >= 7.9, "{v}");
+}

@@ -90,7 +90,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     eprintln!("serving joint node(s) {:?} on {} (Ctrl-C to stop)", a.nodes, bus.describe());
     let end_us = a.seconds.map(|s| now0 + (s * 1e6) as u64);
     let mut next_tick = now0;
-    let (mut rx_frames, mut tx_frames) = (0u64, 0u64);
+    let (mut rx_frames, mut tx_frames, mut dropped) = (0u64, 0u64, 0u64);
     let mut out: Vec<(usize, CanFrame)> = Vec::new();
     let mut buf = Vec::new();
     while !stop.load(Ordering::SeqCst) {
@@ -116,12 +116,34 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
                 out.extend(buf.drain(..).map(|f| (i, f)));
             }
         }
-        // Send, and let the other local joints hear it as they would on a wire.
+        // Send, and let the other local joints hear it as they would on a wire. A bus that
+        // takes nothing (a master that stopped reading the pty, a full adapter queue) costs the
+        // frames of this round, counted, as a node that loses arbitration or goes error-passive
+        // loses them: the joints keep running and the next round tries again.
+        let mut stalled = false;
         while !out.is_empty() {
             let batch: Vec<(usize, CanFrame)> = std::mem::take(&mut out);
             for (src, f) in batch {
-                bus.send(&f)?;
-                tx_frames += 1;
+                if stalled {
+                    dropped += 1;
+                    continue;
+                }
+                match bus.send(&f) {
+                    Ok(()) => tx_frames += 1,
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::TimedOut
+                                | std::io::ErrorKind::WouldBlock
+                                | std::io::ErrorKind::Interrupted
+                        ) =>
+                    {
+                        stalled = true;
+                        dropped += 1;
+                        continue;
+                    }
+                    Err(e) => return Err(e.into()),
+                }
                 let t = bus.now_us();
                 for (i, j) in joints.iter_mut().enumerate() {
                     if i != src {
@@ -136,10 +158,13 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::json!({"nodes": a.nodes, "seconds": secs, "frames_received": rx_frames, "frames_sent": tx_frames})
+            serde_json::json!({"nodes": a.nodes, "seconds": secs, "frames_received": rx_frames, "frames_sent": tx_frames,
+                "frames_dropped": dropped})
         );
     } else {
-        eprintln!("stopped after {secs:.1} s: {rx_frames} frames received, {tx_frames} sent");
+        eprintln!(
+            "stopped after {secs:.1} s: {rx_frames} frames received, {tx_frames} sent, {dropped} dropped (the bus took none)"
+        );
     }
     Ok(())
 }
