@@ -374,12 +374,12 @@ fn a_log_that_excites_nothing_lists_what_it_cannot_determine() {
     let model = dir.path().join("model.toml");
     std::fs::write(&model, MODEL).unwrap();
     let write = |name: &str, dt: f64, n: usize| {
-        let mut s = String::from("t,q,u,tau\n");
+        let mut s = String::from("t,q,u,tau,temp\n");
         let held = 2.5 * (0.802f64 * 1.0).sin() - 0.3 + 0.5;
         for i in 0..n {
-            // a deterministic ±0.01 N·m wobble for the torque sensor's noise
+            // a deterministic ±0.01 N·m wobble for the torque sensor's noise; 30 °C throughout
             let e = 0.01 * ((i * 7919 % 200) as f64 / 100.0 - 1.0);
-            s += &format!("{},1.0,{},{}\n", i as f64 * dt, held + e, 0.0);
+            s += &format!("{},1.0,{},{},30.0\n", i as f64 * dt, held + e, 0.0);
         }
         let p = dir.path().join(name);
         std::fs::write(&p, s).unwrap();
@@ -408,6 +408,9 @@ fn a_log_that_excites_nothing_lists_what_it_cannot_determine() {
         let got = refit[sec][key].as_f64().unwrap_or(want);
         assert!((got - want).abs() < 1e-9, "{sec}.{key}: refit {got}, file {want}");
     }
+    // no temperature change: the thermal drift is not tried, and the report says why
+    let na = v["not_applicable"].to_string();
+    assert!(na.contains("thermal_drift") && na.contains("temperature does not change"), "{na}");
     let c0 = refit["offset"]["c0"].as_f64().unwrap();
     assert!((c0 - 0.2).abs() < 0.02, "the constant goes to the offset: {c0}");
     assert!(!v.to_string().contains("e+08") && !v.to_string().contains("e8,"), "{v}");

@@ -54,6 +54,15 @@ pub struct Data {
     pub qd_noise_var: f64,
 }
 
+/// The log has a `temp` column whose range is below 0.1 °C: no temperature change to
+/// test a thermal drift against.
+pub fn constant_temp(d: &Data) -> bool {
+    d.temp.as_ref().is_some_and(|t| {
+        let (lo, hi) = t.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| (l.min(x), h.max(x)));
+        hi - lo < 0.1
+    })
+}
+
 /// Variance of white noise on a sampled signal from its first differences, robustly:
 /// `(1.4826·median|Δx|)² / 2`. A smooth signal adds almost nothing to the differences at the
 /// sampling rate, so what is left is the noise; coloured (filtered) noise differs less from
@@ -803,6 +812,10 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             let parts = [(a, b, c), (a, b, 0.0), (0.0, 0.0, c)];
             let parts = parts.into_iter().filter(|(a, b, c)| *a != 0.0 || *b != 0.0 || *c != 0.0);
             let mut best: Option<(f64, Effect)> = None;
+            if constant_temp(d) {
+                // a logged temperature that does not change excites no thermal term
+                return None;
+            }
             for (a, b, c) in parts {
                 let e = match &d.temp {
                     Some(tp) => {

@@ -378,7 +378,7 @@ pub struct NotApplicable {
 }
 
 /// Torque-mode effects the selection skipped for this model.
-fn torque_not_applicable(base: &Base, tried: &[&str]) -> Vec<NotApplicable> {
+fn torque_not_applicable(base: &Base, d: &Data, tried: &[&str]) -> Vec<NotApplicable> {
     let mut v = vec![NotApplicable {
         effect: "initial_state",
         why: "trajectory mode only (torque mode has no state to integrate)",
@@ -391,6 +391,9 @@ fn torque_not_applicable(base: &Base, tried: &[&str]) -> Vec<NotApplicable> {
             candidates::Kind::Dry => "the model has a Coulomb term, so a missing Coulomb torque is `parameters`",
             candidates::Kind::Backlash => {
                 "torque mode sees a dead zone only in a spring (elastic joint); this model has no [spring]"
+            }
+            candidates::Kind::Thermal if candidates::constant_temp(d) => {
+                "the logged temperature does not change (range below 0.1 °C): this log cannot test a thermal drift"
             }
             candidates::Kind::Thermal => "the model has no friction term to scale",
             _ => "its shape search found no usable range in this log",
@@ -1120,7 +1123,7 @@ fn build_report(
         },
         resid,
         unknown_columns: log.unknown.clone(),
-        not_applicable: torque_not_applicable(base, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
+        not_applicable: torque_not_applicable(base, d, &sel.candidates.iter().map(|o| o.name).collect::<Vec<_>>()),
         not_determined: unexcited,
         warnings,
         prep: None,
