@@ -145,6 +145,19 @@ pub fn push(
     opts: PushOptions,
     progress: &mut dyn FnMut(&Progress),
 ) -> anyhow::Result<PushReport> {
+    push_until(m, node, raw, opts, progress, &std::sync::atomic::AtomicBool::new(false))
+}
+
+/// [`push`], stopping before the next transfer once `cancel` is set (Ctrl-C): nothing is
+/// committed then, and the error says the push was interrupted.
+pub fn push_until(
+    m: &mut Master,
+    node: u8,
+    raw: &RawParams,
+    opts: PushOptions,
+    progress: &mut dyn FnMut(&Progress),
+    cancel: &std::sync::atomic::AtomicBool,
+) -> anyhow::Result<PushReport> {
     let mut ops = Vec::new();
     for d in PARAMS.iter() {
         let data = raw.get(d.id).to_le_bytes().to_vec();
@@ -183,6 +196,9 @@ pub fn push(
     let mut transfers = 0usize;
     let mut retries = 0u32;
     for (k, op) in ops.into_iter().enumerate() {
+        if cancel.load(std::sync::atomic::Ordering::SeqCst) {
+            anyhow::bail!("interrupted after {k} of {total} transfers, before the commit");
+        }
         let what = match op {
             Op::Write { index, sub, data, what, safety } => {
                 transfers += 1;
@@ -375,12 +391,26 @@ pub fn push_verified(
     opts: PushOptions,
     progress: &mut dyn FnMut(&Progress),
 ) -> Verified {
+    push_verified_until(m, node, raw, opts, progress, &std::sync::atomic::AtomicBool::new(false))
+}
+
+/// [`push_verified`] that stops once `cancel` is set (Ctrl-C): what was staged is discarded and
+/// the joint's set in force read back, so an interrupted push leaves nothing staged and says
+/// which set runs. Not pushed again after an interruption.
+pub fn push_verified_until(
+    m: &mut Master,
+    node: u8,
+    raw: &RawParams,
+    opts: PushOptions,
+    progress: &mut dyn FnMut(&Progress),
+    cancel: &std::sync::atomic::AtomicBool,
+) -> Verified {
     let mut attempts = 0;
     let mut retries = 0;
     loop {
         attempts += 1;
         let boots0 = m.seen.get(&node).map_or(0, |s| s.boots);
-        let pushed = push(m, node, raw, opts, progress);
+        let pushed = push_until(m, node, raw, opts, progress, cancel);
         let (report, error) = match pushed {
             Ok(r) => {
                 retries += r.retries;
@@ -405,7 +435,9 @@ pub fn push_verified(
         let rebooted = m.seen.get(&node).map_or(0, |s| s.boots) > boots0;
         let in_force = match read_back {
             Ok(crc) if crc == set_crc(raw) => InForce::New,
-            Ok(_) if rebooted && attempts < PUSH_ATTEMPTS => continue,
+            Ok(_) if rebooted && attempts < PUSH_ATTEMPTS && !cancel.load(std::sync::atomic::Ordering::SeqCst) => {
+                continue
+            }
             Ok(_) => InForce::Previous,
             Err(e) => InForce::Unknown(format!("reading the set in force from node {node} failed: {e}")),
         };

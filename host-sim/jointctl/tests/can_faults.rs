@@ -207,3 +207,33 @@ fn an_adapter_that_stops_answering_gives_unknown_not_a_guess() {
         assert!(running == a || running == b, "dies after {after}: a mixed set");
     }
 }
+
+/// Issue 21: a push interrupted by Ctrl-C left its values staged, so reads returned them and
+/// any later plain commit (another master's) made them live. Interrupted after k transfers (the
+/// flag Ctrl-C sets), the push discards what it staged and reads back which set runs.
+#[test]
+fn an_interrupted_push_leaves_nothing_staged_and_says_the_previous_set_runs() {
+    let (a, b) = (set("trunk-right.toml", 0.0), set("trunk-left.toml", 5.0));
+    for k in [1usize, 20, 45, 80] {
+        let mut r = rig();
+        assert!(transfer::push_verified(&mut r.m, NODE, &a, OPTS, &mut |_| {}).ok());
+        let cancel = std::sync::atomic::AtomicBool::new(false);
+        let v = transfer::push_verified_until(
+            &mut r.m,
+            NODE,
+            &b,
+            OPTS,
+            &mut |p| {
+                if p.done == k {
+                    cancel.store(true, std::sync::atomic::Ordering::SeqCst);
+                }
+            },
+            &cancel,
+        );
+        assert_eq!(v.in_force, InForce::Previous, "after {k}: {v:?}");
+        assert!(v.error.as_deref().is_some_and(|e| e.contains("interrupted")), "after {k}: {v:?}");
+        let j = r.joint.lock().unwrap();
+        assert_eq!(j.node.params().raw(), &a, "after {k}: the old set runs");
+        assert_eq!(j.node.staged(), &a, "after {k}: something stayed staged");
+    }
+}

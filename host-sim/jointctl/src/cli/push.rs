@@ -71,11 +71,25 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     );
     bar.set_prefix(format!("node {}", a.node));
     let opts = PushOptions { pre_operational: a.pre_operational, save: a.save };
-    let v = transfer::push_verified(&mut m, a.node, &raw, opts, &mut |p| {
-        bar.set_length(p.total as u64);
-        bar.set_position(p.done as u64);
-        bar.set_message(p.what.clone());
-    });
+    // Ctrl-C stops the push before its next transfer; what it staged is then discarded and the
+    // set in force read back, so nothing half-pushed is left waiting for a commit
+    let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        ctrlc::set_handler(move || cancel.store(true, std::sync::atomic::Ordering::SeqCst))?;
+    }
+    let v = transfer::push_verified_until(
+        &mut m,
+        a.node,
+        &raw,
+        opts,
+        &mut |p| {
+            bar.set_length(p.total as u64);
+            bar.set_position(p.done as u64);
+            bar.set_message(p.what.clone());
+        },
+        &cancel,
+    );
     bar.finish_and_clear();
     let in_force = match &v.in_force {
         transfer::InForce::New => "new".to_string(),
