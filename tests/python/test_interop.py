@@ -205,6 +205,27 @@ def test_process_data_objects_by_sdo(rig):
     assert node.sdo["host_command"]["assist_cmd"].raw == 0  # dropped on leaving operational
 
 
+def test_the_eds_gives_every_process_value_its_scale_and_unit(rig):
+    # Issue 21: python-canopen showed q = -734 with no scale anywhere. The EDS now carries the
+    # factor and unit of each INTEGER16 value and what the fault bits mean, so .phys is physical.
+    _, node, _ = rig
+    preop(node)
+    od = node.object_dictionary
+    want = {"q": (1e-4, "rad"), "qd": (1e-3, "rad/s"), "tau_cmd": (1e-2, "N*m"), "qdd": (1e-2, "rad/s^2"),
+            "tau_measured": (1e-2, "N*m"), "temperature": (1e-2, "degC")}
+    for sub, (factor, unit) in want.items():
+        v = od["joint_state"][sub]
+        assert v.factor == pytest.approx(factor), sub
+        assert v.unit == unit, sub
+    assert "bit 0 heartbeat_lost" in od["joint_state"]["faults"].description
+    assert od["friction_c"].unit == "N*m"
+    # a physical write: 0.5 rad of another joint's angle goes over the bus as 5000 LSB
+    node.sdo["other_joint_angles"][2].phys = 0.5
+    assert node.sdo["other_joint_angles"][2].raw == 5000
+    assert node.sdo["other_joint_angles"][2].phys == pytest.approx(0.5)
+    node.sdo["other_joint_angles"][2].raw = 0
+
+
 def test_gravity_table_by_segmented_sdo_and_commit(rig):
     _, node, _ = rig
     preop(node)

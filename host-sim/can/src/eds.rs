@@ -33,6 +33,46 @@ fn default_value(node: &Node<MemoryStorage>, s: &SubInfo) -> String {
     }
 }
 
+/// What a master needs to turn a raw value into a physical one, as python-canopen and most
+/// tools read it from an EDS (`Factor`, `Unit`, `Description`: not in CiA 306, widely used):
+/// the scale of every INTEGER16 process value, the unit of every parameter, the fault bits.
+fn physical(s: &SubInfo) -> (Option<f32>, Option<String>, Option<String>) {
+    use joint_core::canopen::pdo;
+    let scaled = |f: f32, u: &str| (Some(f), Some(u.to_string()), None);
+    match (s.index, s.sub) {
+        (od::JOINT_STATE, od::JS_Q) => scaled(pdo::Q_LSB, "rad"),
+        (od::JOINT_STATE, od::JS_QD) => scaled(pdo::QD_LSB, "rad/s"),
+        (od::JOINT_STATE, od::JS_TAU) | (od::JOINT_STATE, od::JS_TAU_MEAS) => scaled(pdo::TAU_LSB, "N*m"),
+        (od::JOINT_STATE, od::JS_QDD) => scaled(pdo::QDD_LSB, "rad/s^2"),
+        (od::JOINT_STATE, od::JS_TEMP) => scaled(pdo::TEMP_LSB, "degC"),
+        (od::JOINT_STATE, od::JS_GAIN) => scaled(1.0e-3, "1 (assist gain, 1000 = full)"),
+        (od::JOINT_STATE, od::JS_FAULTS) => {
+            let bits: Vec<String> = (0..16u16)
+                .filter_map(|b| {
+                    joint_core::safety::Faults::from_bits_truncate(1 << b)
+                        .names()
+                        .next()
+                        .map(|n| format!("bit {b} {n}"))
+                })
+                .collect();
+            (None, None, Some(format!("fault bits: {}", bits.join(", "))))
+        }
+        (od::HOST_COMMAND, _) => scaled(pdo::TAU_LSB, "N*m"),
+        (od::OTHER_ANGLES, sub) if sub > 0 => scaled(pdo::Q_LSB, "rad"),
+        (od::PARAMS_CRC, _) => {
+            (None, None, Some("CRC-32 of a parameter set's record payload (joint_core::store::set_crc)".into()))
+        }
+        (od::COMMIT_CRC, _) => {
+            (None, None, Some("write the staged set's CRC-32 (0x2204 sub 2) to commit exactly that set".into()))
+        }
+        (i, 0) if (od::PARAM_BASE..od::PARAM_BASE + PARAMS.len() as u16).contains(&i) => {
+            let d = PARAMS.get((i - od::PARAM_BASE) as usize);
+            (None, d.map(|d| d.unit.replace('·', "*").replace('²', "^2").replace('°', "deg")), None)
+        }
+        _ => (None, None, None),
+    }
+}
+
 fn write_var(out: &mut String, node: &Node<MemoryStorage>, section: &str, s: &SubInfo) {
     let _ = writeln!(out, "[{section}]");
     let _ = writeln!(out, "ParameterName={}", s.name);
@@ -45,6 +85,16 @@ fn write_var(out: &mut String, node: &Node<MemoryStorage>, section: &str, s: &Su
         let _ = writeln!(out, "HighLimit={hi}");
     }
     let _ = writeln!(out, "PDOMapping={}", u8::from(s.pdo));
+    let (factor, unit, description) = physical(s);
+    if let Some(f) = factor {
+        let _ = writeln!(out, "Factor={f}");
+    }
+    if let Some(u) = unit.filter(|u| !u.is_empty()) {
+        let _ = writeln!(out, "Unit={u}");
+    }
+    if let Some(d) = description {
+        let _ = writeln!(out, "Description={d}");
+    }
     out.push('\n');
 }
 
@@ -70,12 +120,15 @@ pub fn generate() -> String {
     let _ = writeln!(out, "CreatedBy=jointctl {}", env!("CARGO_PKG_VERSION"));
     out.push('\n');
     let _ = writeln!(out, "[DeviceInfo]");
-    let _ = writeln!(out, "VendorName=unassigned");
+    // no CiA vendor id has been assigned to this project: 0 says so rather than borrowing one
+    let _ = writeln!(out, "VendorName=unassigned (no CiA vendor id)");
     let _ = writeln!(out, "VendorNumber=0x{:X}", cfg.identity.vendor_id);
     let _ = writeln!(out, "ProductName={}", cfg.device_name);
     let _ = writeln!(out, "ProductNumber=0x{:X}", cfg.identity.product_code);
     let _ = writeln!(out, "RevisionNumber=0x{:X}", cfg.identity.revision);
-    for (rate, ok) in [(10, 1), (20, 1), (50, 1), (125, 1), (250, 1), (500, 1), (800, 1), (1000, 1)] {
+    // What the board image runs: 1 Mbit/s, fixed at build time (firmware/board CAN_BITRATE; no
+    // LSS to change it on the bus). The host tools and the simulated bus take any rate.
+    for (rate, ok) in [(10, 0), (20, 0), (50, 0), (125, 0), (250, 0), (500, 0), (800, 0), (1000, 1)] {
         let _ = writeln!(out, "BaudRate_{rate}={ok}");
     }
     let _ = writeln!(out, "SimpleBootUpMaster=0");
