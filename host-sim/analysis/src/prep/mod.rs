@@ -278,64 +278,62 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     lap("spectrum, resolution");
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
     let mut q_spec = q_spec;
+    // Two noises the spectrum alone takes for motion, each told apart by q̇ and q̈ seen through a
+    // ±50 ms window (the motion, with encoder steps and a fine noise averaged out):
+    //
     // A coarse encoder's quantisation is not white: a joint moving at v crosses steps of Δ at
     // v/Δ Hz, tones the spectrum shows as "motion" up to hundreds of Hz, and a window chosen
-    // for that motion is a few samples wide and all noise. Where q is quantised, the motion's
-    // own frequency is checked on q̇ and q̈ seen through a wide window (where the steps average
-    // out): a spectral bandwidth far above it is the encoder, and the derivative sizes are
-    // taken from the wide window's motion instead.
-    if quantum > 0.0 {
-        if let (Some(s), Some(r)) = (q_spec.as_mut(), longest(&segments)) {
-            let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
-            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
-            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
-            if v1 > 0.0 && v2 > 0.0 {
-                let w = v2 / v1; // rad/s: the motion's typical angular frequency
-                if s.bandwidth_hz > 5.0 * w / std::f64::consts::TAU {
-                    // a margin of 2 on the frequency for the motion's spread
-                    let w2 = 2.0 * w;
-                    let mut dk = v2;
-                    for k in 2..6 {
-                        s.deriv_rms[k] = dk * w2.powi(k as i32 - 1);
-                        dk = dk.max(0.0);
-                    }
-                    s.deriv_rms[0] = v1;
-                    s.deriv_rms[1] = v2;
-                    s.bandwidth_hz = w2 / std::f64::consts::TAU;
-                }
-            }
-        }
-    }
+    // for that motion is a few samples wide and all noise. Where q is quantised, a spectral
+    // bandwidth far above the wide window's frequency is the encoder, and the derivative sizes
+    // are taken from the wide window's motion instead.
+    //
     // A noise filtered twice before it was logged (an angle from a tracking observer, a
-    // low-passed potentiometer) falls with frequency as steeply as a motion does, and the
-    // spectrum alone takes it for motion: a q̈ of hundreds of rad/s² up to hundreds of hertz,
-    // and a window of two samples. A wide window's q̈ sees the motion without that noise: when
-    // the spectrum's q̈ is over three times the wide window's and its band over five times the
+    // low-passed potentiometer) falls with frequency as steeply as a motion does: a q̈ of
+    // hundreds of rad/s² up to hundreds of hertz, and a window of two samples. When the
+    // spectrum's q̈ is over three times the wide window's and its band over five times the
     // wide window's frequency (or 1.5 times and twenty times: a motion's q̈ seen through
     // ±50 ms loses little below a few hertz, and matches the spectrum's within 5 % when the
     // noise is white), the motion ends two octaves above that frequency and all above it is
     // noise.
-    if quantum == 0.0 {
-        if let (Some(s), Some(r)) = (q_spec.as_ref(), longest(&segments)) {
-            let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
-            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
-            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
-            let w = if v1 > 0.0 { v2 / v1 } else { 0.0 };
-            let (ratio, spread) = (s.deriv_rms[1] / v2.max(1e-300), s.bandwidth_hz / (w / std::f64::consts::TAU));
-            if w > 0.0 && ((ratio > 3.0 && spread > 5.0) || (ratio > 1.5 && spread > 20.0)) {
+    let mut reread = None;
+    if let (Some(s), Some(r)) = (q_spec.as_mut(), longest(&segments)) {
+        let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
+        let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+        // rad/s: the motion's typical angular frequency
+        let w = if v1 > 0.0 && v2 > 0.0 { v2 / v1 } else { 0.0 };
+        if w > 0.0 && quantum > 0.0 {
+            if s.bandwidth_hz > 5.0 * w / std::f64::consts::TAU {
+                // a margin of 2 on the frequency for the motion's spread
+                let w2 = 2.0 * w;
+                let mut dk = v2;
+                for k in 2..6 {
+                    s.deriv_rms[k] = dk * w2.powi(k as i32 - 1);
+                    dk = dk.max(0.0);
+                }
+                s.deriv_rms[0] = v1;
+                s.deriv_rms[1] = v2;
+                s.bandwidth_hz = w2 / std::f64::consts::TAU;
+            }
+        } else if w > 0.0 {
+            let (ratio, spread) = (s.deriv_rms[1] / v2, s.bandwidth_hz / (w / std::f64::consts::TAU));
+            if (ratio > 3.0 && spread > 5.0) || (ratio > 1.5 && spread > 20.0) {
                 let edge = 4.0 * w / std::f64::consts::TAU;
                 if let Some(again) = spectrum::analyse_below(&log.q[r.clone()], dt, Some(edge)) {
                     notes.push(format!(
-                        "q's spectrum stands above its white noise up to {:.0} Hz, but a 50 ms window sees its motion at                          {:.1} Hz: above {edge:.1} Hz it is read as a coloured noise, not motion",
+                        "q's spectrum stands above its white noise up to {:.0} Hz, but a 50 ms window sees its motion at \
+                         {:.1} Hz: above {edge:.1} Hz it is read as a coloured noise, not motion",
                         s.bandwidth_hz,
                         w / std::f64::consts::TAU
                     ));
-                    q_spec = Some(again);
+                    reread = Some(again);
                 }
             }
         }
+    }
+    if reread.is_some() {
+        q_spec = reread;
     }
     // a coloured noise (see `spectrum::NoiseModel`) counts whole in the bands a still joint
     // stays within; the windows below weigh its spectrum through their own weights

@@ -48,11 +48,7 @@ pub fn analyse_below(x: &[f64], dt: f64, motion_edge_hz: Option<f64>) -> Option<
     let d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
     let (freqs, psd) = welch(&d, dt);
     let nyq = 0.5 / dt;
-    // The rough derivative's noise shape at frequency f, per unit σ².
-    let shape = |f: f64| {
-        let s = 2.0 * (std::f64::consts::PI * f * dt).sin() / dt;
-        2.0 * dt * s * s
-    };
+    let shape = |f: f64| white_shape(f, dt);
     let mut ratios: Vec<f64> =
         freqs.iter().zip(&psd).filter(|(f, _)| **f >= 0.75 * nyq).map(|(f, p)| p / shape(*f).max(1e-300)).collect();
     if ratios.is_empty() {
@@ -212,10 +208,7 @@ const NOISE_SLOPE_PER_OCTAVE: f64 = 5.5;
 fn noise_model(freqs: &[f64], psd: &[f64], dt: f64, sigma2: f64, x: &[f64], edge: Option<f64>) -> NoiseModel {
     let white = NoiseModel { points: vec![(0.0, sigma2)], dt };
     let nyq = 0.5 / dt;
-    let shape = |f: f64| {
-        let s = 2.0 * (std::f64::consts::PI * f * dt).sin() / dt;
-        2.0 * dt * s * s
-    };
+    let shape = |f: f64| white_shape(f, dt);
     // octave medians of R, from the top down: (centre Hz, median)
     let mut octaves: Vec<(f64, f64)> = Vec::new();
     let mut hi = nyq;
@@ -267,6 +260,13 @@ fn noise_model(freqs: &[f64], psd: &[f64], dt: f64, sigma2: f64, x: &[f64], edge
         return white;
     }
     model
+}
+
+/// The rough derivative's (first difference over `dt`) spectrum at `f` for white noise of unit
+/// variance on the signal: `2·dt·(2·sin(π·f·dt)/dt)²`.
+fn white_shape(f: f64, dt: f64) -> f64 {
+    let s = 2.0 * (std::f64::consts::PI * f * dt).sin() / dt;
+    2.0 * dt * s * s
 }
 
 /// Where a noise that is not white begins, as a bin index (`freqs.len()` when there is none).
