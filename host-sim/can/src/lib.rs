@@ -7,6 +7,7 @@
 
 pub mod eds;
 pub mod master;
+pub mod script_bus;
 pub mod sim_bus;
 pub mod slcan;
 pub mod socketcan;

@@ -283,15 +283,12 @@ fn f32_at(b: &[u8], i: usize) -> f32 {
 }
 
 /// Read the node's parameter set (the staged values, which equal the running ones unless
-/// `pending`). Returns the set and whether staged changes are pending.
+/// `pending`). Returns the set and whether staged changes are pending. Every read is retried
+/// on a lost frame.
 pub fn pull(m: &mut Master, node: u8) -> Result<(RawParams, bool), SdoError> {
-    pull_counting(m, node, &mut 0)
-}
-
-/// [`pull`], every read retried on a lost frame (counted in `retries`).
-fn pull_counting(m: &mut Master, node: u8, retries: &mut u32) -> Result<(RawParams, bool), SdoError> {
+    let mut retries = 0;
     let mut read =
-        |m: &mut Master, index: u16, sub: u8| retry(m, node, (index, sub), retries, |m| m.read(node, index, sub));
+        |m: &mut Master, index: u16, sub: u8| retry(m, node, (index, sub), &mut retries, |m| m.read(node, index, sub));
     let mut raw = RawParams::defaults();
     for i in 0..PARAM_COUNT {
         let Some(id) = ParamId::from_index(i) else { continue };
@@ -405,6 +402,7 @@ pub fn push_verified_until(
     progress: &mut dyn FnMut(&Progress),
     cancel: &std::sync::atomic::AtomicBool,
 ) -> Verified {
+    let want = set_crc(raw);
     let mut attempts = 0;
     let mut retries = 0;
     loop {
@@ -424,17 +422,11 @@ pub fn push_verified_until(
             if error.is_some() {
                 retry(m, node, (od::COMMIT, 0), &mut retries, |m| m.write(node, od::COMMIT, 0, &[0]))?;
             }
-            let b = retry(m, node, (od::PARAMS_CRC, 1), &mut retries, |m| m.read(node, od::PARAMS_CRC, 1))?;
-            Ok::<u32, SdoError>(u32::from_le_bytes([
-                b.first().copied().unwrap_or(0),
-                b.get(1).copied().unwrap_or(0),
-                b.get(2).copied().unwrap_or(0),
-                b.get(3).copied().unwrap_or(0),
-            ]))
+            retry(m, node, (od::PARAMS_CRC, 1), &mut retries, |m| m.read_u32(node, od::PARAMS_CRC, 1))
         })();
         let rebooted = m.seen.get(&node).map_or(0, |s| s.boots) > boots0;
         let in_force = match read_back {
-            Ok(crc) if crc == set_crc(raw) => InForce::New,
+            Ok(crc) if crc == want => InForce::New,
             Ok(_) if rebooted && attempts < PUSH_ATTEMPTS && !cancel.load(std::sync::atomic::Ordering::SeqCst) => {
                 continue
             }
@@ -446,11 +438,9 @@ pub fn push_verified_until(
                 "node {node} runs a set other than the one pushed{}",
                 if rebooted { " (it reset during the push and loaded its stored set)" } else { "" }
             )),
-            (InForce::New, Some(e)) if report.is_none() && !opts.save => {
-                // the commit landed though its confirmation was lost: the push did its job
-                let _ = e;
-                None
-            }
+            // the commit landed though its confirmation was lost (a failed push has no report):
+            // the push did its job unless a save was asked for
+            (InForce::New, Some(_)) if !opts.save => None,
             (_, e) => e,
         };
         return Verified { report, attempts, retries, in_force, error };

@@ -5,11 +5,11 @@
 //! that announces a 4 GiB upload used to reserve 4 GiB before the first segment.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
 use joint_can::master::{Master, SdoError};
-use joint_can::{transfer, Bus};
+use joint_can::script_bus::ScriptBus;
+use joint_can::transfer;
 use joint_core::canopen::CanFrame;
 use proptest::prelude::*;
 
@@ -36,45 +36,10 @@ unsafe impl std::alloc::GlobalAlloc for Largest {
 #[global_allocator]
 static ALLOC: Largest = Largest;
 
-struct Script {
-    frames: VecDeque<(u64, CanFrame)>,
-    now: u64,
-}
-
-impl Bus for Script {
-    fn send(&mut self, _f: &CanFrame) -> std::io::Result<()> {
-        self.now += 100;
-        Ok(())
-    }
-    fn recv(&mut self, timeout: Duration) -> std::io::Result<Option<CanFrame>> {
-        let limit = timeout.as_micros() as u64;
-        match self.frames.pop_front() {
-            Some((dt, f)) if dt <= limit => {
-                self.now += dt;
-                Ok(Some(f))
-            }
-            Some((dt, f)) => {
-                self.now += limit;
-                self.frames.push_front((dt - limit, f));
-                Ok(None)
-            }
-            None => {
-                self.now += limit;
-                Ok(None)
-            }
-        }
-    }
-    fn now_us(&self) -> u64 {
-        self.now
-    }
-    fn describe(&self) -> String {
-        "script".into()
-    }
-}
-
 fn master(frames: Vec<(u64, u16, Vec<u8>)>) -> Master {
-    let frames = frames.into_iter().filter_map(|(dt, id, d)| CanFrame::new(id, &d).map(|f| (dt, f))).collect();
-    let mut m = Master::new(Box::new(Script { frames, now: 0 }));
+    let frames: Vec<(u64, CanFrame)> =
+        frames.into_iter().filter_map(|(dt, id, d)| CanFrame::new(id, &d).map(|f| (dt, f))).collect();
+    let mut m = Master::new(Box::new(ScriptBus::new(frames)));
     m.sdo_timeout = Duration::from_millis(5);
     m
 }
