@@ -25,18 +25,14 @@ fn wait_for(p: &Path) {
     }
 }
 
-fn jointctl(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
-}
-
-#[test]
-fn scan_push_pull_over_a_socat_pty_pair() {
+/// A `socat` pty pair in a temporary folder: (folder, socat, end A, end B); both ends exist.
+fn pty_pair() -> (tempfile::TempDir, Kill, std::path::PathBuf, std::path::PathBuf) {
     if Command::new("socat").arg("-V").output().is_err() {
         panic!("socat missing: apt-get install socat");
     }
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("A"), dir.path().join("B"));
-    let _socat = Kill(
+    let socat = Kill(
         Command::new("socat")
             .args([
                 "-d",
@@ -50,6 +46,16 @@ fn scan_push_pull_over_a_socat_pty_pair() {
     );
     wait_for(&a);
     wait_for(&b);
+    (dir, socat, a, b)
+}
+
+fn jointctl(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_jointctl")).current_dir(ROOT).args(args).output().unwrap()
+}
+
+#[test]
+fn scan_push_pull_over_a_socat_pty_pair() {
+    let (dir, _socat, a, b) = pty_pair();
     let _sim = Kill(
         Command::new(env!("CARGO_BIN_EXE_jointctl"))
             .current_dir(ROOT)
@@ -132,22 +138,7 @@ fn scan_push_pull_over_a_socat_pty_pair() {
 #[test]
 fn sim_keeps_serving_when_the_master_stops_reading() {
     use std::io::Write as _;
-    let dir = tempfile::tempdir().unwrap();
-    let (a, b) = (dir.path().join("A"), dir.path().join("B"));
-    let _socat = Kill(
-        Command::new("socat")
-            .args([
-                "-d",
-                "-d",
-                &format!("pty,raw,echo=0,link={}", a.display()),
-                &format!("pty,raw,echo=0,link={}", b.display()),
-            ])
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    wait_for(&a);
-    wait_for(&b);
+    let (_dir, _socat, a, b) = pty_pair();
     let sim = Command::new(env!("CARGO_BIN_EXE_jointctl"))
         .current_dir(ROOT)
         .args(["sim", "--bus", &format!("slcan:{}", b.display()), "--node", "5", "--seconds", "8", "--json"])
