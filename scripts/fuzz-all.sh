@@ -15,16 +15,9 @@ targets=("$@")
 if [ "${#targets[@]}" -eq 0 ]; then
     targets=(canopen_node joint_log model_toml sdo_client)
 fi
-if ! rustup toolchain list | grep -q '^nightly'; then
-    echo "fuzz-all: needs a nightly toolchain (rustup toolchain install nightly)" >&2
-    exit 2
-fi
-if ! cargo fuzz --version >/dev/null 2>&1; then
-    echo "fuzz-all: installing cargo-fuzz (once)" >&2
-    cargo install cargo-fuzz --locked >&2
-fi
-cd fuzz
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-../target-fuzz}"
+# shellcheck source=scripts/fuzz-setup.sh
+source scripts/fuzz-setup.sh
+fuzz_setup fuzz-all
 status=0
 summary=()
 for target in "${targets[@]}"; do

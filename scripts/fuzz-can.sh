@@ -6,17 +6,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs="${1:-60}"
-if ! rustup toolchain list | grep -q '^nightly'; then
-    echo "fuzz-can: needs a nightly toolchain (rustup toolchain install nightly)" >&2
-    exit 2
-fi
-if ! cargo fuzz --version >/dev/null 2>&1; then
-    echo "fuzz-can: installing cargo-fuzz (once)" >&2
-    cargo install cargo-fuzz --locked >&2
-fi
 mkdir -p fuzz/corpus/canopen_node
-cd fuzz
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-../target-fuzz}"
+# shellcheck source=scripts/fuzz-setup.sh
+source scripts/fuzz-setup.sh
+fuzz_setup fuzz-can
 log=$(mktemp)
 set +e
 cargo +nightly fuzz run canopen_node -- -max_total_time="$secs" -max_len=4096 2>&1 | tee "$log" | grep -E "^(#[0-9]+ +(INITED|DONE))|ERROR|panicked|SUMMARY|Done"
