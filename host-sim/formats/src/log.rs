@@ -508,6 +508,13 @@ fn read_halves(_path: &Path, _file: &str) -> Option<JointLog> {
 
 /// Shortest representation that reads back to the same f64; exponent form for very small or
 /// very large magnitudes so a cell never becomes hundreds of characters long.
+/// `v` as the log writer writes it (shortest round-trip form).
+pub(crate) fn fmt_num(v: f64) -> String {
+    let mut s = String::new();
+    push_num(&mut s, v);
+    s
+}
+
 fn push_num(buf: &mut String, v: f64) {
     let a = v.abs();
     // Writing to a String cannot fail.

@@ -23,6 +23,11 @@
 //!
 //! Rows whose time does not increase (loggers repeat stale samples) are dropped and counted.
 
+pub mod candump;
+pub mod csv_map;
+pub mod eds;
+pub mod mcap;
+
 use crate::log::JointLog;
 
 /// The known formats.
@@ -33,11 +38,20 @@ pub enum Format {
     JensenFreeSwing,
     PandaGaz,
     Ur5eFriction,
+    /// any delimited file through a column map ([`csv_map`])
+    Csv,
+    /// a can-utils bus capture decoded through an EDS ([`candump`])
+    Candump,
+    /// a ROS 2 bag in MCAP ([`mcap`])
+    Mcap,
 }
 
 impl Format {
     /// Every format with the name a command line or a script gives it.
-    pub const NAMES: [(&'static str, Format); 5] = [
+    pub const NAMES: [(&'static str, Format); 8] = [
+        ("csv", Format::Csv),
+        ("candump", Format::Candump),
+        ("mcap", Format::Mcap),
         ("dfki-pendulum", Format::DfkiPendulum),
         ("dfki-double-pendulum", Format::DfkiDoublePendulum),
         ("jensen-free-swing", Format::JensenFreeSwing),
@@ -57,11 +71,13 @@ pub struct ImportOpts {
     pub hold: f64,
     /// UR5e: samples per second of the generated log
     pub rate: f64,
+    /// csv: the column map, delimiter and decimal mark
+    pub csv: csv_map::CsvOpts,
 }
 
 impl Default for ImportOpts {
     fn default() -> Self {
-        ImportOpts { joint: None, gear_ratio: 101.0, hold: 1.0, rate: 1000.0 }
+        ImportOpts { joint: None, gear_ratio: 101.0, hold: 1.0, rate: 1000.0, csv: csv_map::CsvOpts::default() }
     }
 }
 
@@ -130,8 +146,18 @@ fn pick(v: &[f64], idx: &[usize]) -> Vec<f64> {
     idx.iter().filter_map(|&i| v.get(i).copied()).collect()
 }
 
-/// Converts the text of one upstream file.
+/// Converts the text of one upstream file. Bus captures and bags have their own readers
+/// ([`candump::decode`] needs the node's EDS, [`mcap::convert`] reads bytes).
 pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result<Imported, String> {
+    match format {
+        Format::Csv => {
+            let (log, notes) = csv_map::convert(text, file, &o.csv)?;
+            return Ok(Imported { log, notes });
+        }
+        Format::Candump => return Err(format!("{file}: a bus capture is decoded through an EDS (candump::decode)")),
+        Format::Mcap => return Err(format!("{file}: an MCAP bag is binary (mcap::convert)")),
+        _ => {}
+    }
     let tab = Table::parse(text, file)?;
     let mut notes = Vec::new();
     let log = match format {
@@ -201,6 +227,7 @@ pub fn convert(format: Format, text: &str, file: &str, o: &ImportOpts) -> Result
                 ..JointLog::default()
             }
         }
+        Format::Csv | Format::Candump | Format::Mcap => return Err(format!("{file}: not a data-set format")),
         Format::Ur5eFriction => {
             let j = o.joint.filter(|j| *j <= 5).ok_or("ur5e-friction needs --joint 0..=5")?;
             if !(o.hold > 0.0 && o.rate > 0.0 && o.gear_ratio > 0.0 && o.hold * o.rate >= 10.0) {
@@ -302,7 +329,7 @@ mod tests {
         let text =
             "joint,ang_vel_rad_s,motor_voltage_V,motor_current_A,temperature_C,friction_torque_motor_side_Nm,Km\n\
                     0,-1.0,0,0,40,-0.1,0\n0,1.0,0,0,40,0.1,0\n1,1.0,0,0,40,0.5,0\n";
-        let o = ImportOpts { joint: Some(0), hold: 0.1, rate: 100.0, gear_ratio: 100.0 };
+        let o = ImportOpts { joint: Some(0), hold: 0.1, rate: 100.0, gear_ratio: 100.0, ..ImportOpts::default() };
         let im = convert(Format::Ur5eFriction, text, "t.csv", &o).unwrap();
         assert_eq!(im.log.len(), 20);
         let u = im.log.u.as_ref().unwrap();
