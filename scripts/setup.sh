@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Idempotent setup for a fresh Debian 12 machine with rustup: the Cortex-M target, llvm-tools
 # (llvm-size for the firmware size report), qemu-system-arm (firmware tests on an emulated
-# Cortex-M4F) and socat (a pty pair that carries slcan between two programs).
+# Cortex-M4F), socat (a pty pair that carries slcan between two programs) and can-utils (its
+# offline log converters read the bus captures jointctl writes).
 # Everything the README's two commands need is installed here, never by hand.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +28,7 @@ if ! rustup component list --installed | grep -q '^llvm-tools'; then
 fi
 
 need_apt=()
-for pkg in qemu-system-arm socat; do
+for pkg in qemu-system-arm socat can-utils; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
 if [ ${#need_apt[@]} -gt 0 ]; then

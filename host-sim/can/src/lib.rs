@@ -11,6 +11,7 @@ pub mod script_bus;
 pub mod sim_bus;
 pub mod slcan;
 pub mod socketcan;
+pub mod tap;
 pub mod timing;
 pub mod transfer;
 
@@ -34,8 +35,17 @@ pub trait Bus: Send {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum BusSpec {
     Sim,
-    Slcan { path: String, bitrate: u32 },
-    SocketCan { iface: String },
+    Slcan {
+        path: String,
+        bitrate: u32,
+    },
+    SocketCan {
+        iface: String,
+    },
+    /// a can-utils capture played back as the bus (read-only: what is sent goes nowhere)
+    Replay {
+        path: String,
+    },
 }
 
 impl std::str::FromStr for BusSpec {
@@ -63,7 +73,13 @@ impl std::str::FromStr for BusSpec {
             }
             return Ok(BusSpec::SocketCan { iface: iface.to_string() });
         }
-        Err(format!("unknown bus `{s}`: use sim, slcan:PATH[@BITRATE] or socketcan:IFACE"))
+        if let Some(path) = s.strip_prefix("replay:") {
+            if path.is_empty() {
+                return Err(format!("bus `{s}`: replay needs a capture file, e.g. replay:bus.log"));
+            }
+            return Ok(BusSpec::Replay { path: path.to_string() });
+        }
+        Err(format!("unknown bus `{s}`: use sim, slcan:PATH[@BITRATE], socketcan:IFACE or replay:CAPTURE.log"))
     }
 }
 
@@ -74,5 +90,6 @@ pub fn open(spec: &BusSpec) -> anyhow::Result<Box<dyn Bus>> {
         BusSpec::Sim => anyhow::bail!("the simulated bus exists only inside one process: use `jointctl sim` with --bus slcan:PATH to serve joints to another program"),
         BusSpec::Slcan { path, bitrate } => Ok(Box::new(slcan::SlcanBus::open(path, *bitrate)?)),
         BusSpec::SocketCan { iface } => Ok(Box::new(socketcan::SocketCanBus::open(iface)?)),
+        BusSpec::Replay { .. } => anyhow::bail!("a capture is replayed by its reader (jointctl's --bus replay:FILE)"),
     }
 }

@@ -41,6 +41,7 @@ const TABLE: &[Row] = &[
     ("import", "gear-ratio", &["1e-3", "1000"], &["0", "nan", "1001"], "0 < x ≤ 1000"),
     ("import", "hold", &["1e-3", "3600"], &["0", "nan", "3601"], "0 < x ≤ 3600 s"),
     ("import", "rate", &["1", "100000"], &["0", "inf", "100001"], "0 < x ≤ 1e5 Hz"),
+    ("import", "node", NODE_OK, NODE_BAD, "1..=127"),
     ("push", "node", NODE_OK, NODE_BAD, "1..=127"),
     ("push", "bitrate", BITRATE_OK, BITRATE_BAD, "10000..=1000000"),
     ("push", "bus", BUS_OK, BUS_BAD, ""),

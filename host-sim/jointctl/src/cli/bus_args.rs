@@ -3,11 +3,17 @@
 //! ids the command addresses, so every command can be tried (and timed) without hardware.
 
 use crate::sim_joint::{JointSim, SimStorage};
+use anyhow::Context as _;
 use clap::Args;
 use joint_can::master::Master;
+use joint_can::script_bus::ScriptBus;
 use joint_can::sim_bus::{SharedSimBus, SimBus};
+use joint_can::tap::{TapBus, Tape};
+use joint_can::Bus;
 use joint_can::BusSpec;
 use joint_core::canopen::node::MemoryStorage;
+use joint_core::canopen::CanFrame;
+use joint_formats::import::candump;
 use std::sync::{Arc, Mutex};
 
 /// The environment variable that may name the bus when `--bus` is not given.
@@ -16,9 +22,9 @@ pub const BUS_ENV: &str = "JOINTCTL_BUS";
 #[derive(Debug, Clone, Args)]
 pub struct BusArgs {
     /// CAN bus (required: no command talks to a simulation unless told to): slcan:PATH[@BITRATE]
-    /// (Lawicel serial adapter or pty), socketcan:IFACE, or sim (in-process simulated bus with
-    /// simulated joints). Without --bus, the environment variable JOINTCTL_BUS may name a real
-    /// bus (never sim)
+    /// (Lawicel serial adapter or pty), socketcan:IFACE, sim (in-process simulated bus with
+    /// simulated joints), or replay:CAPTURE.log (a candump -l capture played back, read-only).
+    /// Without --bus, the environment variable JOINTCTL_BUS may name a real bus (never sim)
     #[arg(long, value_name = "BUS")]
     pub bus: Option<BusSpec>,
     /// Bitrate of the simulated bus, bit/s (10000..=1000000, classic CAN; slcan takes it after
@@ -30,6 +36,22 @@ pub struct BusArgs {
 /// A master on the chosen bus. On `sim`, `nodes` get simulated joints (in memory, table
 /// defaults), and the shared bus handle is returned too.
 pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Option<SharedSimBus>)> {
+    open_master_tapped(args, nodes, None)
+}
+
+/// [`open_master`], with every frame on the bus recorded on `tape` when given (from the
+/// simulated joints' boot-up on).
+pub fn open_master_tapped(
+    args: &BusArgs,
+    nodes: &[u8],
+    tape: Option<Tape>,
+) -> anyhow::Result<(Master, Option<SharedSimBus>)> {
+    let tapped = |b: Box<dyn Bus>| -> Box<dyn Bus> {
+        match &tape {
+            Some(t) => Box::new(TapBus::new(b, t.clone())),
+            None => b,
+        }
+    };
     match &args.spec()? {
         BusSpec::Sim => {
             let mut bus = SimBus::new(args.bitrate);
@@ -44,11 +66,12 @@ pub fn open_master(args: &BusArgs, nodes: &[u8]) -> anyhow::Result<(Master, Opti
             }
             let shared = SharedSimBus(Arc::new(Mutex::new(bus)));
             // let the joints boot
-            let mut m = Master::new(Box::new(shared.clone()));
+            let mut m = Master::new(tapped(Box::new(shared.clone())));
             m.listen(std::time::Duration::from_millis(5))?;
             Ok((m, Some(shared)))
         }
-        spec => Ok((Master::new(joint_can::open(spec)?), None)),
+        BusSpec::Replay { path } => Ok((Master::new(tapped(Box::new(replay_bus(path)?))), None)),
+        spec => Ok((Master::new(tapped(joint_can::open(spec)?)), None)),
     }
 }
 
@@ -75,12 +98,13 @@ impl BusArgs {
         }
     }
 
-    /// What a human output appends on the simulated bus, so no result reads as hardware's.
+    /// What a human output appends on the simulated bus or a replayed capture, so no result
+    /// reads as a live joint's.
     pub fn sim_note(&self) -> &'static str {
-        if self.is_sim() {
-            " [simulated bus: in-process joints, not hardware]"
-        } else {
-            ""
+        match self.spec() {
+            Ok(BusSpec::Sim) => " [simulated bus: in-process joints, not hardware]",
+            Ok(BusSpec::Replay { .. }) => " [replayed capture: not a live bus]",
+            _ => "",
         }
     }
 
@@ -88,6 +112,23 @@ impl BusArgs {
     pub fn is_sim(&self) -> bool {
         matches!(self.spec(), Ok(BusSpec::Sim))
     }
+}
+
+/// A capture played back as the bus: its classic frames with standard ids at their recorded
+/// times (extended and CAN FD frames are not this node's protocol and are left out).
+fn replay_bus(path: &str) -> anyhow::Result<ScriptBus> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("bus replay:{path}: cannot read the capture"))?;
+    let (records, _) = candump::parse_capture(&text, path).map_err(anyhow::Error::msg)?;
+    let start = records.first().map_or(0, |r| r.t_ns / 1000);
+    let mut prev = start;
+    let mut frames = Vec::with_capacity(records.len());
+    for r in records.iter().filter(|r| !r.extended && !r.remote && r.fd_flags.is_none()) {
+        let Some(f) = u16::try_from(r.id).ok().and_then(|id| CanFrame::new(id, &r.data)) else { continue };
+        let t = r.t_ns / 1000;
+        frames.push((t.saturating_sub(prev), f));
+        prev = prev.max(t);
+    }
+    Ok(ScriptBus::replay(start, frames, format!("replayed capture {path}")))
 }
 
 pub fn check_node(n: u8) -> anyhow::Result<()> {

@@ -1,18 +1,24 @@
 //! `jointctl log`: record a joint's TPDOs into a joint-log CSV (spec §1).
 
-use super::bus_args::{open_master, BusArgs};
+use super::bus_args::{open_master_tapped, BusArgs};
 use super::num;
 use clap::Args;
-use joint_core::canopen::node::{NMT_START, TPDO1_BASE};
-use joint_core::canopen::pdo::{Tpdo1, Tpdo2};
+use joint_can::tap::Tape;
+use joint_can::BusSpec;
+use joint_core::canopen::node::NMT_START;
+use joint_formats::import::candump::{self, DecodeOpts, Record};
+use joint_formats::import::eds::PdoMap;
 use joint_formats::output::Plan;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
 /// Record a joint's telemetry (TPDO1: q, q̇, τ; TPDO2: q̈, measured τ, temperature) as a
-/// joint-log CSV: one row per TPDO1, t from the bus clock, u = the commanded output torque.
-/// The measured torque is written as `tau` only with --load-cell (a joint without one sends 0).
+/// joint-log CSV: one row per TPDO1 once a TPDO2 has arrived, t from the bus clock since the
+/// first frame, u = the commanded output torque, plus the fault bits and the NMT state. The
+/// measured torque is written as `tau` only with --load-cell (a joint without one sends 0).
+/// --candump also writes the raw traffic as a can-utils capture, which `import --format
+/// candump` decodes back into the same CSV (docs/import.md#candump).
 #[derive(Debug, Args)]
 pub struct LogArgs {
     /// Node id of the joint (1..=127)
@@ -30,6 +36,9 @@ pub struct LogArgs {
     /// Send NMT start to the node first (TPDOs flow only in operational)
     #[arg(long)]
     pub start: bool,
+    /// Also write every frame on the bus as a can-utils capture (candump -l format)
+    #[arg(long, value_name = "CAPTURE.log")]
+    pub candump: Option<PathBuf>,
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
@@ -39,98 +48,75 @@ pub struct LogArgs {
 pub fn run(a: &LogArgs) -> anyhow::Result<()> {
     let mut plan = Plan::new();
     let out = plan.file("--out", &a.out);
+    let cap_out = plan.file_opt("--candump", a.candump.as_deref());
     if a.json {
         plan.stdout("--json");
     }
     let outs = plan.check()?;
-    let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
-    m.keep_other = true;
+    let tape = Tape::default();
+    let (mut m, _sim) = open_master_tapped(&a.bus, &[a.node], Some(tape.clone()))?;
     if a.start {
         m.nmt(a.node, NMT_START)?;
     }
-    let t0 = m.bus.now_us();
-    let end = t0 + (a.seconds * 1e6) as u64;
-    let mut rows: Vec<(f64, Tpdo1, Tpdo2, u8)> = Vec::new();
-    // q̈, the measured torque and the temperature come in TPDO2: no row before the first one
-    // (a placeholder would read as data: q̈ = 0, 0 °C)
-    let mut last2: Option<Tpdo2> = None;
-    let mut before_tpdo2 = 0usize;
-    let id1 = TPDO1_BASE + u16::from(a.node);
-    let id2 = id1 + 0x100;
-    while m.bus.now_us() < end {
-        let left = end - m.bus.now_us();
-        m.recv(Duration::from_micros(left))?;
-        let nmt = m.seen.get(&a.node).and_then(|s| s.state).map_or(0, |s| s.heartbeat_byte());
-        for (t, f) in m.other.drain(..) {
-            if f.id() == id2 {
-                if let Some(p) = Tpdo2::decode(f.data()) {
-                    last2 = Some(p);
-                }
-            } else if f.id() == id1 {
-                if let Some(p) = Tpdo1::decode(f.data()) {
-                    match last2 {
-                        Some(p2) => rows.push(((t - t0) as f64 * 1e-6, p, p2, nmt)),
-                        None => before_tpdo2 += 1,
-                    }
-                }
-            }
-        }
+    // everything on the bus for the time asked (our heartbeat kept going), then decoded as a
+    // capture would be: the CSV is what `import --format candump` makes of the --candump file
+    m.listen(Duration::from_secs_f64(a.seconds))?;
+    let iface = match a.bus.spec()? {
+        BusSpec::Sim => "sim0".to_string(),
+        BusSpec::SocketCan { iface } => iface,
+        BusSpec::Slcan { .. } => "slcan0".to_string(),
+        BusSpec::Replay { .. } => "replay0".to_string(),
+    };
+    let records: Vec<Record> = tape
+        .lock()
+        .map_err(|_| anyhow::anyhow!("capture lock poisoned"))?
+        .iter()
+        .map(|(t, f)| Record {
+            t_ns: t * 1000,
+            iface: iface.clone(),
+            id: u32::from(f.id()),
+            extended: false,
+            remote: false,
+            fd_flags: None,
+            data: f.data().to_vec(),
+        })
+        .collect();
+    let pdos = PdoMap::from_eds(&joint_can::eds::generate(), "the joint's EDS", a.node).map_err(anyhow::Error::msg)?;
+    let decoded =
+        candump::decode(&records, &pdos, &DecodeOpts { node: a.node, map: String::new(), load_cell: a.load_cell })
+            .map_err(|e| {
+                anyhow::anyhow!("{e} on {} in {:.1} s (is it operational? use --start)", m.bus.describe(), a.seconds)
+            })?;
+    if let Some(slot) = cap_out {
+        outs.write(slot, candump::write_capture(&records).as_bytes())?;
     }
-    if rows.is_empty() {
-        anyhow::bail!(
-            "node {}: no TPDO in {:.1} s on {} (is it operational? use --start)",
-            a.node,
-            a.seconds,
-            m.bus.describe()
-        );
-    }
-    // `faults` (the TPDO's fault bits) and `nmt` (the heartbeat's state byte) are optional
-    // columns of the spec's reader: kept aside, so a faulted stretch is visible in the log
-    let mut text =
-        String::from(if a.load_cell { "t,q,qd,qdd,u,tau,temp,faults,nmt\n" } else { "t,q,qd,qdd,u,temp,faults,nmt\n" });
-    let mut last_t = f64::NEG_INFINITY;
-    for (t, p1, p2, nmt) in &rows {
-        // the spec needs strictly increasing time: two TPDOs in the same µs keep the first
-        if *t <= last_t {
-            continue;
-        }
-        last_t = *t;
-        if a.load_cell {
-            text.push_str(&format!(
-                "{t:.6},{},{},{},{},{},{},{},{nmt}\n",
-                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.tau_measured, p2.temperature, p1.faults
-            ));
-        } else {
-            text.push_str(&format!(
-                "{t:.6},{},{},{},{},{},{},{nmt}\n",
-                p1.q, p1.qd, p2.qdd, p1.tau_cmd, p2.temperature, p1.faults
-            ));
-        }
-    }
-    outs.write(out, text.as_bytes())?;
+    outs.write(out, decoded.csv.as_bytes())?;
     let mut o = outs.human();
     if a.json {
         say!(
             o,
             "{}",
-            serde_json::json!({"node": a.node, "rows": rows.len(), "out": a.out.display().to_string(),
-                "simulated": a.bus.is_sim(), "tpdo1_before_first_tpdo2": before_tpdo2})
+            serde_json::json!({"node": a.node, "rows": decoded.rows, "out": a.out.display().to_string(),
+                "frames": records.len(), "candump": a.candump.as_ref().map(|p| p.display().to_string()),
+                "simulated": a.bus.is_sim(), "tpdo1_before_first_tpdo2": decoded.early, "notes": decoded.notes})
         );
     } else {
         say!(
             o,
             "node {}: {} samples in {:.1} s → {}{}{}",
             a.node,
-            rows.len(),
+            decoded.rows,
             a.seconds,
             a.out.display(),
-            if before_tpdo2 > 0 {
-                format!(" ({before_tpdo2} TPDO1 before the first TPDO2 not logged: no q̈ or temperature yet)")
-            } else {
-                String::new()
-            },
+            a.candump
+                .as_ref()
+                .map(|p| format!(" (capture of {} frames → {})", records.len(), p.display()))
+                .unwrap_or_default(),
             a.bus.sim_note()
         );
+        for n in &decoded.notes {
+            say!(o, "note: {n}");
+        }
     }
     Ok(())
 }
