@@ -334,3 +334,45 @@ fn a_damaged_store_file_boots_on_defaults_with_its_fault_and_emcy() {
     assert!(j.node.safety().faults().is_empty());
     assert_eq!(j.node.params().raw(), &ModelFile::parse(&good, "m").unwrap().raw_params().unwrap());
 }
+
+/// A rig whose joint watches the host every 60 ms (parameter controller.heartbeat_timeout, which
+/// 0x1016 reports), faults acknowledged.
+fn fast_watchdog_rig(node: u8) -> Rig {
+    let mut r = rig(1_000_000, &[node]);
+    let mut p = model("trunk-right.toml");
+    p.set(ParamId::HeartbeatTimeout, 0.06);
+    transfer::push(&mut r.m, node, &p, PushOptions::default(), &mut |_| {}).unwrap();
+    r.m.write(node, 0x2202, 0, &[1]).unwrap();
+    r
+}
+
+#[test]
+fn the_master_beats_as_fast_as_the_joint_consumes_it() {
+    // a master at the default 100 ms faults a joint that expects 60 ms
+    let r = fast_watchdog_rig(5);
+    let mut slow = Master::new(Box::new(r.bus.clone()));
+    slow.listen(Duration::from_millis(10)).unwrap();
+    slow.nmt(5, NMT_START).unwrap();
+    slow.listen(Duration::from_millis(400)).unwrap();
+    assert!(r.joints[0].lock().unwrap().node.safety().faults().contains(Faults::HEARTBEAT_LOST), "100 ms > 60 ms");
+
+    // one that reads 0x1016 first beats at half of it, and the joint stays healthy
+    let mut r = fast_watchdog_rig(5);
+    assert_eq!(r.m.match_consumer(5).unwrap(), Some(60));
+    assert_eq!(r.m.heartbeat_us, 30_000, "half the consumer time");
+    // (the push's commit made the watchdog faster than the 100 ms we were sending: acknowledge)
+    r.m.listen(Duration::from_millis(100)).unwrap();
+    r.m.write(5, 0x2202, 0, &[1]).unwrap();
+    r.m.nmt(5, NMT_START).unwrap();
+    r.m.listen(Duration::from_secs(2)).unwrap();
+    let j = r.joints[0].lock().unwrap();
+    assert!(j.node.safety().faults().is_empty(), "{:?}", j.node.safety().faults());
+    drop(j);
+    // a joint that does not watch us (timeout 0) leaves the default
+    let mut r = rig(1_000_000, &[6]);
+    let mut p = model("trunk-right.toml");
+    p.set(ParamId::HeartbeatTimeout, 0.0);
+    transfer::push(&mut r.m, 6, &p, PushOptions::default(), &mut |_| {}).unwrap();
+    assert_eq!(r.m.match_consumer(6).unwrap(), None);
+    assert_eq!(r.m.heartbeat_us, joint_can::master::DEFAULT_HEARTBEAT_US);
+}

@@ -56,6 +56,10 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
     let tape = Tape::default();
     let (mut m, _sim) = open_master_tapped(&a.bus, &[a.node], Some(tape.clone()))?;
     if a.start {
+        // the joint faults (heartbeat_lost) when our heartbeat is slower than its 0x1016 says
+        if !matches!(a.bus.spec()?, BusSpec::Replay { .. }) {
+            m.match_consumer(a.node)?;
+        }
         m.nmt(a.node, NMT_START)?;
     }
     // everything on the bus for the time asked (our heartbeat kept going), then decoded as a

@@ -33,6 +33,13 @@ pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
     let (mut m, _sim) = open_master(&a.bus, &a.sim_nodes)?;
     m.keep_other = true;
     if a.start {
+        // every joint heard so far gets our heartbeat at the rate its 0x1016 consumes it
+        let nodes: Vec<u8> = m.seen.keys().copied().collect();
+        if !matches!(a.bus.spec()?, joint_can::BusSpec::Replay { .. }) {
+            for n in nodes {
+                m.match_consumer(n)?;
+            }
+        }
         m.nmt(0, NMT_START)?;
     }
     let t0 = m.bus.now_us();
