@@ -27,6 +27,7 @@
 pub mod diagnose;
 pub mod identify;
 pub mod plausible;
+pub mod plot;
 pub mod prep;
 
 pub use joint_formats::{import, log, model_file, predict};
