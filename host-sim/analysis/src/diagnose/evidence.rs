@@ -17,7 +17,14 @@ pub struct Evidence {
     /// the coordinate's name and unit, e.g. `q̇ (rad/s)`
     pub coordinate: String,
     pub bins: Vec<Bin>,
+    /// the verdict's fitted correction as a curve over the coordinate: its mean in each of up
+    /// to [`CURVE_POINTS`] equal-width slices of the coordinate (where a slice has samples), so
+    /// a ripple or a Stribeck dip shows its shape rather than 30 bin means
+    pub curve: Vec<(f64, f64)>,
 }
+
+/// Slices of the coordinate the fitted curve is drawn from.
+pub const CURVE_POINTS: usize = 160;
 
 /// One bin of the coordinate.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
@@ -65,7 +72,26 @@ pub fn binned(
         let var = part.iter().map(|p| (p.1 - rm) * (p.1 - rm)).sum::<f64>() / (m - 1.0).max(1.0);
         bins.push(Bin { x: xm, residual: rm, sem: (var / m).sqrt(), fitted: fm, samples: part.len() });
     }
-    Some(Evidence { effect: effect.to_string(), coordinate: coordinate.to_string(), bins })
+    let curve = curve(&pts);
+    Some(Evidence { effect: effect.to_string(), coordinate: coordinate.to_string(), bins, curve })
+}
+
+/// The fitted correction (`.2`) averaged in equal-width slices of the coordinate (`.0`); `pts`
+/// sorted by the coordinate.
+fn curve(pts: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
+    let (Some(first), Some(last)) = (pts.first(), pts.last()) else { return Vec::new() };
+    let (lo, w) = (first.0, last.0 - first.0);
+    if !(w > 0.0) {
+        return Vec::new();
+    }
+    let mut sums = vec![(0.0, 0.0, 0usize); CURVE_POINTS];
+    for p in pts {
+        let k = (((p.0 - lo) / w) * CURVE_POINTS as f64).floor().clamp(0.0, (CURVE_POINTS - 1) as f64) as usize;
+        if let Some(s) = sums.get_mut(k) {
+            *s = (s.0 + p.0, s.1 + p.2, s.2 + 1);
+        }
+    }
+    sums.iter().filter(|s| s.2 > 0).map(|s| (s.0 / s.2 as f64, s.1 / s.2 as f64)).collect()
 }
 
 /// The coordinate an effect of the vocabulary lives in (spec §3): its name for the plot, and
@@ -141,6 +167,11 @@ mod tests {
         assert_eq!(e.bins.iter().map(|b| b.samples).sum::<usize>(), n);
         for w in e.bins.windows(2) {
             assert!(w[0].x < w[1].x);
+        }
+        // the curve follows the fitted correction finely: 0.5·x² at the slices' mean x
+        assert_eq!(e.curve.len(), CURVE_POINTS);
+        for (x, y) in &e.curve {
+            assert!((y - 0.5 * x * x).abs() < 2e-4, "curve at {x}: {y}");
         }
         for b in &e.bins {
             assert!((b.residual - b.fitted).abs() < 1e-12);

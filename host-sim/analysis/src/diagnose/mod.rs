@@ -1147,25 +1147,39 @@ fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[
         after[i] = select::residual_at(d, &fin.design, &fin.beta, i, &mut x1);
     }
     let rate = evidence::rate(&d.u, &d.t);
+    // A ripple lives in q but repeats every period: over the phase q mod P its shape shows,
+    // where bins over the whole travel would average it away.
+    let period = fin.effects.iter().find_map(|e| match e {
+        Effect::Ripple { period, .. } => Some(*period).filter(|p| *p > 0.0),
+        _ => None,
+    });
+    let phase: Vec<f64> = period.map(|p| d.q.iter().map(|q| q.rem_euclid(p)).collect()).unwrap_or_default();
     named
         .iter()
         .filter_map(|name| {
             let c = Coord::of(name, d.temp.is_some());
             let x: &[f64] = match c {
                 Coord::Velocity => &d.qd,
+                Coord::Position if name.as_str() == "position_ripple" && !phase.is_empty() => &phase,
                 Coord::Position => &d.q,
                 Coord::Time => &d.t,
                 Coord::Temperature => d.temp.as_deref().unwrap_or(&d.t),
                 Coord::Load => &d.load,
                 Coord::TorqueRate => &rate,
             };
-            evidence::binned(name, &c.label("N·m"), x, &before, &after, &idx, 30)
+            let label = match period {
+                Some(p) if name.as_str() == "position_ripple" => format!("q mod P (rad), P = {p:.4} rad"),
+                _ => c.label("N·m"),
+            };
+            evidence::binned(name, &label, x, &before, &after, &idx, 30)
         })
         .collect()
 }
 
 fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Split) -> PlotData {
-    let stride = (d.n / 4000).max(1);
+    // Every sample up to 400 000: the plots draw long series as their per-pixel envelope and
+    // the report's zoomable view needs the detail (the old 4000-point stride aliased).
+    let stride = (d.n / 400_000).max(1);
     let mut held = vec![false; d.n];
     for &i in &split.holdout {
         held[i as usize] = true;

@@ -1,103 +1,23 @@
-//! The `--report` HTML: one self-contained file (inline CSS and SVG, no script, no network) with
-//! the verdict's evidence (the held-out residual binned in the coordinate each named effect lives
-//! in, ±2 standard errors, with the fitted correction over it), the residual against velocity,
-//! position and time coloured by speed regime, the before/after
-//! overlay of measurement and model, the residual's autocorrelation with its 99 % band, and the
-//! effect ranking. Every plot is an `<svg class="plot" id="…">` so a test can find it.
+//! The `--report` HTML: one self-contained file (inline CSS, SVG and script; nothing fetched)
+//! with the verdict's evidence (the held-out residual binned in the coordinate each named effect
+//! lives in, ±2 standard errors, with the fitted effect's curve over it), the residual against
+//! velocity, position and time coloured by speed regime, the before/after overlay of measurement
+//! and model, the residual's autocorrelation with its 99 % band, and the effect ranking.
+//!
+//! Plots come from [`crate::plot`] (plotters): every one is an `<svg class="plot" id="…">` so a
+//! test can find it, and the two time series are also zoomable (`figure.iv`, drawn by the inline
+//! viewer from min/max pyramids of every sample); without script the SVGs are the report.
 
 use std::fmt::Write as _;
 
 use super::{Diagnosis, PlotData};
+use crate::plot::{colour, interactive, Layer, Mark, Plot};
 
-const W: f64 = 560.0;
-const H: f64 = 260.0;
-const M: f64 = 46.0;
-const COLOURS: [&str; 3] = ["#1b9e77", "#d95f02", "#7570b3"];
+const REGIME_COLOURS: [&str; 3] = [colour::GREEN, colour::ORANGE, colour::PURPLE];
 const REGIME_NAMES: [&str; 3] = ["static", "low speed", "high speed"];
 
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
-}
-
-fn range(v: &[f64]) -> (f64, f64) {
-    let lo = v.iter().copied().filter(|x| x.is_finite()).fold(f64::INFINITY, f64::min);
-    let hi = v.iter().copied().filter(|x| x.is_finite()).fold(f64::NEG_INFINITY, f64::max);
-    if !(lo.is_finite() && hi.is_finite()) {
-        return (-1.0, 1.0);
-    }
-    if hi - lo < 1e-12 {
-        (lo - 1.0, hi + 1.0)
-    } else {
-        let pad = 0.04 * (hi - lo);
-        (lo - pad, hi + pad)
-    }
-}
-
-struct Frame {
-    x: (f64, f64),
-    y: (f64, f64),
-}
-
-impl Frame {
-    fn px(&self, x: f64) -> f64 {
-        M + (x - self.x.0) / (self.x.1 - self.x.0) * (W - 1.5 * M)
-    }
-    fn py(&self, y: f64) -> f64 {
-        H - M + (y - self.y.0) / (self.y.1 - self.y.0) * -(H - 1.6 * M)
-    }
-}
-
-fn open(out: &mut String, id: &str, title: &str, xl: &str, yl: &str, f: &Frame) {
-    let _ = write!(
-        out,
-        r##"<figure><svg class="plot" id="{id}" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" role="img" aria-label="{t}">"##,
-        t = esc(title)
-    );
-    let _ = write!(
-        out,
-        r##"<rect x="{M}" y="{}" width="{}" height="{}" fill="#fafafa" stroke="#999"/>"##,
-        0.6 * M,
-        W - 1.5 * M,
-        H - 1.6 * M
-    );
-    for k in 0..=4 {
-        let xv = f.x.0 + (f.x.1 - f.x.0) * k as f64 / 4.0;
-        let yv = f.y.0 + (f.y.1 - f.y.0) * k as f64 / 4.0;
-        let _ = write!(
-            out,
-            r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="middle">{}</text>"##,
-            f.px(xv),
-            H - M + 14.0,
-            fmt(xv)
-        );
-        let _ = write!(
-            out,
-            r##"<text x="{:.1}" y="{:.1}" font-size="10" text-anchor="end">{}</text>"##,
-            M - 4.0,
-            f.py(yv) + 3.0,
-            fmt(yv)
-        );
-    }
-    let _ = write!(
-        out,
-        r##"<text x="{:.1}" y="{:.1}" font-size="12" text-anchor="middle">{}</text>"##,
-        W / 2.0,
-        H - 8.0,
-        esc(xl)
-    );
-    let _ = write!(
-        out,
-        r##"<text x="12" y="{:.1}" font-size="12" text-anchor="middle" transform="rotate(-90 12 {:.1})">{}</text>"##,
-        H / 2.0,
-        H / 2.0,
-        esc(yl)
-    );
-    let _ = write!(
-        out,
-        r##"<text x="{:.1}" y="16" font-size="13" font-weight="bold" text-anchor="middle">{}</text>"##,
-        W / 2.0,
-        esc(title)
-    );
 }
 
 fn fmt(v: f64) -> String {
@@ -108,73 +28,107 @@ fn fmt(v: f64) -> String {
     }
 }
 
-fn scatter(out: &mut String, id: &str, title: &str, xl: &str, x: &[f64], p: &PlotData) {
-    let f = Frame { x: range(x), y: range(&p.before) };
-    open(out, id, title, xl, &format!("residual ({})", p.unit), &f);
-    for (k, c) in COLOURS.iter().enumerate() {
-        let _ = write!(out, r##"<g class="regime-{k}" fill="{c}" fill-opacity="0.55">"##);
-        for i in 0..x.len() {
-            if p.speed_regime[i] as usize == k {
-                let _ = write!(out, r##"<circle cx="{:.1}" cy="{:.1}" r="1.6"/>"##, f.px(x[i]), f.py(p.before[i]));
-            }
-        }
-        out.push_str("</g>");
-        let _ = write!(
-            out,
-            r##"<text x="{:.1}" y="{:.1}" font-size="10" fill="{c}">● {}</text>"##,
-            W - 1.5 * M - 10.0 + M - 70.0,
-            0.6 * M + 12.0 + 12.0 * k as f64,
-            REGIME_NAMES[k]
-        );
+/// Residual against a coordinate, one layer per speed regime.
+fn scatter(id: &str, title: &str, xl: &str, x: &[f64], p: &PlotData) -> String {
+    let mut plot = Plot::new(id, title, xl, &format!("residual ({})", p.unit)).size(580, 340);
+    plot.y_zero = true;
+    for (k, (c, name)) in REGIME_COLOURS.iter().zip(REGIME_NAMES).enumerate() {
+        let (xs, ys): (Vec<f64>, Vec<f64>) = x
+            .iter()
+            .zip(&p.before)
+            .zip(&p.speed_regime)
+            .filter(|(_, r)| usize::from(**r) == k)
+            .map(|((a, b), _)| (*a, *b))
+            .unzip();
+        plot = plot.points(name, c, &xs, &ys);
     }
-    out.push_str("</svg></figure>\n");
+    format!("<figure>{}</figure>\n", plot.svg())
 }
 
-/// The verdict's evidence for one effect: binned held-out residual (points, ±2 s.e. bars) and
-/// the fitted correction binned the same way (line).
-fn evidence_plot(out: &mut String, k: usize, e: &super::evidence::Evidence, unit: &str) {
+/// The verdict's evidence for one effect: binned held-out residual (±2 s.e.) with the fitted
+/// effect's curve over it, in the effect's own coordinate.
+fn evidence_plot(k: usize, e: &super::evidence::Evidence, unit: &str) -> String {
     let x: Vec<f64> = e.bins.iter().map(|b| b.x).collect();
-    let mut ys: Vec<f64> = e.bins.iter().flat_map(|b| [b.residual - 2.0 * b.sem, b.residual + 2.0 * b.sem]).collect();
-    ys.extend(e.bins.iter().map(|b| b.fitted));
-    ys.push(0.0);
-    let f = Frame { x: range(&x), y: range(&ys) };
+    let r: Vec<f64> = e.bins.iter().map(|b| b.residual).collect();
+    let half: Vec<f64> = e.bins.iter().map(|b| 2.0 * b.sem).collect();
+    let (cx, cy): (Vec<f64>, Vec<f64>) = e.curve.iter().copied().unzip();
     let title = format!("evidence for {}: held-out residual binned over {}", e.effect, e.coordinate);
-    open(out, &format!("evidence-{k}"), &title, &e.coordinate, &format!("residual ({unit})"), &f);
-    let _ = write!(
-        out,
-        r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#bbb"/>"##,
-        f.px(f.x.0),
-        f.px(f.x.1),
-        f.py(0.0),
-        f.py(0.0)
-    );
-    out.push_str(r##"<g class="binned-residual" fill="#d95f02" stroke="#d95f02">"##);
-    for b in &e.bins {
-        let (cx, lo, hi) = (f.px(b.x), f.py(b.residual - 2.0 * b.sem), f.py(b.residual + 2.0 * b.sem));
-        let _ = write!(
-            out,
-            r##"<line x1="{cx:.1}" x2="{cx:.1}" y1="{lo:.1}" y2="{hi:.1}"/><circle cx="{cx:.1}" cy="{:.1}" r="2.2"/>"##,
-            f.py(b.residual)
-        );
-    }
-    out.push_str("</g>");
-    let fitted: Vec<f64> = e.bins.iter().map(|b| b.fitted).collect();
-    polyline(out, &f, &x, &fitted, "#1b9e77", "fitted");
-    let _ = write!(
-        out,
-        r##"<text x="{}" y="30" font-size="10"><tspan fill="#d95f02">● binned residual ±2 s.e.</tspan> <tspan fill="#1b9e77">— fitted {}</tspan></text>"##,
-        M + 6.0,
-        esc(&e.effect)
-    );
-    out.push_str("</svg></figure>\n");
+    let mut plot = Plot::new(&format!("evidence-{k}"), &title, &e.coordinate, &format!("residual ({unit})"))
+        .size(580, 340)
+        .error_bars("binned residual ± 2 s.e.", colour::ORANGE, &x, &r, &half)
+        .with(Layer {
+            name: format!("fitted {}", e.effect),
+            colour: colour::GREEN,
+            mark: Mark::Line { width: 2 },
+            x: cx,
+            y: cy,
+            secondary: false,
+            tips: Vec::new(),
+        })
+        .levels("", colour::GREY, &[0.0]);
+    plot.y_zero = true;
+    format!("<figure>{}</figure>\n", plot.svg())
 }
 
-fn polyline(out: &mut String, f: &Frame, x: &[f64], y: &[f64], colour: &str, class: &str) {
-    let _ = write!(out, r##"<polyline class="{class}" fill="none" stroke="{colour}" stroke-width="1" points=""##);
-    for (a, b) in x.iter().zip(y) {
-        let _ = write!(out, "{:.1},{:.1} ", f.px(*a), f.py(*b));
+/// Lagged correlation with its 99 % band.
+fn correlation(id: &str, title: &str, lags: &[i64], before: &[f64], after: Option<&[f64]>, band: f64) -> String {
+    let x: Vec<f64> = lags.iter().map(|&l| l as f64).collect();
+    let mut plot = Plot::new(id, title, "lag (samples)", "correlation")
+        .levels("99 % band", colour::RED, &[band, -band])
+        .line("before", colour::ORANGE, &x, before);
+    if let Some(a) = after {
+        plot = plot.line("after", colour::GREEN, &x, a);
     }
-    out.push_str(r##""/>"##);
+    plot.y_range = Some((-1.0, 1.0));
+    format!("<figure>{}</figure>\n", plot.svg())
+}
+
+/// Held-out RMSE of the file's model and with each effect, one row per effect in rank order.
+fn ranking(r: &super::Report, unit: &str) -> String {
+    let n = r.effects.len();
+    // rank 1 at the top
+    let row = |k: usize| (n - k) as f64;
+    let mut plot = Plot::new(
+        "ranking",
+        "effect ranking: held-out RMSE, file's model → with the effect",
+        &format!("held-out RMSE ({unit})"),
+        "",
+    )
+    .size(720, (110 + 24 * n as u32).max(200));
+    plot.y_names = r.effects.iter().rev().map(|e| e.effect.clone()).collect();
+    let before: Vec<f64> = r.effects.iter().map(|e| e.holdout_rmse_before).collect();
+    let rows: Vec<f64> = (0..n).map(row).collect();
+    plot = plot.points("file's model", colour::GREY, &before, &rows);
+    for (name, c, significant) in [
+        ("with the effect (significant)", colour::GREEN, true),
+        ("with the effect (not significant)", colour::PURPLE, false),
+    ] {
+        let set: Vec<(usize, &super::EffectOut)> =
+            r.effects.iter().enumerate().filter(|(_, e)| e.significant == significant).collect();
+        plot = plot.with(Layer {
+            name: name.into(),
+            colour: c,
+            mark: Mark::Crosses { size: 5 },
+            x: set.iter().map(|(_, e)| e.holdout_rmse_after).collect(),
+            y: set.iter().map(|(k, _)| row(*k)).collect(),
+            secondary: false,
+            tips: set
+                .iter()
+                .map(|(_, e)| {
+                    format!(
+                        "{}: {} → {} {unit}, p = {:.2e}",
+                        e.effect,
+                        fmt(e.holdout_rmse_before),
+                        fmt(e.holdout_rmse_after),
+                        e.p_value
+                    )
+                })
+                .collect(),
+        });
+    }
+    let hi = r.effects.iter().map(|e| e.holdout_rmse_before.max(e.holdout_rmse_after)).fold(0.0, f64::max);
+    plot.x_range = Some((0.0, hi));
+    format!("<figure>{}</figure>\n", plot.svg())
 }
 
 /// Renders the report.
@@ -182,7 +136,7 @@ pub fn render(d: &Diagnosis) -> String {
     let r = &d.report;
     let p = &d.plots;
     let mut o = String::with_capacity(1 << 20);
-    o.push_str("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>jointctl diagnose</title><style>body{font-family:sans-serif;max-width:1200px;margin:1em auto;color:#222}figure{display:inline-block;margin:6px}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}td:first-child{text-align:left}.sig{font-weight:bold;color:#0a0}</style></head><body>\n");
+    o.push_str("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>jointctl diagnose</title><style>body{font-family:sans-serif;max-width:1200px;margin:1em auto;color:#222}figure{display:inline-block;margin:6px;vertical-align:top}.iv-help,.hint{font-size:12px;color:#555}figcaption{font-size:12px}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}td:first-child{text-align:left}.sig{font-weight:bold;color:#0a0}</style></head><body>\n");
     let _ = writeln!(
         o,
         "<h1>Sim-to-real gap: {} mode</h1><p id=\"verdict\">Verdict: <b>{}</b> — held-out RMSE {} → {} {} (shrink {:.1} %). Noise floor ≈ {} {}. {} samples: {} training, {} held out ({}).</p>",
@@ -202,13 +156,13 @@ pub fn render(d: &Diagnosis) -> String {
     if !p.evidence.is_empty() {
         o.push_str("<h2>Evidence for the verdict</h2>\n");
         for (k, e) in p.evidence.iter().enumerate() {
-            evidence_plot(&mut o, k, e, p.unit);
+            o.push_str(&evidence_plot(k, e, p.unit));
         }
     }
     o.push_str("<h2>Where the gap lies</h2>\n");
-    scatter(&mut o, "resid-vs-velocity", "residual vs velocity", "qd (rad/s)", &p.qd, p);
-    scatter(&mut o, "resid-vs-position", "residual vs position", "q (rad)", &p.q, p);
-    scatter(&mut o, "resid-vs-time", "residual vs time", "t (s)", &p.t, p);
+    o.push_str(&scatter("resid-vs-velocity", "residual vs velocity", "q̇ (rad/s)", &p.qd, p));
+    o.push_str(&scatter("resid-vs-position", "residual vs position", "q (rad)", &p.q, p));
+    o.push_str(&scatter("resid-vs-time", "residual vs time", "t (s)", &p.t, p));
     o.push_str(
         "<table id=\"regimes\"><tr><th>regime</th><th>where</th><th>share</th><th>RMSE</th><th>samples</th></tr>",
     );
@@ -223,115 +177,42 @@ pub fn render(d: &Diagnosis) -> String {
             g.samples
         );
     }
-    o.push_str("</table>\n<h2>Before and after</h2>\n");
+    o.push_str("</table>\n<h2>Before and after</h2>\n<p class=\"hint\">The two time plots are zoomable: wheel to zoom in time, drag to pan, shift-drag to zoom to a box, double-click for the whole log.</p>\n");
     // Overlay: measured and both predictions (prediction = measured − residual) over time.
-    {
-        let pb: Vec<f64> = p.measured.iter().zip(&p.before).map(|(m, r)| m - r).collect();
-        let pa: Vec<f64> = p.measured.iter().zip(&p.after).map(|(m, r)| m - r).collect();
-        let mut all = p.measured.clone();
-        all.extend_from_slice(&pb);
-        let f = Frame { x: range(&p.t), y: range(&all) };
-        open(&mut o, "overlay", "measured, model before and after", "t (s)", p.measured_label, &f);
-        polyline(&mut o, &f, &p.t, &p.measured, "#888", "measured");
-        polyline(&mut o, &f, &p.t, &pb, "#d95f02", "before");
-        polyline(&mut o, &f, &p.t, &pa, "#1b9e77", "after");
-        let _ = write!(
-            o,
-            r##"<text x="{}" y="30" font-size="10"><tspan fill="#888">measured</tspan> <tspan fill="#d95f02">model</tspan> <tspan fill="#1b9e77">after</tspan></text>"##,
-            M + 6.0
-        );
-        o.push_str("</svg></figure>\n");
-        let mut both = p.before.clone();
-        both.extend_from_slice(&p.after);
-        let f = Frame { x: range(&p.t), y: range(&both) };
-        open(
-            &mut o,
-            "residual-before-after",
-            "residual before and after",
-            "t (s)",
-            &format!("residual ({})", p.unit),
-            &f,
-        );
-        polyline(&mut o, &f, &p.t, &p.before, "#d95f02", "before");
-        polyline(&mut o, &f, &p.t, &p.after, "#1b9e77", "after");
-        o.push_str("</svg></figure>\n");
-    }
+    let pb: Vec<f64> = p.measured.iter().zip(&p.before).map(|(m, r)| m - r).collect();
+    let pa: Vec<f64> = p.measured.iter().zip(&p.after).map(|(m, r)| m - r).collect();
+    let overlay = Plot::new("overlay", "measured, model before and after", "t (s)", p.measured_label)
+        .size(1100, 380)
+        .line("measured", colour::GREY, &p.t, &p.measured)
+        .line("file's model", colour::ORANGE, &p.t, &pb)
+        .line("after", colour::GREEN, &p.t, &pa);
+    o.push_str(&interactive::figure(&overlay));
+    let mut resid =
+        Plot::new("residual-before-after", "residual before and after", "t (s)", &format!("residual ({})", p.unit))
+            .size(1100, 380)
+            .line("before", colour::ORANGE, &p.t, &p.before)
+            .line("after", colour::GREEN, &p.t, &p.after);
+    resid.y_zero = true;
+    o.push_str(&interactive::figure(&resid));
     if let Some(res) = &r.resid {
         let c = &res.autocorrelation_before;
         let ca = &res.autocorrelation_after;
-        let x: Vec<f64> = c.lags.iter().map(|&l| l as f64).collect();
-        let f = Frame { x: range(&x), y: (-1.05, 1.05) };
-        open(&mut o, "autocorrelation", "residual autocorrelation (99 % band)", "lag (samples)", "correlation", &f);
-        for b in [c.band99, -c.band99] {
-            let _ = write!(
-                o,
-                r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##,
-                f.px(f.x.0),
-                f.px(f.x.1),
-                f.py(b),
-                f.py(b)
-            );
-        }
-        polyline(&mut o, &f, &x, &c.values, "#d95f02", "before");
-        polyline(&mut o, &f, &x, &ca.values, "#1b9e77", "after");
-        o.push_str("</svg></figure>\n");
+        o.push_str(&correlation(
+            "autocorrelation",
+            "residual autocorrelation (99 % band)",
+            &c.lags,
+            &c.values,
+            Some(&ca.values),
+            c.band99,
+        ));
         if let Some(xc) = res.xcorr_before.first() {
-            let x: Vec<f64> = xc.lags.iter().map(|&l| l as f64).collect();
-            let f = Frame { x: range(&x), y: (-1.05, 1.05) };
-            open(
-                &mut o,
-                "crosscorrelation",
-                &format!("residual × {} cross-correlation", res.input.first().unwrap_or(&"input")),
-                "lag (samples)",
-                "correlation",
-                &f,
-            );
-            for b in [xc.band99, -xc.band99] {
-                let _ = write!(
-                    o,
-                    r##"<line x1="{:.1}" x2="{:.1}" y1="{:.1}" y2="{:.1}" stroke="#c00" stroke-dasharray="4 3"/>"##,
-                    f.px(f.x.0),
-                    f.px(f.x.1),
-                    f.py(b),
-                    f.py(b)
-                );
-            }
-            polyline(&mut o, &f, &x, &xc.values, "#d95f02", "before");
-            if let Some(xa) = res.xcorr_after.first() {
-                polyline(&mut o, &f, &x, &xa.values, "#1b9e77", "after");
-            }
-            o.push_str("</svg></figure>\n");
+            let title = format!("residual × {} cross-correlation (99 % band)", res.input.first().unwrap_or(&"input"));
+            let after = res.xcorr_after.first().map(|x| x.values.as_slice());
+            o.push_str(&correlation("crosscorrelation", &title, &xc.lags, &xc.values, after, xc.band99));
         }
     }
     o.push_str("<h2>Effect ranking (held-out)</h2>\n");
-    {
-        let n = r.effects.len().max(1) as f64;
-        let hh = 24.0 + 18.0 * n;
-        let max = r.effects.iter().map(|e| e.holdout_rmse_before.max(e.holdout_rmse_after)).fold(1e-12, f64::max);
-        let _ = write!(
-            o,
-            r##"<figure><svg class="plot" id="ranking" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{hh}" viewBox="0 0 {W} {hh}">"##
-        );
-        for (k, e) in r.effects.iter().enumerate() {
-            let y = 12.0 + 18.0 * k as f64;
-            let wb = (W - 200.0) * e.holdout_rmse_before / max;
-            let wa = (W - 200.0) * e.holdout_rmse_after / max;
-            let col = if e.significant { "#1b9e77" } else { "#bbb" };
-            let _ = write!(
-                o,
-                r##"<text x="170" y="{:.1}" font-size="11" text-anchor="end">{}</text>"##,
-                y + 11.0,
-                esc(&e.effect)
-            );
-            let _ = write!(o, r##"<rect x="176" y="{y:.1}" width="{wb:.1}" height="14" fill="#eee" stroke="#ccc"/>"##);
-            let _ = write!(
-                o,
-                r##"<rect class="bar" x="176" y="{:.1}" width="{wa:.1}" height="10" fill="{col}"/>"##,
-                y + 2.0
-            );
-        }
-        o.push_str("</svg></figure>\n");
-    }
+    o.push_str(&ranking(r, p.unit));
     o.push_str("<table id=\"effects\"><tr><th>effect</th><th>held-out RMSE before</th><th>after</th><th>shrink</th><th>p</th><th>significant</th><th>parameters</th></tr>");
     for e in &r.effects {
         let params: Vec<String> = e.params.iter().map(|(k, v)| format!("{k} = {}", fmt(*v))).collect();
@@ -348,6 +229,8 @@ pub fn render(d: &Diagnosis) -> String {
             esc(&params.join(", "))
         );
     }
-    let _ = write!(o, "</table>\n<p>Test: {}.</p></body></html>\n", esc(r.test.method));
+    let _ = write!(o, "</table>\n<p>Test: {}.</p>\n", esc(r.test.method));
+    o.push_str(interactive::SCRIPT);
+    o.push_str("</body></html>\n");
     o
 }

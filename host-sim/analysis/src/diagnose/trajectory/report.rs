@@ -435,7 +435,8 @@ fn nest(flat: Vec<(String, f64)>) -> BTreeMap<String, BTreeMap<String, f64>> {
 /// Every thinned sample for the HTML report: before (the file's model) and after.
 fn plots(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> PlotData {
     let n = ctx.q.len();
-    let stride = (n / 4000).max(1);
+    // every sample up to 400 000: the plots draw long series as their envelope
+    let stride = (n / 400_000).max(1);
     let mut p = PlotData { unit: "rad", measured_label: "q (rad)", ..PlotData::default() };
     for i in (0..n).step_by(stride) {
         p.t.push(ctx.t[i]);
