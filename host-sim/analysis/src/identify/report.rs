@@ -11,14 +11,15 @@
 //! stretch: it is scored in-sample, and held out by fitting its first 70 % and letting the
 //! fitted model run on through the last 30 %.
 //!
-//! Plots are plain SVG written here (no plotting crate): dots for measurements, lines for the
-//! model.
+//! Plots come from [`crate::plot`] (plotters): dots for measurements, lines for the model, long
+//! time series as their per-pixel envelope; `report.html` shows them with those series zoomable.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use super::segments::SegKind;
 use super::{friction_torque, inertia, spring, Data, Identified, IdentifyError, Options, Quiet};
+use crate::plot::{colour, interactive, Plot};
 
 /// Length of a hold-out block, s.
 pub const BLOCK_S: f64 = 4.0;
@@ -540,348 +541,224 @@ pub fn summary_text(id: &Identified, rep: Option<&Report>) -> String {
     s
 }
 
-/// One series of a plot.
-pub struct Series<'a> {
-    pub name: &'a str,
-    pub points: Vec<(f64, f64)>,
-    pub line: bool,
-    pub color: &'a str,
-}
-
-fn nice_ticks(lo: f64, hi: f64) -> Vec<f64> {
-    let span = (hi - lo).max(1e-12);
-    let raw = span / 5.0;
-    let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| span / s <= 6.0).unwrap_or(10.0 * mag);
-    let mut v = Vec::new();
-    let mut x = (lo / step).ceil() * step;
-    while x <= hi + 1e-9 * step {
-        v.push(x);
-        x += step;
-    }
-    v
-}
-
-/// An SVG plot of the series (640×400).
-pub fn svg_plot(title: &str, xlabel: &str, ylabel: &str, series: &[Series<'_>]) -> String {
-    let (w, h, ml, mr, mt, mb) = (640.0, 400.0, 70.0, 20.0, 40.0, 50.0);
-    let all = series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| x.is_finite() && y.is_finite());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for (x, y) in all {
-        x0 = x0.min(*x);
-        x1 = x1.max(*x);
-        y0 = y0.min(*y);
-        y1 = y1.max(*y);
-    }
-    if !x0.is_finite() {
-        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
-    }
-    if x1 - x0 < 1e-12 {
-        x1 = x0 + 1.0;
-    }
-    let pad = 0.05 * (y1 - y0).max(1e-9);
-    let (y0, y1) = (y0 - pad, y1 + pad);
-    let sx = |x: f64| ml + (x - x0) / (x1 - x0) * (w - ml - mr);
-    let sy = |y: f64| h - mb - (y - y0) / (y1 - y0) * (h - mt - mb);
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = write!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-    let _ = write!(s, r#"<text x="{}" y="22" text-anchor="middle" font-size="14">{}</text>"#, w / 2.0, esc(title));
-    let _ = write!(
-        s,
-        r##"<rect x="{ml}" y="{mt}" width="{}" height="{}" fill="none" stroke="#444"/>"##,
-        w - ml - mr,
-        h - mt - mb
-    );
-    for t in nice_ticks(x0, x1) {
-        let _ = write!(
-            s,
-            r##"<line x1="{0:.1}" x2="{0:.1}" y1="{1}" y2="{2}" stroke="#ddd"/><text x="{0:.1}" y="{3}" text-anchor="middle">{4}</text>"##,
-            sx(t),
-            mt,
-            h - mb,
-            h - mb + 16.0,
-            fmt_tick(t)
-        );
-    }
-    for t in nice_ticks(y0, y1) {
-        let _ = write!(
-            s,
-            r##"<line x1="{0}" x2="{1}" y1="{2:.1}" y2="{2:.1}" stroke="#ddd"/><text x="{3}" y="{4:.1}" text-anchor="end">{5}</text>"##,
-            ml,
-            w - mr,
-            sy(t),
-            ml - 6.0,
-            sy(t) + 4.0,
-            fmt_tick(t)
-        );
-    }
-    let _ =
-        write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, (ml + w - mr) / 2.0, h - 12.0, esc(xlabel));
-    let _ = write!(
-        s,
-        r#"<text x="16" y="{0}" text-anchor="middle" transform="rotate(-90 16 {0})">{1}</text>"#,
-        (mt + h - mb) / 2.0,
-        esc(ylabel)
-    );
-    for (k, se) in series.iter().enumerate() {
-        if se.line {
-            let mut d = String::new();
-            for (i, (x, y)) in se.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).enumerate() {
-                let _ = write!(d, "{}{:.1},{:.1} ", if i == 0 { "M" } else { "L" }, sx(*x), sy(*y));
-            }
-            let _ = write!(s, r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.5"/>"#, se.color);
-        } else {
-            for (x, y) in se.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
-                let _ = write!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="2.2" fill="{}"/>"#, sx(*x), sy(*y), se.color);
-            }
-        }
-        let ly = mt + 14.0 + 16.0 * k as f64;
-        let _ = write!(
-            s,
-            r#"<rect x="{}" y="{}" width="10" height="10" fill="{}"/><text x="{}" y="{}">{}</text>"#,
-            ml + 10.0,
-            ly - 9.0,
-            se.color,
-            ml + 26.0,
-            ly,
-            esc(se.name)
-        );
-    }
-    s.push_str("</svg>\n");
-    s
-}
-
-fn fmt_tick(t: f64) -> String {
-    let s = format!("{t:.4}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" {
-        "0".into()
-    } else {
-        s.to_string()
-    }
-}
-
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
-fn subsample<T: Copy>(v: &[T], max: usize) -> Vec<T> {
-    let stride = (v.len() / max.max(1)).max(1);
-    v.iter().step_by(stride).copied().collect()
+/// One plot of the report: its file name, the plot, and whether the HTML report makes it
+/// zoomable (the long time series).
+struct Figure {
+    file: &'static str,
+    plot: Plot,
+    zoom: bool,
 }
 
-/// Writes report.md, report.json and the SVG plots into `dir` (created if needed).
+impl Figure {
+    fn new(file: &'static str, plot: Plot) -> Figure {
+        Figure { file, plot, zoom: false }
+    }
+}
+
+/// Writes report.md, report.html, report.json and the SVG plots into `dir` (created if
+/// needed). report.html holds the same plots inline, with the long time series zoomable.
 pub fn write_dir(dir: &Path, rep: &Report, id: &Identified, data: &Data) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let mut plots: Vec<(&str, String)> = Vec::new();
-    plots.extend(friction_plot(id));
-    plots.extend(static_plot(id));
-    plots.extend(overall_plots(id, data));
-    plots.extend(table_plot(id));
-    plots.extend(spring_plots(id, data));
+    let mut figs: Vec<Figure> = Vec::new();
+    figs.extend(friction_plot(id));
+    figs.extend(static_plot(id));
+    figs.extend(overall_plots(id, data));
+    figs.extend(table_plot(id));
+    figs.extend(spring_plots(id, data));
     let mut md = report_md(rep, id);
-    for (name, svg) in &plots {
-        std::fs::write(dir.join(name), svg)?;
-        let _ = writeln!(md, "![{name}]({name})\n");
+    let mut html = report_html_head(rep, id);
+    for f in &figs {
+        let svg = f.plot.svg();
+        std::fs::write(dir.join(f.file), &svg)?;
+        let _ = writeln!(md, "![{0}]({0})\n", f.file);
+        if f.zoom {
+            html.push_str(&interactive::figure(&f.plot));
+        } else {
+            let _ = writeln!(html, "<figure>{svg}</figure>");
+        }
     }
+    html.push_str(interactive::SCRIPT);
+    html.push_str("</body></html>\n");
     std::fs::write(dir.join("report.md"), md)?;
+    std::fs::write(dir.join("report.html"), html)?;
     let json = serde_json::json!({ "report": rep, "identified": id, "segments": data.segments.iter().map(|s| s.iter().filter(|s| s.kind != SegKind::Motion).count()).collect::<Vec<_>>() });
     std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&json).unwrap_or_default())
 }
 
+/// report.html up to the plots: the summary and the score table, self-contained.
+fn report_html_head(rep: &Report, id: &Identified) -> String {
+    let mut h = String::from(
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>jointctl identify</title><style>\
+         body{font-family:sans-serif;max-width:1200px;margin:1em auto;color:#222}pre{background:#f6f6f6;padding:8px;\
+         overflow-x:auto;font-size:12px}figure{display:inline-block;margin:6px;vertical-align:top}table{border-collapse:\
+         collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}td:first-child{text-align:\
+         left}.iv-help,.hint{font-size:12px;color:#555}</style></head><body>\n<h1>Identification report</h1>\n<pre id=\"summary\">",
+    );
+    let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
+    h.push_str(&esc(&preparation_text(id, cutoff)));
+    h.push_str(&esc(&summary_text(id, Some(rep))));
+    let _ = write!(
+        h,
+        "</pre>\n<p>Hold-out: every 4th block of {BLOCK_S} s (or an eighth of a shorter log) is left out of a refit and used to score it.</p>\n\
+         <table id=\"scores\"><tr><th>score</th><th>n</th><th>RMSE</th><th>R²</th><th>Pearson r²</th><th>data</th></tr>"
+    );
+    for s in &rep.scores {
+        let _ = write!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{:.4} {}</td><td>{:.4}</td><td>{:.4}</td><td>{}</td></tr>",
+            esc(&s.what),
+            s.n,
+            s.rmse,
+            s.unit,
+            s.skill,
+            s.r2,
+            if s.held_out { "held-out" } else { "in-sample" }
+        );
+    }
+    h.push_str("</table>\n<h2>Plots</h2>\n<p class=\"hint\">Time plots are zoomable: wheel to zoom in time, drag to pan, shift-drag to zoom to a box, double-click for the whole log.</p>\n");
+    h
+}
+
+/// `n + 1` values evenly spread over `[a, b]`.
+fn grid(a: f64, b: f64, n: usize) -> Vec<f64> {
+    (0..=n).map(|k| a + (b - a) * k as f64 / n as f64).collect()
+}
+
 /// Friction points of the matched plateaus, kept and rejected, with the fitted polynomial.
-fn friction_plot(id: &Identified) -> Option<(&'static str, String)> {
+fn friction_plot(id: &Identified) -> Option<Figure> {
     let f = id.friction.as_ref()?;
     let vmax = f.points.iter().fold(0.0f64, |m, p| m.max(p.v)) * 1.05;
-    let curve: Vec<(f64, f64)> = (0..=100).map(|k| k as f64 * vmax / 100.0).map(|v| (v, f.eval(v))).collect();
+    let v = grid(0.0, vmax, 100);
+    let curve: Vec<f64> = v.iter().map(|&v| f.eval(v)).collect();
     let (kept, rej): (Vec<_>, Vec<_>) = f.points.iter().zip(&f.weights).partition(|(_, w)| **w > 0.0);
-    Some((
-        "friction.svg",
-        svg_plot(
-            "Friction: (d₊ − d₋)/2 on matched plateaus",
-            "speed |q̇| (rad/s)",
-            "friction torque (N·m)",
-            &[
-                Series {
-                    name: "plateau points",
-                    points: kept.iter().map(|(p, _)| (p.v, p.f)).collect(),
-                    line: false,
-                    color: "#1f77b4",
-                },
-                Series {
-                    name: "rejected (bisquare weight 0)",
-                    points: rej.iter().map(|(p, _)| (p.v, p.f)).collect(),
-                    line: false,
-                    color: "#d62728",
-                },
-                Series { name: "a·v² + b·v + c", points: curve, line: true, color: "#111" },
-            ],
-        ),
-    ))
+    let xy = |s: &[(&super::friction::FrictionPoint, &f64)]| -> (Vec<f64>, Vec<f64>) {
+        s.iter().map(|(p, _)| (p.v, p.f)).unzip()
+    };
+    let ((kx, ky), (rx, ry)) = (xy(&kept), xy(&rej));
+    let mut plot = Plot::new(
+        "friction",
+        "Friction: (d₊ − d₋)/2 on matched plateaus",
+        "speed |q̇| (rad/s)",
+        "friction torque (N·m)",
+    )
+    .points("plateau points", colour::BLUE, &kx, &ky)
+    .points("rejected (bisquare weight 0)", colour::RED, &rx, &ry)
+    .line("a·v² + b·v + c", colour::BLACK, &v, &curve);
+    plot.y_zero = true;
+    plot.legend_left = true;
+    Some(Figure::new("friction.svg", plot))
 }
 
 /// The static poses with the fitted weight and offset.
-fn static_plot(id: &Identified) -> Option<(&'static str, String)> {
+fn static_plot(id: &Identified) -> Option<Figure> {
     let w = id.weight.as_ref()?;
     let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
-    let curve: Vec<(f64, f64)> =
-        (0..=100).map(|k| q0 + (q1 - q0) * k as f64 / 100.0).map(|q| (q, w.curve(q))).collect();
-    Some((
-        "static.svg",
-        svg_plot(
-            "Static poses: weight + offset",
-            "q (rad)",
-            "torque (N·m)",
-            &[
-                Series {
-                    name: "poses",
-                    points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
-                    line: false,
-                    color: "#1f77b4",
-                },
-                Series { name: "C_w0·sin(s·q + φ) + C_0", points: curve, line: true, color: "#111" },
-            ],
-        ),
-    ))
+    let q = grid(q0, q1, 100);
+    let curve: Vec<f64> = q.iter().map(|&q| w.curve(q)).collect();
+    let (px, py): (Vec<f64>, Vec<f64>) = id.poses.iter().map(|p| (p.q, p.d)).unzip();
+    let mut plot = Plot::new("static", "Static poses: weight + offset", "q (rad)", "torque (N·m)")
+        .points("poses", colour::BLUE, &px, &py)
+        .line("C_w0·sin(s·q + φ) + C_0", colour::BLACK, &q, &curve);
+    plot.legend_left = true;
+    Some(Figure::new("static.svg", plot))
 }
 
-/// Measured d and the full model's prediction over the first torque log, and the inertia fit.
-fn overall_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
+/// Measured d and the full model's prediction over the first torque log (every sample: the
+/// plot draws it as its envelope, the HTML report zooms into it), and the inertia fit.
+fn overall_plots(id: &Identified, data: &Data) -> Vec<Figure> {
     let mut plots = Vec::new();
-    if let Some((li, p)) = data.prepared.iter().enumerate().find(|(_, p)| p.d.is_some()) {
-        if let Some(d) = &p.d {
-            let fr = id.friction.clone();
-            let w = id.weight.clone();
-            let c0s = id.weight.as_ref().map_or(id.c0.unwrap_or(0.0), |w| w.c0);
-            let band = id.v_band;
-            let model = |q: f64, v: f64| {
-                fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q))
-            };
-            let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
-            let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
-            let idx: Vec<usize> = subsample(&(0..p.len()).collect::<Vec<_>>(), 4000);
-            let meas: Vec<(f64, f64)> = idx.iter().map(|&i| (p.t[i], d[i])).collect();
-            let written = Written::of(id);
-            let pred: Vec<(f64, f64)> =
-                idx.iter().map(|&i| (p.t[i], predict(&written, data, Some(&dat.acc), li, i))).collect();
-            plots.push((
-                "overall.svg",
-                svg_plot(
-                    "Disturbance d = u − tau: measured and model",
-                    "t (s)",
-                    "d (N·m)",
-                    &[
-                        Series { name: "measured", points: meas, line: true, color: "#9ecae1" },
-                        Series { name: "model", points: pred, line: true, color: "#111" },
-                    ],
-                ),
-            ));
-            if let Some(inr) = &id.inertia {
-                let idx: Vec<usize> = (0..p.len()).filter(|&i| dat.mask[li][i]).collect();
-                let idx = subsample(&idx, 3000);
-                let pts: Vec<(f64, f64)> = idx.iter().map(|&i| (dat.acc[li][i], dat.y[li][i])).collect();
-                let (a0, a1) =
-                    pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
-                plots.push((
-                    "inertia.svg",
-                    svg_plot(
-                        "Inertia: d − friction − weight against q̈ (filtered)",
-                        "q̈ (rad/s²)",
-                        "torque (N·m)",
-                        &[
-                            Series { name: "moving samples", points: pts, line: false, color: "#1f77b4" },
-                            Series {
-                                name: "J·q̈ + ΔC_0",
-                                points: vec![(a0, inr.j * a0 + inr.dc0), (a1, inr.j * a1 + inr.dc0)],
-                                line: true,
-                                color: "#111",
-                            },
-                        ],
-                    ),
-                ));
-            }
-        }
+    let Some((li, p)) = data.prepared.iter().enumerate().find(|(_, p)| p.d.is_some()) else { return plots };
+    let Some(d) = &p.d else { return plots };
+    let fr = id.friction.clone();
+    let w = id.weight.clone();
+    let c0s = id.weight.as_ref().map_or(id.c0.unwrap_or(0.0), |w| w.c0);
+    let band = id.v_band;
+    let model = |q: f64, v: f64| {
+        fr.as_ref().map_or(0.0, |f| friction_torque(f, v, band)) + w.as_ref().map_or(c0s, |w| w.curve(q))
+    };
+    let cutoff = id.inertia.as_ref().map_or(5.0, |i| i.cutoff_hz);
+    let dat = inertia::data(&data.pairs(), &model, cutoff, 0.05);
+    let written = Written::of(id);
+    let pred: Vec<f64> = (0..p.len()).map(|i| predict(&written, data, Some(&dat.acc), li, i)).collect();
+    let overall = Plot::new("overall", "Disturbance d = u − tau: measured and model", "t (s)", "d (N·m)")
+        .size(1100, 380)
+        .line("measured", "#9ecae1", &p.t, d)
+        .line("model", colour::BLACK, &p.t, &pred);
+    plots.push(Figure { file: "overall.svg", plot: overall, zoom: true });
+    if let Some(inr) = &id.inertia {
+        let idx: Vec<usize> = (0..p.len()).filter(|&i| dat.mask[li][i]).collect();
+        let (ax, ay): (Vec<f64>, Vec<f64>) = idx.iter().map(|&i| (dat.acc[li][i], dat.y[li][i])).unzip();
+        let (a0, a1) = ax.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+        let mut plot =
+            Plot::new("inertia", "Inertia: d − friction − weight against q̈ (filtered)", "q̈ (rad/s²)", "torque (N·m)")
+                .points("moving samples", colour::BLUE, &ax, &ay)
+                .line("J·q̈ + ΔC_0", colour::BLACK, &[a0, a1], &[inr.j * a0 + inr.dc0, inr.j * a1 + inr.dc0]);
+        plot.legend_left = true;
+        plots.push(Figure::new("inertia.svg", plot));
     }
     plots
 }
 
 /// The gravity table: one line per grid value of the second axis (the first four).
-fn table_plot(id: &Identified) -> Option<(&'static str, String)> {
+fn table_plot(id: &Identified) -> Option<Figure> {
     let t = id.table.as_ref()?;
-    let colors = ["#111", "#d62728", "#2ca02c", "#9467bd"];
+    let colours = [colour::BLACK, colour::RED, colour::GREEN, colour::PURPLE];
     let second: Vec<f64> = t.grid.get(1).cloned().unwrap_or_else(|| vec![0.0]);
     let pick: Vec<f64> =
         if second.len() <= 4 { second.clone() } else { (0..4).map(|k| second[k * (second.len() - 1) / 3]).collect() };
-    let (q0, q1) = (t.grid[0][0], t.grid[0][t.grid[0].len() - 1]);
-    let names: Vec<String> =
-        pick.iter().map(|v| format!("{} = {v:.3}", t.axes.get(1).map_or("", String::as_str))).collect();
-    let mut series = Vec::new();
+    let first = t.grid.first()?;
+    let q = grid(*first.first()?, *first.last()?, 100);
+    let mut plot = Plot::new("gravity_table", "Gravity table (whole static gravity)", "q (rad)", "torque (N·m)");
     for (k, v) in pick.iter().enumerate() {
-        let pts = (0..=100)
-            .map(|i| q0 + (q1 - q0) * i as f64 / 100.0)
-            .map(|q| {
+        let y: Vec<f64> = q
+            .iter()
+            .map(|&q| {
                 let mut x = vec![q, *v];
                 x.truncate(t.axes.len());
                 x.resize(t.axes.len(), *v);
-                (q, t.eval(&x).0)
+                t.eval(&x).0
             })
             .collect();
-        series.push(Series {
-            name: if t.axes.len() > 1 { &names[k] } else { "table" },
-            points: pts,
-            line: true,
-            color: colors[k % 4],
-        });
+        let name = match t.axes.get(1) {
+            Some(a) => format!("{a} = {v:.3}"),
+            None => "table".to_string(),
+        };
+        plot = plot.line(&name, colours[k % 4], &q, &y);
     }
-    Some((
-        "gravity_table.svg",
-        svg_plot("Gravity table (whole static gravity, N·m)", "q (rad)", "torque (N·m)", &series),
-    ))
+    Some(Figure::new("gravity_table.svg", plot))
 }
 
 /// The spring's static curve over the poses and its free oscillation against the log.
-fn spring_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
+fn spring_plots(id: &Identified, data: &Data) -> Vec<Figure> {
     let mut plots = Vec::new();
     let Some(sp) = &id.spring else { return plots };
     if let Some(st) = &sp.stat {
         let (q0, q1) = id.poses.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.q), b.max(p.q)));
         let h = 0.5 * st.dead_zone;
-        let curve: Vec<(f64, f64)> = (0..=200)
-            .map(|k| q0 + (q1 - q0) * k as f64 / 200.0)
-            .map(|q| {
+        let q = grid(q0, q1, 200);
+        let curve: Vec<f64> = q
+            .iter()
+            .map(|&q| {
                 let x = q - st.q0;
-                (
-                    q,
-                    st.k * if x > h {
-                        x - h
-                    } else if x < -h {
-                        x + h
-                    } else {
-                        0.0
-                    },
-                )
+                st.k * if x > h {
+                    x - h
+                } else if x < -h {
+                    x + h
+                } else {
+                    0.0
+                }
             })
             .collect();
-        plots.push((
+        let (px, py): (Vec<f64>, Vec<f64>) = id.poses.iter().map(|p| (p.q, p.d)).unzip();
+        plots.push(Figure::new(
             "spring_static.svg",
-            svg_plot(
-                "Spring: static torque against angle",
-                "q (rad)",
-                "torque (N·m)",
-                &[
-                    Series {
-                        name: "poses",
-                        points: id.poses.iter().map(|p| (p.q, p.d)).collect(),
-                        line: false,
-                        color: "#1f77b4",
-                    },
-                    Series { name: "K·dz(q − q0)", points: curve, line: true, color: "#111" },
-                ],
-            ),
+            Plot::new("spring_static", "Spring: static torque against angle", "q (rad)", "torque (N·m)")
+                .points("poses", colour::BLUE, &px, &py)
+                .line("K·dz(q − q0)", colour::BLACK, &q, &curve),
         ));
     }
     if let Some(f) = &sp.free {
@@ -890,29 +767,11 @@ fn spring_plots(id: &Identified, data: &Data) -> Vec<(&'static str, String)> {
             let mut sim = vec![0.0; e - s];
             let w = sp.stat.as_ref().map_or(0.0, |s| s.dead_zone);
             spring::simulate(&tt, f.k_over_j, f.b_over_j, f.q0, w, f.q_start, f.qd_start, &mut sim);
-            let idx = subsample(&(0..e - s).collect::<Vec<_>>(), 3000);
-            plots.push((
-                "spring_free.svg",
-                svg_plot(
-                    "Free oscillation: logged and simulated angle",
-                    "t (s)",
-                    "q (rad)",
-                    &[
-                        Series {
-                            name: "logged",
-                            points: idx.iter().map(|&i| (p.t[s + i], p.q[s + i])).collect(),
-                            line: false,
-                            color: "#1f77b4",
-                        },
-                        Series {
-                            name: "fitted model",
-                            points: idx.iter().map(|&i| (p.t[s + i], sim[i])).collect(),
-                            line: true,
-                            color: "#111",
-                        },
-                    ],
-                ),
-            ));
+            let plot = Plot::new("spring_free", "Free oscillation: logged and simulated angle", "t (s)", "q (rad)")
+                .size(1100, 380)
+                .line("logged", colour::BLUE, &p.t[s..e], &p.q[s..e])
+                .line("fitted model", colour::BLACK, &p.t[s..e], &sim);
+            plots.push(Figure { file: "spring_free.svg", plot, zoom: true });
         }
     }
     plots

@@ -15,8 +15,8 @@ use joint_formats::output::{FolderKind, Plan};
 /// What `--report DIR` writes; an existing folder holding only these is a previous report and
 /// is replaced as a whole, anything else in it makes the run refuse.
 pub const REPORT: FolderKind = FolderKind {
-    what: "an identification report (report.md, report.json, *.svg)",
-    owns: |name| name == "report.md" || name == "report.json" || name.ends_with(".svg"),
+    what: "an identification report (report.md, report.html, report.json, *.svg)",
+    owns: |name| name == "report.md" || name == "report.html" || name == "report.json" || name.ends_with(".svg"),
 };
 
 /// Identify the joint model from logged tests and write the model TOML (ready for `push`).
@@ -52,7 +52,7 @@ pub struct IdentifyArgs {
     /// Output model TOML, or - for stdout; written only when identification succeeds
     #[arg(long, value_name = "MODEL.toml")]
     pub out: PathBuf,
-    /// Directory for the validation report (report.md, report.json, SVG plots); built aside and
+    /// Directory for the validation report (report.md, report.html, report.json, SVG plots); built aside and
     /// moved into place whole; an existing DIR is replaced only if it holds a previous report
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
