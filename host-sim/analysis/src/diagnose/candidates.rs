@@ -485,11 +485,7 @@ pub fn thin_idx(idx: &[u32], max: usize) -> Vec<u32> {
 }
 
 fn quantile(mut v: Vec<f64>, p: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[((v.len() - 1) as f64 * p).round() as usize]
+    crate::prep::quantile::at_rounded(&mut v, p).unwrap_or(0.0)
 }
 
 /// The current design evaluated once on a set of rows (the thinned training rows of a grid

@@ -29,6 +29,7 @@
 #![allow(clippy::indexing_slicing)]
 
 pub mod lpr;
+pub(crate) mod quantile;
 pub mod spectrum;
 
 use joint_formats::log::JointLog;
@@ -1045,13 +1046,12 @@ fn drop_glitches(log: &JointLog) -> Result<(JointLog, Vec<Glitch>), PrepError> {
     }
     let mut found: Vec<Glitch> = Vec::new();
     for (name, v) in cols {
-        let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-        if sorted.is_empty() {
+        let mut finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        // 1st and 99th percentiles by selection (a sort of every column cost 0.1 s on 1 M rows)
+        let (Some(lo), Some(hi)) = (quantile::at_rounded(&mut finite, 0.01), quantile::at_rounded(&mut finite, 0.99))
+        else {
             continue;
-        }
-        sorted.sort_by(f64::total_cmp);
-        let at = |p: f64| sorted[((p * (sorted.len() - 1) as f64).round() as usize).min(sorted.len() - 1)];
-        let (lo, hi) = (at(0.01), at(0.99));
+        };
         let w = hi - lo;
         for (row, &x) in v.iter().enumerate() {
             let beyond = w > 0.0 && (x > hi + GLITCH_WIDTHS * w || x < lo - GLITCH_WIDTHS * w);
