@@ -120,6 +120,10 @@ pub struct Truth {
     /// snr ≥ 1: recorded as data, never used to relabel a case.
     pub detectable_hint: bool,
     pub notes: Vec<String>,
+    /// What the draw guaranteed the log shows of each effect that needs it (backlash
+    /// crossings, cable engaged share, ripple periods, friction reversals); see `shown`.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub guarantees: serde_json::Map<String, serde_json::Value>,
 }
 
 /// A generated case.

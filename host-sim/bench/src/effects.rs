@@ -297,7 +297,7 @@ pub fn dahl_step(f: f64, dq: f64, sigma: f64, c: f64) -> f64 {
 
 /// What the draws of an effect may look at.
 #[derive(Debug, Clone, Copy)]
-pub struct Scene {
+pub struct Scene<'a> {
     /// RMS of the file's disturbance over the log (N·m), the joint's torque scale.
     pub torque_scale: f64,
     pub q_lo: f64,
@@ -305,6 +305,8 @@ pub struct Scene {
     pub duration: f64,
     /// RMS speed over the log (rad/s).
     pub v_rms: f64,
+    /// The angle at the sample times, before any effect (what the log will cover).
+    pub q: &'a [f64],
 }
 
 /// Draws one additive effect of `family` (not parameters / dry_friction / delay /
@@ -350,8 +352,21 @@ fn draw_thermal(rng: &mut Rng64, sc: &Scene) -> Effect {
     }
 }
 
-fn draw_ripple(rng: &mut Rng64, sc: &Scene) -> Effect {
+/// A ripple period of 0.01–0.3 rad, redrawn below half the span when fewer than two
+/// periods would fit: over a shorter stretch a sine is mostly a slope and an offset, which
+/// the file's spring, weight and offset terms absorb.
+fn ripple_period(rng: &mut Rng64, span: f64) -> f64 {
     let p = log_uniform(rng, 0.01, 0.3);
+    if p * crate::shown::MIN_PERIODS <= span {
+        return p;
+    }
+    let hi = span / crate::shown::MIN_PERIODS;
+    log_uniform(rng, 0.01f64.min(0.5 * hi), hi)
+}
+
+fn draw_ripple(rng: &mut Rng64, sc: &Scene) -> Effect {
+    let span = sc.q_hi - sc.q_lo;
+    let p = ripple_period(rng, span);
     let mut harmonics = vec![Ripple {
         amplitude: uniform(rng, 0.02, 0.2) * sc.torque_scale,
         period: p,
@@ -359,7 +374,7 @@ fn draw_ripple(rng: &mut Rng64, sc: &Scene) -> Effect {
     }];
     if chance(rng, 0.5) {
         // A second line: the mesh's own harmonic or an unrelated period (two stages).
-        let p2 = if chance(rng, 0.5) { 0.5 * p } else { log_uniform(rng, 0.01, 0.3) };
+        let p2 = if chance(rng, 0.5) { 0.5 * p } else { ripple_period(rng, span) };
         harmonics.push(Ripple {
             amplitude: uniform(rng, 0.02, 0.2) * sc.torque_scale,
             period: p2,
@@ -377,8 +392,15 @@ fn draw_cable(rng: &mut Rng64, joint: &ModelFile, sc: &Scene) -> CableShape {
         0 => {
             let side = sign(rng);
             let frac = uniform(rng, 0.5, 0.9);
-            let q_e = if side > 0.0 { sc.q_lo + frac * span } else { sc.q_hi - frac * span };
-            let reach = (1.0 - frac) * span;
+            let drawn = if side > 0.0 { sc.q_lo + frac * span } else { sc.q_hi - frac * span };
+            let q_e = engage_within(sc.q, drawn, side);
+            let reach = if q_e == drawn {
+                (1.0 - frac) * span
+            } else if side > 0.0 {
+                (sc.q_hi - q_e).max(1e-6)
+            } else {
+                (q_e - sc.q_lo).max(1e-6)
+            };
             let smooth = if chance(rng, 0.5) { uniform(rng, 0.1, 0.5) * reach } else { 0.0 };
             CableShape::OneSided { k: target / reach, q_e, side, smooth }
         }
@@ -395,6 +417,27 @@ fn draw_cable(rng: &mut Rng64, joint: &ModelFile, sc: &Scene) -> CableShape {
             width: uniform(rng, 0.05, 0.25) * span,
         },
     }
+}
+
+/// Moves a one-sided cable's engage angle so it is taut for 5–95 % of the samples: never
+/// taut it adds nothing, always taut it is a linear spring plus an offset (a parameter
+/// error of the file). Inside that band the drawn angle is kept.
+fn engage_within(q: &[f64], q_e: f64, side: f64) -> f64 {
+    if q.is_empty() {
+        return q_e;
+    }
+    let (lo, hi) = crate::shown::CABLE_SHARE;
+    let engaged = crate::shown::share(q, |x| side * (x - q_e) > 0.0);
+    // The nearest share inside the band, a little inside so ties at sample values hold.
+    let target = if engaged < lo {
+        lo + 0.01
+    } else if engaged > hi {
+        hi - 0.01
+    } else {
+        return q_e;
+    };
+    let p = if side > 0.0 { 1.0 - target } else { target };
+    crate::shown::quantile(q, p)
 }
 
 fn draw_backlash(rng: &mut Rng64, joint: &ModelFile) -> Option<Effect> {

@@ -29,6 +29,7 @@
 //! - [`traj`]: prescribed trajectories with exact derivatives (torque mode);
 //! - [`effects`]: the withheld effects and their torques;
 //! - [`noise`]: sensor noise, quantisation, filters;
+//! - [`shown`]: what the log must show of an effect for its label to hold;
 //! - [`torque`], [`trajmode`], [`integrate`]: the two modes;
 //! - [`case`], [`gen`]: a case's files and the `gen` command;
 //! - [`score`]: the `run` command.
@@ -42,6 +43,7 @@ pub mod model;
 pub mod noise;
 pub mod rngs;
 pub mod score;
+pub mod shown;
 pub mod torque;
 pub mod traj;
 pub mod trajmode;

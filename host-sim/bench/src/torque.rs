@@ -76,6 +76,12 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
         att = size_second(rng, &setup, att, sigma, &mut notes);
     }
     let n = setup.times.len();
+    let q_clean: Vec<f64> = att.series.kin.iter().map(|k| k.q).collect();
+    let qd_clean: Vec<f64> = att.series.kin.iter().map(|k| k.qd).collect();
+    let guarantees = crate::shown::check_all(&att.effects, &q_clean, &qd_clean).unwrap_or_else(|e| {
+        notes.push(format!("not shown: {e}"));
+        serde_json::Map::new()
+    });
     let (u, tau, mut sensors) = noisy_torques(rng, &att, sigma);
     let mut log = Log::default();
     log.columns.push(("t".into(), setup.times.iter().map(|t| setup.t0 + t).collect()));
@@ -127,6 +133,7 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
         snr_per_effect,
         detectable_hint: !effects.is_empty() && snr >= 1.0,
         notes,
+        guarantees,
     };
     Ok(CaseData { truth, log, model: att.file, clean })
 }
@@ -184,13 +191,55 @@ fn draw_setup(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
     let want_rest = effects.contains(&"asymmetric_friction") || chance(rng, 0.15);
     let family = traj::draw_family(rng, want_rest);
     let lim = traj::limits_for(rng, kind.name());
-    let traj = traj::draw(rng, family, duration, lim, want_rest);
+    let mut traj = traj::draw(rng, family, duration, lim, want_rest);
     let jitter = if chance(rng, 0.25) { uniform(rng, 0.01, 0.15) } else { 0.0 };
     let times = sample_times(rng, rate, duration, jitter);
+    // A trajectory that cannot show the effect is redrawn, family included (a short
+    // point-to-point log may hold too few moves).
+    for _ in 0..20 {
+        if shows_effects(&mut traj, &times, effects, &joint.model) {
+            break;
+        }
+        let family = traj::draw_family(rng, want_rest);
+        traj = traj::draw(rng, family, duration, lim, want_rest);
+    }
     let t0 = if chance(rng, 0.25) { (uniform(rng, 0.0, 1000.0) * 1e3).round() / 1e3 } else { 0.0 };
     let needs_load = effects.contains(&"load_dependent_friction");
     let load = draw_load(rng, kind, needs_load);
     Setup { joint, traj, load, times, t0, rate, duration, jitter }
+}
+
+/// Whether the trajectory (at the sample times) can show the effects: backlash after
+/// `around_spring` places it; asymmetric friction needs motion both ways (one way only it
+/// is a Coulomb level error of the file).
+fn shows_effects(traj: &mut Trajectory, times: &[f64], effects: &[&str], joint: &ModelFile) -> bool {
+    effects.iter().all(|e| match *e {
+        "backlash" => around_spring(traj, times, joint.spring.map_or(0.0, |s| s.q0)),
+        "asymmetric_friction" => {
+            let qd: Vec<f64> = times.iter().map(|t| traj.eval(*t).qd).collect();
+            crate::shown::reversals(&qd) >= crate::shown::MIN_REVERSALS
+        }
+        _ => true,
+    })
+}
+
+/// Backlash lives in the spring around q0, while the trajectory is drawn on its own: shifts
+/// the trajectory so q0 sits at a level it crosses, on a quantile near its median (the
+/// first of 50, 45, 55 … 30, 70 % that crosses the ±20 mrad band of any zone ≥ 3 times each
+/// way with ≥ 10 % of the samples on each side). Without such a level the joint stays on
+/// one side or barely passes, and the dead zone is only a constant −k·lo or −k·hi there:
+/// an offset / q0 error of the file. False when no level fits (the caller redraws).
+fn around_spring(traj: &mut Trajectory, times: &[f64], q0: f64) -> bool {
+    let q: Vec<f64> = times.iter().map(|t| traj.eval(*t).q).collect();
+    for p in [0.5, 0.45, 0.55, 0.4, 0.6, 0.35, 0.65, 0.3, 0.7] {
+        let shift = q0 - crate::shown::quantile(&q, p);
+        let moved: Vec<f64> = q.iter().map(|x| x + shift).collect();
+        if crate::shown::backlash_band_ok(&moved, q0) {
+            traj.center += shift;
+            return true;
+        }
+    }
+    false
 }
 
 /// Sample times from 0, period 1/rate, optionally jittered; stamped to the microsecond so
@@ -285,7 +334,8 @@ fn sum_signals(s: &Series) -> Vec<f64> {
 fn draw_attempt(rng: &mut Rng64, setup: &Setup, names: &[&str]) -> Attempt {
     let truth = &setup.joint.model;
     let plain = sweep(setup, &[], &setup.times);
-    let scene = scene_of(&plain, setup);
+    let q: Vec<f64> = plain.kin.iter().map(|k| k.q).collect();
+    let scene = scene_of(&plain, setup, &q);
     let mut file = truth.clone();
     let mut effects = Vec::new();
     for name in names {
@@ -318,12 +368,12 @@ fn draw_attempt(rng: &mut Rng64, setup: &Setup, names: &[&str]) -> Attempt {
     evaluate(setup, effects, file)
 }
 
-fn scene_of(plain: &Series, setup: &Setup) -> Scene {
+fn scene_of<'a>(plain: &Series, setup: &Setup, q_samples: &'a [f64]) -> Scene<'a> {
     let q = plain.kin.iter().map(|k| k.q);
     let q_lo = q.clone().fold(f64::INFINITY, f64::min);
     let q_hi = q.fold(f64::NEG_INFINITY, f64::max);
     let v: Vec<f64> = plain.kin.iter().map(|k| k.qd).collect();
-    Scene { torque_scale: rms(&plain.base), q_lo, q_hi, duration: setup.duration, v_rms: rms(&v) }
+    Scene { torque_scale: rms(&plain.base), q_lo, q_hi, duration: setup.duration, v_rms: rms(&v), q: q_samples }
 }
 
 /// Clean logged signals for a fixed draw of effects, the residual the file's model leaves,

@@ -41,9 +41,12 @@ struct Attempt {
 pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
     let mut notes = Vec::new();
     let mut setup = draw_setup(rng, case, effects);
-    // A joint that never leaves its release angle (stuck pendulum) says nothing: redraw.
-    for _ in 0..10 {
-        if swing(&setup, &simulate_truth(&setup, &[])) > 2e-3 {
+    // A joint that never leaves its release angle (stuck pendulum) says nothing, and one
+    // that never shows what the effect needs (see `moves_enough`) mislabels it: redraw.
+    let tries = if effects.iter().any(|e| needs_motion(e)) { 40 } else { 10 };
+    for _ in 0..tries {
+        let plain = simulate_truth(&setup, &[]);
+        if swing(&setup, &plain) > 2e-3 && moves_enough(&setup, &plain, effects) {
             break;
         }
         setup = draw_setup(rng, case, effects);
@@ -52,6 +55,10 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
     let scale = swing(&setup, &plain);
     let (att, sigma) = size(rng, &setup, effects, scale, &mut notes);
     let n = setup.times.len();
+    let guarantees = shown_by(&att).unwrap_or_else(|e| {
+        notes.push(format!("not shown: {e}"));
+        serde_json::Map::new()
+    });
     let (step, white) = encoder_for(rng, sigma);
     let q: Vec<f64> = att.truth.iter().map(|y| noise::quantise(y.q + white * normal(rng), step)).collect();
     let mut log = Log::default();
@@ -110,8 +117,35 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
         snr_per_effect,
         detectable_hint: !effects.is_empty() && snr >= 1.0,
         notes,
+        guarantees,
     };
     Ok(CaseData { truth, log, model: att.file, clean })
+}
+
+/// Families whose label needs the response itself to move a certain way.
+fn needs_motion(name: &str) -> bool {
+    matches!(name, "backlash" | "asymmetric_friction")
+}
+
+/// The effect-free response already shows what the effect needs: backlash lives around the
+/// spring's q0, so the joint must cross the band of any zone there repeatedly, with samples
+/// on both sides; asymmetric friction needs motion both ways (one way only it is a Coulomb
+/// level error of the file).
+fn moves_enough(s: &Setup, plain: &[State], effects: &[&str]) -> bool {
+    let q: Vec<f64> = plain.iter().map(|y| y.q).collect();
+    let v: Vec<f64> = plain.iter().map(|y| y.v).collect();
+    effects.iter().all(|e| match *e {
+        "backlash" => crate::shown::backlash_band_ok(&q, s.joint.model.spring.map_or(s.q_eq, |sp| sp.q0)),
+        "asymmetric_friction" => crate::shown::reversals(&v) >= crate::shown::MIN_REVERSALS,
+        _ => true,
+    })
+}
+
+/// What the true response shows of the drawn effects (see `shown`).
+fn shown_by(att: &Attempt) -> Result<serde_json::Map<String, serde_json::Value>, String> {
+    let q: Vec<f64> = att.truth.iter().map(|y| y.q).collect();
+    let v: Vec<f64> = att.truth.iter().map(|y| y.v).collect();
+    crate::shown::check_all(&att.effects, &q, &v)
 }
 
 fn response_family(s: &Setup) -> String {
@@ -248,7 +282,9 @@ fn draw_attempt(rng: &mut Rng64, s: &Setup, names: &[&str], plain: &[State]) -> 
     let q_lo = plain.iter().map(|y| y.q).fold(f64::INFINITY, f64::min);
     let q_hi = plain.iter().map(|y| y.q).fold(f64::NEG_INFINITY, f64::max);
     let stiff = truth_m.spring.map_or(0.0, |sp| sp.k) + truth_m.weight.map_or(0.0, |w| w.amplitude * w.s);
-    let scene = Scene { torque_scale: stiff * (q_hi - q_lo).max(1e-3) / 2.0, q_lo, q_hi, duration: 1.0, v_rms: 0.0 };
+    let q: Vec<f64> = plain.iter().map(|y| y.q).collect();
+    let scene =
+        Scene { torque_scale: stiff * (q_hi - q_lo).max(1e-3) / 2.0, q_lo, q_hi, duration: 1.0, v_rms: 0.0, q: &q };
     let mut file = truth_m.clone();
     let mut effects = Vec::new();
     let mut shift = 0.0;
@@ -327,7 +363,8 @@ fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64, notes: &mut Vec<
         let r = att.per_effect.first().copied().unwrap_or(0.0);
         let lo = 0.5f64.max(r / hi_n);
         let hi = 5.0f64.min(r / lo_n);
-        if lo <= hi && r > 0.0 {
+        // The effect must show on the true response too (the effect-free one placed it).
+        if lo <= hi && r > 0.0 && shown_by(&att).is_ok() {
             let snr = log_uniform(rng, lo, hi);
             return (att, r / snr);
         }

@@ -365,3 +365,73 @@ fn trajectory_effect_cases_deviate_from_the_file_model() {
         }
     }
 }
+
+/// Every case of `family` in `mode` for seeds 1–3 (first `n` case numbers).
+fn family_cases(family: &str, sel: ModeSel, n: u64) -> Vec<CaseData> {
+    (1..=3).flat_map(|s| (0..n).map(move |k| (s, k))).map(|(s, k)| case(s, k, Some(family), sel)).collect()
+}
+
+fn guarantee<'a>(c: &'a CaseData, name: &str) -> &'a serde_json::Value {
+    assert!(c.truth.guarantees.contains_key(name), "case {}: no guarantee for {name}", c.truth.case);
+    c.truth.guarantees.get(name).unwrap()
+}
+
+#[test]
+fn backlash_zone_is_crossed_both_ways_in_both_modes() {
+    for sel in [ModeSel::Torque, ModeSel::Trajectory] {
+        for c in family_cases("backlash", sel, 6) {
+            let Effect::Backlash { q0, lo, hi, .. } = c.truth.effect_details[0] else { panic!("not backlash") };
+            // Recount on the clean angle, not from the recorded guarantee.
+            let (up, down) = diag_bench::shown::crossings(&c.clean.q, q0 + lo, q0 + hi);
+            assert!(up >= 3 && down >= 3, "{sel:?} seed {} case {}: {up} up, {down} down", c.truth.seed, c.truth.case);
+            let below = diag_bench::shown::share(&c.clean.q, |x| x < q0 + lo);
+            let above = diag_bench::shown::share(&c.clean.q, |x| x > q0 + hi);
+            assert!(below >= 0.1 && above >= 0.1, "{sel:?}: {below} below, {above} above");
+            assert_eq!(guarantee(&c, "backlash")["crossings_up"].as_u64(), Some(up as u64));
+            // The file is the true joint minus the dead zone: same spring, same q0.
+            assert_eq!(c.model, c.truth.joint.model);
+        }
+    }
+}
+
+#[test]
+fn one_sided_cable_engages_for_part_of_the_log() {
+    let mut seen = 0;
+    for sel in [ModeSel::Torque, ModeSel::Trajectory] {
+        for c in family_cases("cable_spring", sel, 12) {
+            let Effect::CableSpring { cable } = &c.truth.effect_details[0] else { panic!("not a cable") };
+            if let diag_bench::effects::CableShape::OneSided { q_e, side, .. } = *cable {
+                let engaged = diag_bench::shown::share(&c.clean.q, |x| side * (x - q_e) > 0.0);
+                assert!((0.05..=0.95).contains(&engaged), "{sel:?} case {}: engaged {engaged}", c.truth.case);
+                seen += 1;
+            }
+        }
+    }
+    assert!(seen >= 5, "only {seen} one-sided cables drawn");
+}
+
+#[test]
+fn ripple_spans_two_periods_and_asymmetric_friction_reverses() {
+    for sel in [ModeSel::Torque, ModeSel::Trajectory] {
+        for c in family_cases("position_ripple", sel, 6) {
+            let Effect::PositionRipple { harmonics } = &c.truth.effect_details[0] else { panic!("not a ripple") };
+            let span = diag_bench::shown::span(&c.clean.q);
+            for h in harmonics {
+                assert!(span >= 2.0 * h.period, "{sel:?} case {}: span {span}, period {}", c.truth.case, h.period);
+            }
+        }
+        for c in family_cases("asymmetric_friction", sel, 6) {
+            let n = diag_bench::shown::reversals(&c.clean.qd);
+            assert!(n >= 2, "{sel:?} case {}: {n} reversals", c.truth.case);
+            guarantee(&c, "asymmetric_friction");
+        }
+    }
+}
+
+#[test]
+fn crossings_count_full_passes_only() {
+    // Into the zone and back out the same side is no crossing.
+    let q = [-1.0, 0.0, -1.0, 1.0, 0.05, 1.0, -1.0, 1.0];
+    assert_eq!(diag_bench::shown::crossings(&q, -0.1, 0.1), (2, 1));
+    assert_eq!(diag_bench::shown::reversals(&[1.0, 0.0, 2.0, -1.0, 0.0, -3.0, 4.0]), 2);
+}
