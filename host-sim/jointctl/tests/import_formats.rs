@@ -108,6 +108,7 @@ fn a_column_map_reads_the_real_files_as_their_own_importers_do() {
     let o = jointctl(&["import", "--format", "csv", "--map", "t=time,q=angle", "--input", s(&dfki), "--out", s(&b)]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("no column `angle`") && err.contains("time, position"), "{err}");
+    assert!(err.contains("docs/import.md#csv"), "the error names the format's page: {err}");
 }
 
 #[test]

@@ -135,8 +135,22 @@ fn check_options(a: &ImportArgs) -> anyhow::Result<()> {
     }
 }
 
+/// The docs/import.md section of a format, named in every error of its reader.
+fn page(f: Format) -> &'static str {
+    match f {
+        Format::Csv => "docs/import.md#csv",
+        Format::Candump => "docs/import.md#candump",
+        Format::Mcap => "docs/import.md#mcap",
+        _ => "docs/import.md#data-sets",
+    }
+}
+
 pub fn run(a: &ImportArgs) -> anyhow::Result<()> {
     check_options(a)?;
+    convert_and_write(a).map_err(|e| anyhow::anyhow!("{e:#}\n(the format: {})", page(a.format)))
+}
+
+fn convert_and_write(a: &ImportArgs) -> anyhow::Result<()> {
     if a.format == Format::Ur5eFriction {
         num::budget("samples per table row", &[("--hold", a.hold), ("--rate", a.rate)], MAX_HOLD_SAMPLES)?;
     }
