@@ -265,10 +265,12 @@ pub enum Effect {
         c: f64,
         src: ThermSrc,
     },
-    /// one or two harmonics of the period
+    /// one or two harmonics of the period, and (`second` > 0) a ripple of an independent
+    /// second period: a gear train's mesh and its motor's cogging seen through the ratio
     Ripple {
         period: f64,
         harmonics: u8,
+        second: f64,
     },
     /// a cable or harness taut past `engage` (side +1: above it, −1: below), or with `side`
     /// 0 a progressive spring `k1·x + k3·x³` about `engage`
@@ -320,10 +322,13 @@ impl Effect {
             Effect::Asymmetric => vec![Col::AbsSgn],
             Effect::Load => vec![Col::LoadSgn],
             Effect::Thermal { a, b, c, src } => vec![Col::Thermal { a, b, c, src }],
-            Effect::Ripple { period, harmonics } => {
+            Effect::Ripple { period, harmonics, second } => {
                 let mut v = vec![Col::RipSin(period), Col::RipCos(period)];
                 if harmonics >= 2 {
                     v.extend([Col::RipSin(period / 2.0), Col::RipCos(period / 2.0)]);
+                }
+                if second > 0.0 {
+                    v.extend([Col::RipSin(second), Col::RipCos(second)]);
                 }
                 v
             }
@@ -616,7 +621,7 @@ impl<'a> GridCtx<'a> {
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
-            Effect::Ripple { period, harmonics: 1 } => {
+            Effect::Ripple { period, harmonics: 1, second } if second == 0.0 => {
                 // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
                 let (zs, zc) =
                     idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
@@ -876,31 +881,39 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             let nf = ((f_hi - f_lo) / df).ceil() as usize + 1;
             let wsum: f64 = cnt.iter().sum();
             const ANCHOR: usize = 64;
-            let mut power: Vec<(f64, f64)> = Vec::with_capacity(nf);
-            for k in 0..nf {
-                let f = f_lo + k as f64 * df;
-                let w = std::f64::consts::TAU * f;
-                let (step_s, step_c) = (w * h).sin_cos();
-                let (mut s, mut c) = (0.0, 0.0);
-                for (chunk, ws) in sum.chunks(ANCHOR).enumerate() {
-                    let (mut zs, mut zc) = (w * (qmin + ((chunk * ANCHOR) as f64 + 0.5) * h)).sin_cos();
-                    for &m in ws {
-                        s += m * zs;
-                        c += m * zc;
-                        (zs, zc) = (zs * step_c + zc * step_s, zc * step_c - zs * step_s);
+            let spectrum = |sum: &[f64]| -> Vec<(f64, f64)> {
+                let mut power: Vec<(f64, f64)> = Vec::with_capacity(nf);
+                for k in 0..nf {
+                    let f = f_lo + k as f64 * df;
+                    let w = std::f64::consts::TAU * f;
+                    let (step_s, step_c) = (w * h).sin_cos();
+                    let (mut s, mut c) = (0.0, 0.0);
+                    for (chunk, ws) in sum.chunks(ANCHOR).enumerate() {
+                        let (mut zs, mut zc) = (w * (qmin + ((chunk * ANCHOR) as f64 + 0.5) * h)).sin_cos();
+                        for &m in ws {
+                            s += m * zs;
+                            c += m * zc;
+                            (zs, zc) = (zs * step_c + zc * step_s, zc * step_c - zs * step_s);
+                        }
                     }
+                    power.push((f, (s * s + c * c) / wsum.max(1.0)));
                 }
-                power.push((f, (s * s + c * c) / wsum.max(1.0)));
-            }
+                power
+            };
+            let power = spectrum(&sum);
             // The three strongest local maxima, refined by golden section in frequency.
-            let mut peaks: Vec<(f64, f64)> = (1..power.len().saturating_sub(1))
-                .filter(|&k| power[k].1 >= power[k - 1].1 && power[k].1 >= power[k + 1].1)
-                .map(|k| power[k])
-                .collect();
-            peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let one = |f: f64| Effect::Ripple { period: 1.0 / f, harmonics: 1, second: 0.0 };
+            let peaks_of = |power: &[(f64, f64)]| {
+                let mut peaks: Vec<(f64, f64)> = (1..power.len().saturating_sub(1))
+                    .filter(|&k| power[k].1 >= power[k - 1].1 && power[k].1 >= power[k + 1].1)
+                    .map(|k| power[k])
+                    .collect();
+                peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+                peaks
+            };
             let mut best: Option<(f64, f64)> = None;
-            for &(f, _) in peaks.iter().take(3) {
-                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(Effect::Ripple { period: 1.0 / f, harmonics: 1 }));
+            for &(f, _) in peaks_of(&power).iter().take(3) {
+                let (fx, r) = golden(f - df, f + df, 16, |f| rss_of(one(f)));
                 if best.map(|(_, rb)| r < rb).unwrap_or(true) {
                     best = Some((fx, r));
                 }
@@ -908,10 +921,51 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // a second harmonic (a mesh's tooth profile, a cogging shape) when it lowers the
             // training RSS by more than its two values cost (BIC on the thinned rows)
             let (f, r1) = best?;
-            let two = Effect::Ripple { period: 1.0 / f, harmonics: 2 };
             let n = idx.len().max(2) as f64;
+            let two = Effect::Ripple { period: 1.0 / f, harmonics: 2, second: 0.0 };
             let r2 = rss_of(two);
-            Some(if n * (r1 / r2).ln() > 2.0 * n.ln() { two } else { Effect::Ripple { period: 1.0 / f, harmonics: 1 } })
+            let (first, r_first) = if n * (r1 / r2).ln() > 2.0 * n.ln() { (two, r2) } else { (one(f), r1) };
+            // A ripple of an independent second period (a gear train has a mesh and its motor's
+            // cogging): the periodogram again, of the binned residual with the first ripple's
+            // least-squares sinusoids taken out, its strongest peak away from the first's
+            // harmonics refined on the real criterion, and kept when it pays its three values
+            // (period and two amplitudes) by BIC.
+            let Effect::Ripple { harmonics, .. } = first else { return Some(first) };
+            let mut left = sum.clone();
+            for hk in 1..=u32::from(harmonics) {
+                let w = std::f64::consts::TAU * f * f64::from(hk);
+                let (mut ss, mut sc, mut cc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for (b, (&m, &c)) in left.iter().zip(&cnt).enumerate() {
+                    let (zs, zc) = (w * (qmin + (b as f64 + 0.5) * h)).sin_cos();
+                    ss += c * zs * zs;
+                    sc += c * zs * zc;
+                    cc += c * zc * zc;
+                    ys += m * zs;
+                    yc += m * zc;
+                }
+                let det = ss * cc - sc * sc;
+                if !(det > 0.0) {
+                    return Some(first);
+                }
+                let (a, bb) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
+                for (b, (m, &c)) in left.iter_mut().zip(&cnt).enumerate() {
+                    let (zs, zc) = (w * (qmin + (b as f64 + 0.5) * h)).sin_cos();
+                    *m -= c * (a * zs + bb * zc);
+                }
+            }
+            let near = |g: f64| (1..=2).any(|k| (g - f * f64::from(k)).abs() < 2.0 * df);
+            let with = |g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
+            let mut best2: Option<(f64, f64)> = None;
+            for &(g, _) in peaks_of(&spectrum(&left)).iter().filter(|(g, _)| !near(*g)).take(3) {
+                let (gx, r) = golden(g - df, g + df, 16, |g| rss_of(with(g)));
+                if best2.map(|(_, rb)| r < rb).unwrap_or(true) {
+                    best2 = Some((gx, r));
+                }
+            }
+            Some(match best2 {
+                Some((g, r)) if !near(g) && n * (r_first / r).ln() > 3.0 * n.ln() => with(g),
+                _ => first,
+            })
         }
         Kind::Cable => {
             // A harness taut past an angle (either side), or a progressive spring about one.

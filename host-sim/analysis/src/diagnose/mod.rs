@@ -775,7 +775,7 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
                 }
             }
         }
-        Effect::Ripple { period, harmonics } => {
+        Effect::Ripple { period, harmonics, second } => {
             let (bs, bc) = (beta(0), beta(1));
             put("amplitude", bs.hypot(bc));
             put("period", period);
@@ -784,6 +784,13 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
                 let (bs2, bc2) = (beta(2), beta(3));
                 put("amplitude_2", bs2.hypot(bc2));
                 put("phase_2", bc2.atan2(bs2));
+            }
+            if second > 0.0 {
+                let k = if harmonics >= 2 { 4 } else { 2 };
+                let (bs3, bc3) = (beta(k), beta(k + 1));
+                put("period_b", second);
+                put("amplitude_b", bs3.hypot(bc3));
+                put("phase_b", bc3.atan2(bs3));
             }
         }
         Effect::Cable { engage, side: 0, .. } => {
@@ -1294,7 +1301,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
                 log_temp
             );
         }
-        Effect::Ripple { harmonics, .. } => {
+        Effect::Ripple { harmonics, second, .. } => {
             let _ =
                 writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
             if harmonics >= 2 {
@@ -1303,6 +1310,15 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
                     "# second harmonic (period/2), not a section key: amplitude_2 = {:?}, phase_2 = {:?}",
                     g("amplitude_2"),
                     g("phase_2")
+                );
+            }
+            if second > 0.0 {
+                let _ = writeln!(
+                    o,
+                    "# a second ripple of its own period, not a section key (the joint compensates one): period_b = {:?}, amplitude_b = {:?}, phase_b = {:?}",
+                    g("period_b"),
+                    g("amplitude_b"),
+                    g("phase_b")
                 );
             }
         }

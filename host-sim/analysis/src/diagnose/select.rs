@@ -684,7 +684,7 @@ pub fn extra_params(e: &Effect) -> usize {
                 3
             }
         }
-        Effect::Ripple { harmonics, .. } => 1 + 2 * usize::from(harmonics),
+        Effect::Ripple { harmonics, second, .. } => 1 + 2 * usize::from(harmonics) + if second > 0.0 { 3 } else { 0 },
     }
 }
 
@@ -973,8 +973,8 @@ mod tests {
             Effect::Load,
             Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Temp { mean: 30.0 } },
             Effect::Thermal { a: 0.1, b: 2.0, c: 1.0, src: ThermSrc::Time { tau: 3.0, t0: 0.0, mean: 0.5 } },
-            Effect::Ripple { period: 0.105, harmonics: 1 },
-            Effect::Ripple { period: 0.105, harmonics: 2 },
+            Effect::Ripple { period: 0.105, harmonics: 1, second: 0.0 },
+            Effect::Ripple { period: 0.105, harmonics: 2, second: 0.0 },
             Effect::Cable { engage: 1.3, width: 0.01, side: 1 },
             Effect::Cable { engage: 0.7, width: 0.01, side: -1 },
             Effect::Cable { engage: 1.0, width: 0.01, side: 0 },
@@ -987,7 +987,7 @@ mod tests {
         ];
         for chosen in [
             vec![],
-            vec![Effect::Ripple { period: 0.105, harmonics: 1 }],
+            vec![Effect::Ripple { period: 0.105, harmonics: 1, second: 0.0 }],
             vec![Effect::Backlash { width: 0.02, offset: 0.0 }],
         ] {
             let round = Round::new(&d, &base, &chosen, &fit_idx, &split);
@@ -1016,6 +1016,28 @@ mod tests {
 
     /// A grid search's Dahl state from the compressed travel equals the state sample by sample
     /// (up to rounding) on every row it reads.
+    #[test]
+    fn a_ripple_of_a_second_independent_period_is_found_and_none_is_invented() {
+        let (mut d, base) = data(20_000);
+        let idx: Vec<u32> = (0..20_000u32).step_by(3).collect();
+        // the data's own ripple: period 2π/60 (0.1047 rad), one harmonic
+        let Some(Effect::Ripple { period, second, .. }) = search(Kind::Ripple, &d, &base, &[], &idx) else {
+            panic!("no ripple found")
+        };
+        assert!((period - std::f64::consts::TAU / 60.0).abs() < 1e-3, "{period}");
+        assert_eq!(second, 0.0, "one period in the data, one found");
+        // plus a cogging-like ripple of 0.037 rad, not a harmonic of the first
+        for i in 0..d.n {
+            d.y[i] += 0.2 * (std::f64::consts::TAU * d.q[i] / 0.037 + 1.0).sin();
+        }
+        let Some(Effect::Ripple { period, second, .. }) = search(Kind::Ripple, &d, &base, &[], &idx) else {
+            panic!("no ripple found")
+        };
+        let (a, b) = if period < second { (period, second) } else { (second, period) };
+        assert!((a - 0.037).abs() < 0.037 * 0.01, "{period} {second}");
+        assert!((b - std::f64::consts::TAU / 60.0).abs() < 1e-3, "{period} {second}");
+    }
+
     #[test]
     fn composed_dahl_steps_equal_the_state_on_the_rows() {
         let (d, base) = data(20_000);
