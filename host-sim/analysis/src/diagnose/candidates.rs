@@ -621,7 +621,7 @@ impl<'a> GridCtx<'a> {
                 let y = idx.iter().map(|&i| des.target(d, i as usize)).collect();
                 Delta { replace: None, extra: Vec::new(), y_alt: Some(y) }
             }
-            Effect::Ripple { period, harmonics: 1, second } if second == 0.0 => {
+            Effect::Ripple { period, harmonics: 1, second: 0.0 } => {
                 // both columns from one sin_cos per row (the same values as Col::RipSin/RipCos)
                 let (zs, zc) =
                     idx.iter().map(|&i| (std::f64::consts::TAU * d.q[i as usize] / period).sin_cos()).unzip();
