@@ -275,6 +275,307 @@ fn exp_neg_q26(x_q32: i64) -> i64 {
     ((acc + 8) >> 4) >> n
 }
 
+// ---- the whole control step in Q16.16 ------------------------------------------------------
+
+/// Which arithmetic a board's control step runs: chosen when the board image is built (a cargo
+/// feature of the board crate), named in the node's identity (0x1018 product code, 0x1008
+/// device name) so a host knows which numbers the joint computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Arithmetic {
+    /// [`crate::control::Controller`]: f32, on an FPU or in soft-float
+    F32,
+    /// [`ControllerFx`]: Q16.16 integers
+    Q16,
+}
+
+impl Arithmetic {
+    /// Short name, as printed by tools and logs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Arithmetic::F32 => "f32",
+            Arithmetic::Q16 => "Q16.16",
+        }
+    }
+}
+
+/// A term of the f32 step that the Q16.16 step does not have: a set that enables one is refused
+/// at commit on a Q16.16 board (commit error 8, SDO abort 0x08000020) and at boot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Unsupported {
+    /// the parameter that switches the term on; `None` for the gravity table and series
+    pub param: Option<ParamId>,
+    pub term: &'static str,
+}
+
+/// The first term `raw` switches on that [`ControllerFx`] cannot compute, if any. What the
+/// Q16.16 step has: friction (a, b, c with its band), the Dahl state (its level includes
+/// dry friction), weight, inertia, offset, spring-damper, the assist law, the velocity and
+/// position modes, torque and rate limits. What it has not: the gravity table (with or without
+/// fusion), the analytic gravity series, Stribeck, asymmetric friction, position ripple, the
+/// cable spring, and dry friction without a Dahl state.
+pub fn unsupported(raw: &crate::params::RawParams) -> Option<Unsupported> {
+    if raw.table.n_axes > 0 {
+        return Some(Unsupported { param: None, term: "gravity_table" });
+    }
+    if raw.series.n_terms > 0 {
+        return Some(Unsupported { param: None, term: "gravity_series" });
+    }
+    let pre_on = raw.get(ParamId::PreslidingSigma) > 0.0;
+    let terms = [
+        (ParamId::StribeckLevel, "stribeck"),
+        (ParamId::AsymmetricDelta, "asymmetric_friction"),
+        (ParamId::RippleAmplitude, "position_ripple"),
+        (ParamId::CableK, "cable_spring"),
+        (ParamId::DryFrictionC, "dry_friction"),
+    ];
+    terms
+        .iter()
+        .find(|(id, _)| raw.get(*id) != 0.0 && !(pre_on && *id == ParamId::DryFrictionC))
+        .map(|&(id, term)| Unsupported { param: Some(id), term })
+}
+
+/// A positive coefficient as `m·2^(−s)` with `m < 2³¹`: products with a Q16.16 value keep 31
+/// significant bits of the coefficient whatever its size, where a Q16.16 coefficient would
+/// saturate at 32767 (gains up to 1e5, rate limits up to 1e6) or keep only a few bits
+/// (1/(N − 1) = 1e-4 is 6.5 Q16.16 steps).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Gain {
+    m: i64,
+    s: u32,
+}
+
+impl Gain {
+    /// From a finite f32 ≥ 0 (others give 0), exactly: an f32 has 24 significant bits.
+    pub fn new(x: f32) -> Gain {
+        if !(x > 0.0 && crate::math::is_finite(x)) {
+            return Gain::default();
+        }
+        let bits = x.to_bits();
+        let exp = ((bits >> 23) & 0xff) as i32;
+        let (mant, e2) = if exp == 0 { (bits & 0x7f_ffff, -149) } else { ((bits & 0x7f_ffff) | 0x80_0000, exp - 150) };
+        // x = mant·2^e2, mant < 2^24; shift mant up to 30 bits so small values keep them.
+        let up = (mant as u64).leading_zeros() as i32 - 34;
+        let m = (mant as i64) << up;
+        let s = -(e2 - up);
+        if s < 0 {
+            // x ≥ 2^30: larger than anything a Q16.16 product can hold; saturate the gain.
+            Gain { m: (1 << 30) - 1, s: 0 }
+        } else if s > 62 {
+            Gain { m: m >> (s - 62).min(63), s: 62 }
+        } else {
+            Gain { m, s: s as u32 }
+        }
+    }
+
+    /// `self·x`, saturated to Q16.16.
+    #[inline]
+    pub fn times(self, x: Fx) -> Fx {
+        Fx::from_bits(sat32(self.mul_wide(x.to_bits())))
+    }
+
+    /// `self·x` for a Q-anything integer, in the same format, rounded to nearest, as i64.
+    #[inline]
+    fn mul_wide(self, x: i32) -> i64 {
+        let p = self.m * i64::from(x);
+        if self.s == 0 {
+            p
+        } else {
+            (p + (1 << (self.s - 1))) >> self.s
+        }
+    }
+}
+
+/// `lo ≤ x ≤ hi` without `Ord::clamp`'s panic on `lo > hi` (which the callers never pass).
+#[inline]
+fn clamp_fx(x: Fx, lo: Fx, hi: Fx) -> Fx {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+#[inline]
+fn sat32(x: i64) -> i32 {
+    x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
+/// The parameters of the whole Q16.16 step, converted once when a set is put in force.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepParams {
+    pub terms: FixedParams,
+    pub j: Gain,
+    pub c0: Fx,
+    pub fraction: Gain,
+    /// signed: assist_k may be negative
+    pub assist_k: Fx,
+    pub torque_limit: Fx,
+    pub rate_limit: Gain,
+    pub vel_kp: Gain,
+    pub vel_ki: Gain,
+    pub pos_kp: Gain,
+    pub pos_kd: Gain,
+    pub inv_ratio_m1: Gain,
+}
+
+impl StepParams {
+    pub fn from_set(p: &ParamSet) -> Self {
+        let f = |id: ParamId| Fx::saturating_from_num(p.get(id));
+        let g = |id: ParamId| Gain::new(p.get(id));
+        StepParams {
+            terms: FixedParams::from_set(p),
+            j: g(ParamId::InertiaJ),
+            c0: f(ParamId::OffsetC0),
+            fraction: g(ParamId::Fraction),
+            assist_k: f(ParamId::AssistK),
+            torque_limit: f(ParamId::TorqueLimit),
+            rate_limit: g(ParamId::RateLimit),
+            vel_kp: g(ParamId::VelKp),
+            vel_ki: g(ParamId::VelKi),
+            pos_kp: g(ParamId::PosKp),
+            pos_kd: g(ParamId::PosKd),
+            inv_ratio_m1: Gain::new(p.inv_ratio_m1()),
+        }
+    }
+}
+
+/// f32 → Q16.16 for a value known finite (the step checks first): saturating, never NaN.
+#[inline]
+fn fx(x: f32) -> Fx {
+    if crate::math::is_finite(x) {
+        Fx::saturating_from_num(x)
+    } else {
+        Fx::ZERO
+    }
+}
+
+/// The Q16.16 twin of [`crate::control::Controller`]: the same law, modes and limits on the
+/// terms [`unsupported`] does not name, in integers only (f32 only at the edges: the inputs and
+/// the [`crate::control::Output`] are converted, so the node and the board glue stay the same).
+/// Every operation saturates; none wraps. Out of range for Q16.16 (±32768): an input q̈ beyond
+/// 32767 rad/s² is taken as 32767 (the f32 step clamps at 1e6), and every torque saturates at
+/// ±32768 N·m before the torque limit (≤ 1e4 N·m) applies, so a saturated term still drives the
+/// output to the limit with the right sign (`tests/fixed_point.rs` measures where).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ControllerFx {
+    p: StepParams,
+    prev_tau: Fx,
+    integ: Fx,
+    dahl: DahlFx,
+}
+
+impl ControllerFx {
+    pub fn new(p: &ParamSet) -> Self {
+        ControllerFx { p: StepParams::from_set(p), prev_tau: Fx::ZERO, integ: Fx::ZERO, dahl: DahlFx::new() }
+    }
+
+    /// Put a new set in force: its parameters, and a fresh Dahl state (as the f32 step's
+    /// `reset_presliding`). The integrator and the last output stay, as in the f32 node.
+    pub fn configure(&mut self, p: &ParamSet) {
+        self.p = StepParams::from_set(p);
+        self.dahl = DahlFx::new();
+    }
+
+    pub fn params(&self) -> &StepParams {
+        &self.p
+    }
+
+    /// Forget the integrator and the last output; the Dahl state stays (it is the joint's).
+    pub fn reset(&mut self) {
+        self.prev_tau = Fx::ZERO;
+        self.integ = Fx::ZERO;
+    }
+
+    /// The Dahl state (F stays 0 while presliding is off).
+    pub fn presliding(&self) -> &DahlFx {
+        &self.dahl
+    }
+
+    /// `C_c` of the Q16.16 step: `J·q̈ + friction (or viscous + Dahl) + weight + C_0 + spring`.
+    #[inline]
+    fn disturbance(&mut self, q: Fx, qd: Fx, qdd: Fx) -> Fx {
+        let t = &self.p.terms;
+        disturbance_stateful_fx(t, &mut self.dahl, q, qd).saturating_add(self.p.j.times(qdd)).saturating_add(self.p.c0)
+    }
+
+    /// One step of length `dt` s, with f32 inputs and outputs like
+    /// [`crate::control::Controller::step`].
+    pub fn step(&mut self, mode: crate::control::Mode, inp: &crate::control::Input, dt: f32) -> crate::control::Output {
+        use crate::control::{Mode, Output};
+        use crate::math::is_finite;
+        // dt in Q1.31: 0 < dt ≤ 1 s, else the rate limiter freezes for this step (as in f32).
+        // 0 < dt ≤ 1 in one unsigned compare of the bits, as the f32 step does.
+        let dt_q31: i64 = if dt.to_bits().wrapping_sub(1) < 1.0f32.to_bits() {
+            fixed::types::I32F32::saturating_from_num(dt).to_bits() >> 1
+        } else {
+            0
+        };
+        let finite = is_finite(inp.q) && is_finite(inp.qd) && is_finite(inp.qdd) && is_finite(inp.assist_cmd);
+        let limit = self.p.torque_limit;
+        let mut out = Output { bad_input: !finite, ..Output::default() };
+        let target = if !finite {
+            self.integ = Fx::ZERO;
+            Fx::ZERO
+        } else {
+            let (q, qd, qdd) = (fx(inp.q), fx(inp.qd), fx(inp.qdd));
+            let c_c = self.disturbance(q, qd, qdd);
+            out.c_c = c_c.to_num();
+            match mode {
+                Mode::Off => {
+                    self.integ = Fx::ZERO;
+                    Fx::ZERO
+                }
+                Mode::Assist => {
+                    self.integ = Fx::ZERO;
+                    let assist = self.p.assist_k.saturating_mul(q).saturating_add(fx(inp.assist_cmd));
+                    out.assist = assist.to_num();
+                    assist.saturating_add(self.p.fraction.times(c_c))
+                }
+                Mode::Velocity(v) => {
+                    let t = &self.p.terms;
+                    let v = fx(v);
+                    let err = v.saturating_sub(qd);
+                    let ki_err = sat32(self.p.vel_ki.mul_wide(err.to_bits()));
+                    let di = (i64::from(ki_err) * dt_q31 + (1 << 30)) >> 31;
+                    let integ = Fx::from_bits(sat32(i64::from(self.integ.to_bits()) + di));
+                    self.integ = clamp_fx(integ, -limit, limit);
+                    let fric =
+                        if t.dahl_on { viscous_fx(t, v).saturating_add(self.dahl.force()) } else { friction_fx(t, v) };
+                    let ff = fric
+                        .saturating_add(weight_fx(t, q))
+                        .saturating_add(self.p.c0)
+                        .saturating_add(spring_fx(t, q, v));
+                    self.p.vel_kp.times(err).saturating_add(self.integ).saturating_add(ff)
+                }
+                Mode::Position(x) => {
+                    self.integ = Fx::ZERO;
+                    let t = &self.p.terms;
+                    let x = if is_finite(x) { fx(x) } else { q };
+                    let ff = weight_fx(t, q).saturating_add(self.p.c0).saturating_add(spring_fx(t, q, Fx::ZERO));
+                    self.p.pos_kp.times(x.saturating_sub(q)).saturating_sub(self.p.pos_kd.times(qd)).saturating_add(ff)
+                }
+            }
+        };
+        let limited_target = clamp_fx(target, -limit, limit);
+        // rate·dt: the gain's mantissa (< 2³¹) times dt (Q31) fits an i64; then to Q16.16.
+        let rl = self.p.rate_limit;
+        let step_wide = (rl.m * dt_q31) >> 15;
+        let step_max = Fx::from_bits(sat32(step_wide >> rl.s.min(63)));
+        let up = self.prev_tau.saturating_add(step_max);
+        let down = self.prev_tau.saturating_sub(step_max);
+        let tau = clamp_fx(limited_target, down, up);
+        out.limited = tau != target;
+        self.prev_tau = tau;
+        out.tau_out = tau.to_num();
+        out.u_motor = self.p.inv_ratio_m1.times(tau).to_num();
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,6 +593,19 @@ mod tests {
         // The Q26 result's own resolution is 1.5e-8.
         assert!(worst < 4e-8, "{worst}");
         assert_eq!(exp_neg_q26(0), 1 << 26);
+    }
+
+    #[test]
+    fn gain_keeps_31_bits_of_any_coefficient() {
+        for &g in &[2.37f32, 1.0, 0.7, 1.0 / 159.0, 1.0e-4, 1.0e5, 1.0e6, 3.0e-9] {
+            for &x in &[1.0f32, -3.25, 10.0, 0.001] {
+                let got = Gain::new(g).times(Fx::from_num(x)).to_num::<f64>();
+                let want = (g as f64 * Fx::from_num(x).to_num::<f64>()).clamp(-32768.0, 32767.99998);
+                assert!(libm::fabs(got - want) <= 1.6e-5, "{g} * {x}: {got} vs {want}");
+            }
+        }
+        assert_eq!(Gain::new(0.0), Gain::default());
+        assert_eq!(Gain::new(f32::NAN), Gain::default());
         assert_eq!(exp_neg_q26(i64::MAX), 0);
     }
 }

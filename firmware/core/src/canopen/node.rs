@@ -34,6 +34,7 @@ use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
+use crate::fixed::{self, Arithmetic, ControllerFx};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
 use crate::safety::{Faults, Safety, SafetyConfig};
@@ -135,12 +136,19 @@ pub struct NodeConfig {
     pub device_name: &'static str,
     /// 0x100A
     pub software_version: &'static str,
+    /// The control step's arithmetic, fixed when the board image is built; named in the
+    /// identity by [`NodeConfig::with_arithmetic`].
+    pub arithmetic: Arithmetic,
 }
 
 /// Identity of this project's joint node. The vendor id is 0 ("unassigned" in CiA's list):
 /// we hold no CiA vendor id; a product shipping to others must get one.
 pub const DEFAULT_IDENTITY: Identity =
     Identity { vendor_id: 0x0000_0000, product_code: 0x4A4E_0001, revision: 0x0001_0000, serial: 0 };
+
+/// Product code (0x1018 sub 2) of a joint node whose control step runs in Q16.16: the host
+/// reads which numbers the joint computes from the identity (and the EDS names it).
+pub const PRODUCT_CODE_Q16: u32 = 0x4A4E_0002;
 
 impl NodeConfig {
     pub const fn new(node_id: u8) -> NodeConfig {
@@ -149,7 +157,26 @@ impl NodeConfig {
             identity: DEFAULT_IDENTITY,
             device_name: "joint-node",
             software_version: env!("CARGO_PKG_VERSION"),
+            arithmetic: Arithmetic::F32,
         }
+    }
+
+    /// The same node with its control step in `a`: a Q16.16 node has its own product code
+    /// ([`PRODUCT_CODE_Q16`]) and device name, so a master (and its EDS) tells them apart.
+    pub const fn with_arithmetic(self, a: Arithmetic) -> NodeConfig {
+        let mut c = self;
+        c.arithmetic = a;
+        match a {
+            Arithmetic::F32 => {
+                c.identity.product_code = DEFAULT_IDENTITY.product_code;
+                c.device_name = "joint-node";
+            }
+            Arithmetic::Q16 => {
+                c.identity.product_code = PRODUCT_CODE_Q16;
+                c.device_name = "joint-node q16.16";
+            }
+        }
+        c
     }
 }
 
@@ -223,7 +250,8 @@ impl ParamStorage for MemoryStorage {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
-    /// changed outside pre-operational, 6 gravity series
+    /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
+    /// set's, 8 a term the board's Q16.16 step does not compute
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -290,6 +318,8 @@ pub struct Node<S: ParamStorage> {
     commit_error: Option<CommitError>,
     safety: Safety,
     controller: Controller,
+    /// the Q16.16 step, used instead of `controller` when `cfg.arithmetic` is Q16
+    controller_fx: ControllerFx,
     heartbeat_ms: u16,
     next_heartbeat_us: u64,
     host_id: u8,
@@ -350,6 +380,7 @@ impl<S: ParamStorage> Node<S> {
             commit_error: None,
             safety: Safety::new(SafetyConfig::from_seconds(0.0, 0.0, 0.0), now_us),
             controller: Controller::new(),
+            controller_fx: ControllerFx::default(),
             heartbeat_ms: DEFAULT_HEARTBEAT_MS,
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
@@ -377,7 +408,7 @@ impl<S: ParamStorage> Node<S> {
         let mut faults = Faults::NONE;
         match self.storage.load() {
             Some(raw) => {
-                if self.active.replace(&raw).is_err() {
+                if self.unsupported(&raw).is_some() || self.active.replace(&raw).is_err() {
                     faults = Faults::PARAMS_REJECTED;
                     self.active.reset_to_defaults();
                 }
@@ -391,6 +422,8 @@ impl<S: ParamStorage> Node<S> {
         self.commit_error = None;
         self.controller.reset();
         self.controller.reset_presliding();
+        self.controller_fx.reset();
+        self.controller_fx.configure(self.active.current());
         self.assist_cmd = 0.0;
         self.others = [0.0; 3];
         self.reset_communication(now_us);
@@ -487,7 +520,10 @@ impl<S: ParamStorage> Node<S> {
         let mode = self.mode();
         let inp = Input { q, qd, qdd, others: self.others, assist_cmd: self.assist_cmd };
         let p = self.active.current();
-        let mut out = self.controller.step(p, mode, &inp, dt);
+        let mut out = match self.cfg.arithmetic {
+            Arithmetic::F32 => self.controller.step(p, mode, &inp, dt),
+            Arithmetic::Q16 => self.controller_fx.step(mode, &inp, dt),
+        };
         let tau = self.safety.update(now_us, out.tau_out);
         out.tau_out = tau;
         out.u_motor = tau * p.inv_ratio_m1();
@@ -606,6 +642,7 @@ impl<S: ParamStorage> Node<S> {
                 t.next_us = now_us;
             }
             self.controller.reset();
+            self.controller_fx.reset();
         }
         if s != NmtState::Operational {
             self.assist_cmd = 0.0;
@@ -1260,11 +1297,20 @@ impl<S: ParamStorage> Node<S> {
                 return Err(Abort::DeviceState);
             }
         }
+        if let Some(u) = self.unsupported(&self.staged) {
+            self.set_commit_error(
+                8,
+                u.param.map_or(0xFFFF, |p| p.index() as u16),
+                format_args!("{} is not in this joint's Q16.16 control step: set it to 0 or use an f32 board", u.term),
+            );
+            return Err(Abort::CannotStore);
+        }
         match self.active.replace(&self.staged) {
             Ok(()) => {
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
                 // The Dahl friction state belongs to the set that made it (its σ and level).
                 self.controller.reset_presliding();
+                self.controller_fx.configure(self.active.current());
                 self.commit_error = None;
                 Ok(())
             }
@@ -1282,6 +1328,14 @@ impl<S: ParamStorage> Node<S> {
                 self.set_commit_error(code, param, format_args!("{}", Brief(&e)));
                 Err(abort)
             }
+        }
+    }
+
+    /// A term `raw` enables that this node's control step does not compute (Q16.16 only).
+    fn unsupported(&self, raw: &RawParams) -> Option<fixed::Unsupported> {
+        match self.cfg.arithmetic {
+            Arithmetic::F32 => None,
+            Arithmetic::Q16 => fixed::unsupported(raw),
         }
     }
 
