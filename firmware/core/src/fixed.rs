@@ -36,6 +36,8 @@ pub struct FixedParams {
     pub fb: Fx,
     pub fc: Fx,
     pub v_band: Fx,
+    /// 1/v_band (0 when the band is 0: the hard sign)
+    pub inv_band: Gain,
     pub amplitude: Fx,
     pub s: Fx,
     pub phi: Fx,
@@ -59,6 +61,10 @@ impl FixedParams {
             fb: f(ParamId::FrictionB),
             fc: f(ParamId::FrictionC),
             v_band: f(ParamId::FrictionVBand),
+            inv_band: {
+                let b = p.get(ParamId::FrictionVBand);
+                Gain::new(if b > 0.0 { 1.0 / b } else { 0.0 })
+            },
             amplitude: f(ParamId::WeightAmplitude),
             s: f(ParamId::WeightS),
             phi: f(ParamId::WeightPhi),
@@ -125,11 +131,12 @@ pub fn sin_fx(theta: Fx) -> Fx {
     Fx::from_bits(((v + (1 << 13)) >> 14) as i32)
 }
 
-fn sign_smooth_fx(v: Fx, band: Fx) -> Fx {
+/// sign(v) smoothed inside the band: `v·(1/band)` clamped to ±1, by the band's inverse kept as
+/// a [`Gain`] (a 64-bit division is a library call of hundreds of instructions on a Cortex-M0+).
+fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
     let one = Fx::ONE;
     if band > Fx::ZERO {
-        let r = ((v.to_bits() as i64) << 16) / (band.to_bits() as i64);
-        Fx::from_bits(r.clamp(-(one.to_bits() as i64), one.to_bits() as i64) as i32)
+        clamp_fx(inv_band.times(v), -one, one)
     } else if v > Fx::ZERO {
         one
     } else if v < Fx::ZERO {
@@ -143,7 +150,7 @@ fn sign_smooth_fx(v: Fx, band: Fx) -> Fx {
 pub fn friction_fx(p: &FixedParams, qd: Fx) -> Fx {
     let quad = p.fa.saturating_mul(qd.saturating_mul(qd.saturating_abs()));
     let visc = p.fb.saturating_mul(qd);
-    let coul = p.fc.saturating_mul(sign_smooth_fx(qd, p.v_band));
+    let coul = p.fc.saturating_mul(sign_smooth_fx(qd, p.v_band, p.inv_band));
     quad.saturating_add(visc).saturating_add(coul)
 }
 
@@ -228,7 +235,7 @@ impl DahlFx {
             }
         } else {
             self.primed = true;
-            i64::from(p.dahl_c.saturating_mul(sign_smooth_fx(qd, p.v_band)).to_bits()) << (F_FRAC - 16)
+            i64::from(p.dahl_c.saturating_mul(sign_smooth_fx(qd, p.v_band, p.inv_band)).to_bits()) << (F_FRAC - 16)
         };
         self.q_prev = q;
         self.f = moved.clamp(-c, c);

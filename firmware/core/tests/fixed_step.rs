@@ -6,26 +6,30 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, PRODUCT_CODE_Q16};
-use joint_core::canopen::{od, Abort};
+use joint_core::canopen::{od, Abort, ControlStep};
 use joint_core::control::{Controller, Input, Mode};
 use joint_core::fixed::{unsupported, Arithmetic, ControllerFx};
 use joint_core::params::{check, ParamId, RawParams, PARAMS};
 use joint_core::safety::Faults;
 use joint_core::vectors::{self, XorShift32 as Rng};
 
-fn node(a: Arithmetic, stored: Option<RawParams>) -> Node<MemoryStorage> {
-    Node::new(NodeConfig::new(5).with_arithmetic(a), MemoryStorage { stored, saves: 0 }, 0)
+type F32Node = Node<MemoryStorage, Controller>;
+type Q16Node = Node<MemoryStorage, ControllerFx>;
+
+fn node<C: ControlStep>(stored: Option<RawParams>) -> Node<MemoryStorage, C> {
+    // The config says f32: the node's step type decides (and names itself in the identity).
+    Node::new(NodeConfig::new(5), MemoryStorage { stored, saves: 0 }, 0)
 }
 
 fn param_index(id: ParamId) -> u16 {
     od::PARAM_BASE + PARAMS.iter().position(|d| d.id == id).unwrap() as u16
 }
 
-fn commit(n: &mut Node<MemoryStorage>) -> Result<(), Abort> {
+fn commit<C: ControlStep>(n: &mut Node<MemoryStorage, C>) -> Result<(), Abort> {
     n.write(od::COMMIT, 0, &[1])
 }
 
-fn commit_error(n: &Node<MemoryStorage>) -> (u8, u16, String) {
+fn commit_error<C: ControlStep>(n: &Node<MemoryStorage, C>) -> (u8, u16, String) {
     let mut b = [0u8; 128];
     let k = n.read(od::COMMIT_ERROR, 1, &mut b).unwrap();
     let code = b[..k][0];
@@ -39,8 +43,8 @@ fn commit_error(n: &Node<MemoryStorage>) -> (u8, u16, String) {
 #[test]
 fn the_identity_names_the_arithmetic() {
     let mut b = [0u8; 32];
-    let f = node(Arithmetic::F32, None);
-    let q = node(Arithmetic::Q16, None);
+    let f: F32Node = node(None);
+    let q: Q16Node = node(None);
     f.read(od::IDENTITY, 2, &mut b).unwrap();
     assert_eq!(u32::from_le_bytes([b[0], b[1], b[2], b[3]]), 0x4A4E_0001);
     q.read(od::IDENTITY, 2, &mut b).unwrap();
@@ -49,6 +53,7 @@ fn the_identity_names_the_arithmetic() {
     assert_eq!(&b[..k], b"joint-node q16.16");
     // The f32 node is the one every board had before: same identity, same name.
     assert_eq!(NodeConfig::new(5).with_arithmetic(Arithmetic::F32), NodeConfig::new(5));
+    assert_eq!(NodeConfig::new(5).with_arithmetic(Arithmetic::Q16).identity.product_code, PRODUCT_CODE_Q16);
 }
 
 /// Each term the Q16.16 step lacks, switched on through the SDO server: the commit is refused
@@ -56,30 +61,23 @@ fn the_identity_names_the_arithmetic() {
 /// takes the same writes.
 #[test]
 fn a_q16_node_refuses_at_commit_every_term_its_step_lacks() {
-    type Stage = fn(&mut Node<MemoryStorage>);
-    let cases: [(&str, Option<ParamId>, Stage); 7] = [
-        ("gravity_table", None, |n| n.write(od::TABLE_SHAPE, 1, &[1]).unwrap()),
-        ("gravity_series", None, |n| n.write(od::SERIES_COUNT, 0, &[1]).unwrap()),
-        ("stribeck", Some(ParamId::StribeckLevel), |n| {
-            n.write(param_index(ParamId::StribeckLevel), 0, &0.5f32.to_le_bytes()).unwrap()
-        }),
-        ("asymmetric_friction", Some(ParamId::AsymmetricDelta), |n| {
-            n.write(param_index(ParamId::AsymmetricDelta), 0, &0.2f32.to_le_bytes()).unwrap()
-        }),
-        ("position_ripple", Some(ParamId::RippleAmplitude), |n| {
-            n.write(param_index(ParamId::RippleAmplitude), 0, &0.1f32.to_le_bytes()).unwrap()
-        }),
-        ("cable_spring", Some(ParamId::CableK), |n| {
-            n.write(param_index(ParamId::CableK), 0, &3.0f32.to_le_bytes()).unwrap()
-        }),
-        ("dry_friction", Some(ParamId::DryFrictionC), |n| {
-            n.write(param_index(ParamId::DryFrictionC), 0, &0.4f32.to_le_bytes()).unwrap()
-        }),
+    let cases: [(&str, Stage); 7] = [
+        ("gravity_table", Stage::Table),
+        ("gravity_series", Stage::Series),
+        ("stribeck", Stage::Param(ParamId::StribeckLevel, 0.5)),
+        ("asymmetric_friction", Stage::Param(ParamId::AsymmetricDelta, 0.2)),
+        ("position_ripple", Stage::Param(ParamId::RippleAmplitude, 0.1)),
+        ("cable_spring", Stage::Param(ParamId::CableK, 3.0)),
+        ("dry_friction", Stage::Param(ParamId::DryFrictionC, 0.4)),
     ];
-    for (term, param, stage) in cases {
-        let mut q = node(Arithmetic::Q16, Some(vectors::trunk_right()));
+    for (term, stage) in cases {
+        let param = match stage {
+            Stage::Param(id, _) => Some(id),
+            _ => None,
+        };
+        let mut q = node::<ControllerFx>(Some(vectors::trunk_right()));
         let before = q.params().raw().clone();
-        stage(&mut q);
+        stage.apply(&mut q);
         assert_eq!(commit(&mut q), Err(Abort::CannotStore), "{term}");
         assert_eq!(Abort::CannotStore.code(), 0x0800_0020);
         let (code, p, msg) = commit_error(&q);
@@ -90,8 +88,8 @@ fn a_q16_node_refuses_at_commit_every_term_its_step_lacks() {
 
         // The f32 node has every term: the same staging commits (the table and the series
         // are then refused by their own checks, incomplete as staged here, not by this rule).
-        let mut f = node(Arithmetic::F32, Some(vectors::trunk_right()));
-        stage(&mut f);
+        let mut f = node::<Controller>(Some(vectors::trunk_right()));
+        stage.apply(&mut f);
         let r = commit(&mut f);
         if param.is_some() {
             assert_eq!(r, Ok(()), "{term} on the f32 node");
@@ -102,6 +100,24 @@ fn a_q16_node_refuses_at_commit_every_term_its_step_lacks() {
     println!("Q16.16 node: 7 terms refused at commit with 0x08000020 and commit error 8");
 }
 
+/// What a case stages through the SDO server.
+#[derive(Clone, Copy)]
+enum Stage {
+    Table,
+    Series,
+    Param(ParamId, f32),
+}
+
+impl Stage {
+    fn apply<C: ControlStep>(self, n: &mut Node<MemoryStorage, C>) {
+        match self {
+            Stage::Table => n.write(od::TABLE_SHAPE, 1, &[1]).unwrap(),
+            Stage::Series => n.write(od::SERIES_COUNT, 0, &[1]).unwrap(),
+            Stage::Param(id, v) => n.write(param_index(id), 0, &v.to_le_bytes()).unwrap(),
+        }
+    }
+}
+
 fn param_index_rel(id: ParamId) -> u16 {
     PARAMS.iter().position(|d| d.id == id).unwrap() as u16
 }
@@ -109,7 +125,7 @@ fn param_index_rel(id: ParamId) -> u16 {
 /// Dry friction with a Dahl state is part of the state's level: the Q16.16 step has it.
 #[test]
 fn dry_friction_inside_a_dahl_state_is_accepted() {
-    let mut q = node(Arithmetic::Q16, Some(vectors::trunk_right()));
+    let mut q = node::<ControllerFx>(Some(vectors::trunk_right()));
     q.write(param_index(ParamId::DryFrictionC), 0, &0.4f32.to_le_bytes()).unwrap();
     q.write(param_index(ParamId::PreslidingSigma), 0, &800.0f32.to_le_bytes()).unwrap();
     assert_eq!(commit(&mut q), Ok(()));
@@ -117,10 +133,10 @@ fn dry_friction_inside_a_dahl_state_is_accepted() {
 
 #[test]
 fn a_q16_node_boots_on_defaults_from_a_stored_set_it_cannot_run() {
-    let q = node(Arithmetic::Q16, Some(vectors::trunk_table_fused()));
+    let q = node::<ControllerFx>(Some(vectors::trunk_table_fused()));
     assert!(q.safety().faults().contains(Faults::PARAMS_REJECTED));
     assert_eq!(q.params().lut().n_axes(), 0, "defaults, not the table set");
-    let f = node(Arithmetic::F32, Some(vectors::trunk_table_fused()));
+    let f = node::<Controller>(Some(vectors::trunk_table_fused()));
     assert!(!f.safety().faults().contains(Faults::PARAMS_REJECTED));
     assert_eq!(f.params().lut().n_axes(), 2);
 }

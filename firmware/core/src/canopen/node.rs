@@ -35,6 +35,45 @@ use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
 use crate::fixed::{self, Arithmetic, ControllerFx};
+
+/// A control step the node can run: what it needs of [`Controller`] and [`ControllerFx`].
+pub trait ControlStep: Default {
+    /// named in the node's identity
+    const ARITHMETIC: Arithmetic;
+    /// A new set is in force (the pre-sliding state starts afresh).
+    fn configure(&mut self, p: &ParamSet);
+    /// Forget the integrator and the last output.
+    fn reset(&mut self);
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output;
+}
+
+impl ControlStep for Controller {
+    const ARITHMETIC: Arithmetic = Arithmetic::F32;
+    fn configure(&mut self, _: &ParamSet) {
+        self.reset_presliding();
+    }
+    fn reset(&mut self) {
+        Controller::reset(self);
+    }
+    #[inline]
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        Controller::step(self, p, mode, inp, dt)
+    }
+}
+
+impl ControlStep for ControllerFx {
+    const ARITHMETIC: Arithmetic = Arithmetic::Q16;
+    fn configure(&mut self, p: &ParamSet) {
+        ControllerFx::configure(self, p);
+    }
+    fn reset(&mut self) {
+        ControllerFx::reset(self);
+    }
+    #[inline]
+    fn step(&mut self, _: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        ControllerFx::step(self, mode, inp, dt)
+    }
+}
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
 use crate::safety::{Faults, Safety, SafetyConfig};
@@ -136,8 +175,9 @@ pub struct NodeConfig {
     pub device_name: &'static str,
     /// 0x100A
     pub software_version: &'static str,
-    /// The control step's arithmetic, fixed when the board image is built; named in the
-    /// identity by [`NodeConfig::with_arithmetic`].
+    /// The control step's arithmetic, named in the identity by [`NodeConfig::with_arithmetic`].
+    /// [`Node::new`] sets it (and the identity) from the node's step type, so it cannot lie;
+    /// a host sets it to describe a board (the EDS).
     pub arithmetic: Arithmetic,
 }
 
@@ -308,7 +348,11 @@ enum Transfer {
 }
 
 /// The joint's CANopen node. See the module documentation.
-pub struct Node<S: ParamStorage> {
+///
+/// `C` is the control step: [`Controller`] (f32, the default) or [`ControllerFx`] (Q16.16),
+/// a type rather than a flag so a board image links only the step it runs (both in the G431's
+/// 64 KiB cost it 10 KiB of flash).
+pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     cfg: NodeConfig,
     storage: S,
     nmt: NmtState,
@@ -317,9 +361,7 @@ pub struct Node<S: ParamStorage> {
     staged: RawParams,
     commit_error: Option<CommitError>,
     safety: Safety,
-    controller: Controller,
-    /// the Q16.16 step, used instead of `controller` when `cfg.arithmetic` is Q16
-    controller_fx: ControllerFx,
+    controller: C,
     heartbeat_ms: u16,
     next_heartbeat_us: u64,
     host_id: u8,
@@ -364,11 +406,17 @@ fn frame(id: u16, data: [u8; 8], len: u8) -> CanFrame {
     CanFrame::from_parts(id, data, len)
 }
 
-impl<S: ParamStorage> Node<S> {
+impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// A node at boot time `now_us`: the stored set if it passes the check, else the defaults
     /// (with [`Faults::PARAMS_REJECTED`] latched when a stored set was refused).
+    ///
+    /// Always inlined: out of line, the ≈ 9 KiB node is built in this function's frame and
+    /// then copied into the caller's, which doubles the stack building it takes (measured
+    /// in the QEMU CANopen image, scripts/qemu-test.sh); inlined, it is built in place.
+    #[inline(always)]
     pub fn new(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
-        let mut cfg = cfg;
+        // The identity names the step the node really runs, whatever the config said.
+        let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
         cfg.node_id = cfg.node_id.clamp(1, 127);
         let mut node = Node {
             cfg,
@@ -379,8 +427,7 @@ impl<S: ParamStorage> Node<S> {
             active: ActiveParams::new(ParamSet::defaults()),
             commit_error: None,
             safety: Safety::new(SafetyConfig::from_seconds(0.0, 0.0, 0.0), now_us),
-            controller: Controller::new(),
-            controller_fx: ControllerFx::default(),
+            controller: C::default(),
             heartbeat_ms: DEFAULT_HEARTBEAT_MS,
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
@@ -421,9 +468,7 @@ impl<S: ParamStorage> Node<S> {
         self.safety.raise(faults);
         self.commit_error = None;
         self.controller.reset();
-        self.controller.reset_presliding();
-        self.controller_fx.reset();
-        self.controller_fx.configure(self.active.current());
+        self.controller.configure(self.active.current());
         self.assist_cmd = 0.0;
         self.others = [0.0; 3];
         self.reset_communication(now_us);
@@ -520,10 +565,7 @@ impl<S: ParamStorage> Node<S> {
         let mode = self.mode();
         let inp = Input { q, qd, qdd, others: self.others, assist_cmd: self.assist_cmd };
         let p = self.active.current();
-        let mut out = match self.cfg.arithmetic {
-            Arithmetic::F32 => self.controller.step(p, mode, &inp, dt),
-            Arithmetic::Q16 => self.controller_fx.step(mode, &inp, dt),
-        };
+        let mut out = self.controller.step(p, mode, &inp, dt);
         let tau = self.safety.update(now_us, out.tau_out);
         out.tau_out = tau;
         out.u_motor = tau * p.inv_ratio_m1();
@@ -642,7 +684,6 @@ impl<S: ParamStorage> Node<S> {
                 t.next_us = now_us;
             }
             self.controller.reset();
-            self.controller_fx.reset();
         }
         if s != NmtState::Operational {
             self.assist_cmd = 0.0;
@@ -1309,8 +1350,7 @@ impl<S: ParamStorage> Node<S> {
             Ok(()) => {
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
                 // The Dahl friction state belongs to the set that made it (its σ and level).
-                self.controller.reset_presliding();
-                self.controller_fx.configure(self.active.current());
+                self.controller.configure(self.active.current());
                 self.commit_error = None;
                 Ok(())
             }
@@ -1333,7 +1373,7 @@ impl<S: ParamStorage> Node<S> {
 
     /// A term `raw` enables that this node's control step does not compute (Q16.16 only).
     fn unsupported(&self, raw: &RawParams) -> Option<fixed::Unsupported> {
-        match self.cfg.arithmetic {
+        match C::ARITHMETIC {
             Arithmetic::F32 => None,
             Arithmetic::Q16 => fixed::unsupported(raw),
         }
