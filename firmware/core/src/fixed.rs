@@ -115,7 +115,14 @@ const RAD_TO_PHASE: i64 = 683_565_276;
 
 /// sin of a Q16.16 angle in radians, Q16.16 result.
 pub fn sin_fx(theta: Fx) -> Fx {
-    let phase = ((theta.to_bits() as i64).wrapping_mul(RAD_TO_PHASE) >> 16) as u32;
+    sin_wide(w(theta))
+}
+
+/// sin of a Q16.16 angle carried in an i64: the phase (turns·2³²) is the low 32 bits of
+/// `θ·2³²/(2π)`, which a wrapping 64-bit product keeps exactly, so no angle the i64 holds
+/// loses precision to the range reduction.
+fn sin_wide(theta: Wide) -> Fx {
+    let phase = (theta.wrapping_mul(RAD_TO_PHASE) >> 16) as u32;
     let quadrant = phase >> 30;
     let mut pos = phase & 0x3FFF_FFFF;
     if quadrant & 1 == 1 {
@@ -129,6 +136,35 @@ pub fn sin_fx(theta: Fx) -> Fx {
     let v = if quadrant >= 2 { -v } else { v };
     // Q1.30 → Q16.16 with rounding.
     Fx::from_bits(((v + (1 << 13)) >> 14) as i32)
+}
+
+/// A Q16.16 value carried in an i64 between the terms. Every term's product and the sum of the
+/// terms stay far inside it, so nothing saturates on the way and only the total is saturated
+/// back to Q16.16 ([`sat`]): a total beyond ±32768 N·m sits at the rail with its sign, and one
+/// inside is exact to the terms' rounding even when a term alone (K·(q − q0) at q = 1000 rad)
+/// or a factor (q̇|q̇| at 1000 rad/s) is beyond the format.
+type Wide = i64;
+
+#[inline(always)]
+fn w(x: Fx) -> Wide {
+    i64::from(x.to_bits())
+}
+
+#[inline(always)]
+fn sat(x: Wide) -> Fx {
+    Fx::from_bits(sat32(x))
+}
+
+/// Q16.16 × Q16.16 (both in range: the product is below 2⁶²), floor.
+#[inline(always)]
+fn mul(c: Fx, x: Fx) -> Wide {
+    (w(c) * w(x)) >> 16
+}
+
+/// Q16.16 coefficient × a wide value (|x| < 2⁴⁷), floor: split so no product passes 2⁶².
+#[inline(always)]
+fn mul_wide(c: Fx, x: Wide) -> Wide {
+    w(c) * (x >> 16) + ((w(c) * (x & 0xffff)) >> 16)
 }
 
 /// sign(v) smoothed inside the band: `v·(1/band)` clamped to ±1, by the band's inverse kept as
@@ -146,45 +182,67 @@ fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
     }
 }
 
+fn viscous_w(p: &FixedParams, qd: Fx) -> Wide {
+    // q̇|q̇| < 2³⁰ in Q32, < 2⁴⁶ in Q16.
+    let q2 = (w(qd) * w(qd).abs()) >> 16;
+    mul_wide(p.fa, q2) + mul(p.fb, qd)
+}
+
+fn friction_w(p: &FixedParams, qd: Fx) -> Wide {
+    viscous_w(p, qd) + mul(p.fc, sign_smooth_fx(qd, p.v_band, p.inv_band))
+}
+
+fn weight_w(p: &FixedParams, q: Fx) -> Wide {
+    mul(p.amplitude, sin_wide(mul(p.s, q) + w(p.phi)))
+}
+
+fn spring_w(p: &FixedParams, q: Fx, qd: Fx) -> Wide {
+    mul_wide(p.k, w(q) - w(p.q0)) + mul(p.b, qd)
+}
+
+fn disturbance_w(p: &FixedParams, q: Fx, qd: Fx) -> Wide {
+    friction_w(p, qd) + weight_w(p, q) + spring_w(p, q, qd)
+}
+
 /// Friction `a·q̇|q̇| + b·q̇ + c·sign(q̇)` in fixed point.
 pub fn friction_fx(p: &FixedParams, qd: Fx) -> Fx {
-    let quad = p.fa.saturating_mul(qd.saturating_mul(qd.saturating_abs()));
-    let visc = p.fb.saturating_mul(qd);
-    let coul = p.fc.saturating_mul(sign_smooth_fx(qd, p.v_band, p.inv_band));
-    quad.saturating_add(visc).saturating_add(coul)
+    sat(friction_w(p, qd))
 }
 
 /// Weight `C_w0·sin(s·q + φ)` in fixed point.
 pub fn weight_fx(p: &FixedParams, q: Fx) -> Fx {
-    p.amplitude.saturating_mul(sin_fx(p.s.saturating_mul(q).saturating_add(p.phi)))
+    sat(weight_w(p, q))
 }
 
 /// Spring-damper `K(q − q0) + B·q̇` in fixed point.
 pub fn spring_fx(p: &FixedParams, q: Fx, qd: Fx) -> Fx {
-    p.k.saturating_mul(q.saturating_sub(p.q0)).saturating_add(p.b.saturating_mul(qd))
+    sat(spring_w(p, q, qd))
 }
 
 /// friction + weight + spring: the disturbance terms an FPU-less board compensates.
 pub fn disturbance_fx(p: &FixedParams, q: Fx, qd: Fx) -> Fx {
-    friction_fx(p, qd).saturating_add(weight_fx(p, q)).saturating_add(spring_fx(p, q, qd))
+    sat(disturbance_w(p, q, qd))
 }
 
 /// The velocity terms `a·q̇|q̇| + b·q̇` in fixed point (the friction a Dahl state completes).
 pub fn viscous_fx(p: &FixedParams, qd: Fx) -> Fx {
-    let quad = p.fa.saturating_mul(qd.saturating_mul(qd.saturating_abs()));
-    quad.saturating_add(p.fb.saturating_mul(qd))
+    sat(viscous_w(p, qd))
+}
+
+fn disturbance_stateful_w(p: &FixedParams, dahl: &mut DahlFx, q: Fx, qd: Fx) -> Wide {
+    if p.dahl_on {
+        let f = dahl.update(p, q, qd);
+        viscous_w(p, qd) + w(f) + weight_w(p, q) + spring_w(p, q, qd)
+    } else {
+        disturbance_w(p, q, qd)
+    }
 }
 
 /// [`disturbance_fx`], or with presliding on the same terms with the Dahl state `dahl`, advanced
 /// to this sample, as the Coulomb torque: the fixed-point twin of
 /// [`crate::control::disturbance_stateful`]. `dahl` is untouched when presliding is off.
 pub fn disturbance_stateful_fx(p: &FixedParams, dahl: &mut DahlFx, q: Fx, qd: Fx) -> Fx {
-    if p.dahl_on {
-        let f = dahl.update(p, q, qd);
-        viscous_fx(p, qd).saturating_add(f).saturating_add(weight_fx(p, q)).saturating_add(spring_fx(p, q, qd))
-    } else {
-        disturbance_fx(p, q, qd)
-    }
+    sat(disturbance_stateful_w(p, dahl, q, qd))
 }
 
 /// The Dahl friction state in fixed point: F and the angle it was advanced to (see the module
@@ -450,14 +508,47 @@ impl StepParams {
     }
 }
 
-/// f32 → Q16.16 for a value known finite (the step checks first): saturating, never NaN.
+/// `x·2^frac` rounded to nearest (halves away from zero), from the f32's bits alone: a
+/// handful of integer instructions where the `fixed` crate's generic conversion (or a float
+/// multiply, a library call on the M0+) costs tens to hundreds. Magnitudes saturate at 2⁶²;
+/// NaN and ±∞ give 0 (the step has refused them before). `frac` ≤ 32.
+#[inline]
+fn scaled(x: f32, frac: i32) -> i64 {
+    let b = x.to_bits();
+    let exp = ((b >> 23) & 0xff) as i32;
+    if exp == 0xff {
+        return 0;
+    }
+    // A normal x is mant·2^(exp − 150); a subnormal (exp 0) is below 2^-126: rounds to 0.
+    let mant = i64::from((b & 0x7f_ffff) | 0x80_0000);
+    let sh = exp - 150 + frac;
+    let mag = if exp == 0 || sh < -25 {
+        0
+    } else if sh < 0 {
+        (mant + (1 << (-sh - 1))) >> -sh
+    } else if sh <= 38 {
+        mant << sh
+    } else {
+        1 << 62
+    };
+    if b >> 31 == 1 {
+        -mag
+    } else {
+        mag
+    }
+}
+
+/// f32 → Q16.16, saturating (see [`scaled`]).
 #[inline]
 fn fx(x: f32) -> Fx {
-    if crate::math::is_finite(x) {
-        Fx::saturating_from_num(x)
-    } else {
-        Fx::ZERO
-    }
+    Fx::from_bits(sat32(scaled(x, 16)))
+}
+
+/// Q16.16 → f32: exact below 256 in magnitude (24 significant bits), rounded to nearest above;
+/// an integer conversion and a multiply by a power of two, both correctly rounded everywhere.
+#[inline]
+fn to_f32(x: Fx) -> f32 {
+    x.to_bits() as f32 * (1.0 / 65536.0)
 }
 
 /// The Q16.16 twin of [`crate::control::Controller`]: the same law, modes and limits on the
@@ -506,7 +597,7 @@ impl ControllerFx {
     #[inline]
     fn disturbance(&mut self, q: Fx, qd: Fx, qdd: Fx) -> Fx {
         let t = &self.p.terms;
-        disturbance_stateful_fx(t, &mut self.dahl, q, qd).saturating_add(self.p.j.times(qdd)).saturating_add(self.p.c0)
+        sat(disturbance_stateful_w(t, &mut self.dahl, q, qd) + self.p.j.mul_wide(qdd.to_bits()) + w(self.p.c0))
     }
 
     /// One step of length `dt` s, with f32 inputs and outputs like
@@ -516,11 +607,7 @@ impl ControllerFx {
         use crate::math::is_finite;
         // dt in Q1.31: 0 < dt ≤ 1 s, else the rate limiter freezes for this step (as in f32).
         // 0 < dt ≤ 1 in one unsigned compare of the bits, as the f32 step does.
-        let dt_q31: i64 = if dt.to_bits().wrapping_sub(1) < 1.0f32.to_bits() {
-            fixed::types::I32F32::saturating_from_num(dt).to_bits() >> 1
-        } else {
-            0
-        };
+        let dt_q31: i64 = if dt.to_bits().wrapping_sub(1) < 1.0f32.to_bits() { scaled(dt, 31) } else { 0 };
         let finite = is_finite(inp.q) && is_finite(inp.qd) && is_finite(inp.qdd) && is_finite(inp.assist_cmd);
         let limit = self.p.torque_limit;
         let mut out = Output { bad_input: !finite, ..Output::default() };
@@ -530,7 +617,7 @@ impl ControllerFx {
         } else {
             let (q, qd, qdd) = (fx(inp.q), fx(inp.qd), fx(inp.qdd));
             let c_c = self.disturbance(q, qd, qdd);
-            out.c_c = c_c.to_num();
+            out.c_c = to_f32(c_c);
             match mode {
                 Mode::Off => {
                     self.integ = Fx::ZERO;
@@ -539,7 +626,7 @@ impl ControllerFx {
                 Mode::Assist => {
                     self.integ = Fx::ZERO;
                     let assist = self.p.assist_k.saturating_mul(q).saturating_add(fx(inp.assist_cmd));
-                    out.assist = assist.to_num();
+                    out.assist = to_f32(assist);
                     assist.saturating_add(self.p.fraction.times(c_c))
                 }
                 Mode::Velocity(v) => {
@@ -550,19 +637,15 @@ impl ControllerFx {
                     let di = (i64::from(ki_err) * dt_q31 + (1 << 30)) >> 31;
                     let integ = Fx::from_bits(sat32(i64::from(self.integ.to_bits()) + di));
                     self.integ = clamp_fx(integ, -limit, limit);
-                    let fric =
-                        if t.dahl_on { viscous_fx(t, v).saturating_add(self.dahl.force()) } else { friction_fx(t, v) };
-                    let ff = fric
-                        .saturating_add(weight_fx(t, q))
-                        .saturating_add(self.p.c0)
-                        .saturating_add(spring_fx(t, q, v));
+                    let fric = if t.dahl_on { viscous_w(t, v) + w(self.dahl.force()) } else { friction_w(t, v) };
+                    let ff = sat(fric + weight_w(t, q) + w(self.p.c0) + spring_w(t, q, v));
                     self.p.vel_kp.times(err).saturating_add(self.integ).saturating_add(ff)
                 }
                 Mode::Position(x) => {
                     self.integ = Fx::ZERO;
                     let t = &self.p.terms;
                     let x = if is_finite(x) { fx(x) } else { q };
-                    let ff = weight_fx(t, q).saturating_add(self.p.c0).saturating_add(spring_fx(t, q, Fx::ZERO));
+                    let ff = sat(weight_w(t, q) + w(self.p.c0) + spring_w(t, q, Fx::ZERO));
                     self.p.pos_kp.times(x.saturating_sub(q)).saturating_sub(self.p.pos_kd.times(qd)).saturating_add(ff)
                 }
             }
@@ -577,8 +660,8 @@ impl ControllerFx {
         let tau = clamp_fx(limited_target, down, up);
         out.limited = tau != target;
         self.prev_tau = tau;
-        out.tau_out = tau.to_num();
-        out.u_motor = self.p.inv_ratio_m1.times(tau).to_num();
+        out.tau_out = to_f32(tau);
+        out.u_motor = to_f32(self.p.inv_ratio_m1.times(tau));
         out
     }
 }
@@ -612,6 +695,27 @@ mod tests {
             }
         }
         assert_eq!(Gain::new(0.0), Gain::default());
+    }
+
+    #[test]
+    fn scaled_rounds_like_the_fixed_crate_except_on_ties() {
+        let mut rng = crate::vectors::XorShift32::new(3);
+        for _ in 0..100_000 {
+            let x = f32::from_bits(rng.next_u32());
+            if !crate::math::is_finite(x) {
+                assert_eq!(scaled(x, 16), 0);
+                continue;
+            }
+            let want = Fx::saturating_from_num(x);
+            let got = fx(x);
+            // The fixed crate rounds ties to even, `scaled` away from zero: one LSB at most.
+            assert!((i64::from(got.to_bits()) - i64::from(want.to_bits())).abs() <= 1, "{x}: {got} vs {want}");
+        }
+        assert_eq!(fx(1.5), Fx::from_num(1.5));
+        assert_eq!(fx(-40000.0), Fx::MIN);
+        assert_eq!(fx(1.0e30), Fx::MAX);
+        assert_eq!(scaled(1.0, 31), 1 << 31);
+        assert_eq!(scaled(0.001, 31), 2_147_484);
         assert_eq!(Gain::new(f32::NAN), Gain::default());
         assert_eq!(exp_neg_q26(i64::MAX), 0);
     }

@@ -281,7 +281,7 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
 /// can cost the stack the image measures a second copy.
 pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
     let mut r = Run {
-        node: Node::<MemoryStorage, C>::new(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0),
+        node: Node::<MemoryStorage, C>::with_step(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0),
         emit,
         s: Summary::default(),
         step: 0,

@@ -406,15 +406,25 @@ fn frame(id: u16, data: [u8; 8], len: u8) -> CanFrame {
     CanFrame::from_parts(id, data, len)
 }
 
+impl<S: ParamStorage> Node<S> {
+    /// A node with the f32 control step at boot time `now_us`: the stored set if it passes the
+    /// check, else the defaults (with [`Faults::PARAMS_REJECTED`] latched when a stored set was
+    /// refused). [`Node::with_step`] builds one with another step.
+    #[inline(always)]
+    pub fn new(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
+        Self::with_step(cfg, storage, now_us)
+    }
+}
+
 impl<S: ParamStorage, C: ControlStep> Node<S, C> {
-    /// A node at boot time `now_us`: the stored set if it passes the check, else the defaults
-    /// (with [`Faults::PARAMS_REJECTED`] latched when a stored set was refused).
+    /// A node whose control step is `C` (`Node::<_, ControllerFx>::with_step` for Q16.16); see
+    /// [`Node::new`].
     ///
     /// Always inlined: out of line, the ≈ 9 KiB node is built in this function's frame and
     /// then copied into the caller's, which doubles the stack building it takes (measured
     /// in the QEMU CANopen image, scripts/qemu-test.sh); inlined, it is built in place.
     #[inline(always)]
-    pub fn new(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
+    pub fn with_step(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
         // The identity names the step the node really runs, whatever the config said.
         let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
         cfg.node_id = cfg.node_id.clamp(1, 127);
