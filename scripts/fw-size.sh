@@ -1,19 +1,31 @@
 #!/usr/bin/env bash
-# Builds the board image (profile fw) and prints its flash and static RAM use against the
-# budget (flash <= 64 KiB, static RAM <= 16 KiB; stretch 48 KiB / 12 KiB). Exits 1 when
-# over budget, 2 when the build or the measurement itself fails.
+# Builds a board image (profile fw) and prints its flash and static RAM use against its budget.
+#   fw-size.sh [g431]  the STM32G431 image: flash <= 64 KiB, static RAM <= 16 KiB (stretch
+#                      48 KiB / 12 KiB), half the G431CB's 128 KiB / 32 KiB.
+#   fw-size.sh g0b1    the STM32G0B1 image (Q16.16 step; `g0b1-f32` the soft-float one):
+#                      flash <= 120 KiB so it fits the smallest G0B1 (xB: 128 KiB, minus the
+#                      8 KiB parameter pages) and not only the NUCLEO's 512 KiB part; static
+#                      RAM <= 16 KiB as on the G431 (every G0B1 has 144 KiB: the budget
+#                      catches growth, not a limit of the part). Stretch 96 KiB / 12 KiB.
+# Exits 1 when over budget, 2 when the build or the measurement itself fails.
 #
 # Flash = .vector_table + .text + .rodata + .data (its load image lives in flash);
 # static RAM = .data + .bss + .uninit (the stack is not counted: it takes what is left).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-FLASH_BUDGET=$((64 * 1024))
 RAM_BUDGET=$((16 * 1024))
-FLASH_STRETCH=$((48 * 1024))
 RAM_STRETCH=$((12 * 1024))
-
-TARGET=thumbv7em-none-eabihf
+case "${1:-g431}" in
+    g431) TARGET=thumbv7em-none-eabihf PKG=firmware FEATURES=()
+          FLASH_BUDGET=$((64 * 1024)) FLASH_STRETCH=$((48 * 1024)) ;;
+    g0b1) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 FEATURES=()
+          FLASH_BUDGET=$((120 * 1024)) FLASH_STRETCH=$((96 * 1024)) ;;
+    g0b1-f32) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 FEATURES=(--no-default-features)
+          FLASH_BUDGET=$((120 * 1024)) FLASH_STRETCH=$((96 * 1024)) ;;
+    *) echo "usage: fw-size.sh [g431|g0b1|g0b1-f32]" >&2; exit 2 ;;
+esac
+echo "fw-size: $PKG ${FEATURES[*]} ($TARGET)"
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
 LLVM_SIZE="$(rustc --print sysroot)/lib/rustlib/x86_64-unknown-linux-gnu/bin/llvm-size"
 if [[ ! -x "$LLVM_SIZE" ]]; then
@@ -21,8 +33,8 @@ if [[ ! -x "$LLVM_SIZE" ]]; then
     exit 2
 fi
 
-cargo build --profile fw -p firmware --target "$TARGET" >&2 || exit 2
-ELF="$TARGET_DIR/$TARGET/fw/firmware"
+cargo build --profile fw -p "$PKG" ${FEATURES[@]+"${FEATURES[@]}"} --target "$TARGET" >&2 || exit 2
+ELF="$TARGET_DIR/$TARGET/fw/$PKG"
 [[ -f "$ELF" ]] || { echo "fw-size: no image at $ELF" >&2; exit 2; }
 
 # llvm-size -A: "section size addr" rows.
