@@ -142,7 +142,7 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
                 (weight_fx(&p, fx(q)), h(a) * (h(s) * h(q) + h(phi)).sin())
             },
         ),
-        measure("sin alone (Q16.16 angle)", "-", "θ ∈ ±3e4 rad, exact in Q16.16", |r, h| {
+        measure("sin alone (Q16.16 angle)", "-", "θ ∈ ±3e4 rad, exact in Q16.16", |r, _| {
             let t = fx(draw(r, 3e4, true));
             (sin_fx(t), t.to_num::<f64>().sin())
         }),
@@ -169,7 +169,7 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
             "Dahl state F, one step",
             "c ∈ [1e-3, 2e3], σ/c ∈ [1, 3.2e4]",
             "Δq ∈ ±0.1 rad, exact in Q16.16",
-            |r, h| {
+            |r, _| {
                 let (c, k) = (draw(r, 2e3, false), draw(r, 32767.0, false).max(1.0));
                 let p = params_with(|p| {
                     p.dahl_on = true;
