@@ -5,8 +5,8 @@
 #   - the Cortex-M4F (thumbv7em-none-eabihf, hard float) on mps2-an386: budget 400 for the full
 #     f32 step with the fused 2-D gravity table;
 #   - the FPU-less Cortex-M0+ instruction set (thumbv6m-none-eabi, the STM32G0B1's; f32 in
-#     soft-float) on mps2-an385, a Cortex-M3 without FPU (QEMU 7.2's only M0 machine has no
-#     SysTick: see scripts/qemu-test.sh): budget 2500 for the Q16.16 full step.
+#     soft-float) on mps2-an385, a Cortex-M3 without FPU (why not QEMU's M0 machine, microbit:
+#     see scripts/qemu-test.sh): budget 2500 for the Q16.16 full step.
 # Prints both tables, then the full step side by side (f32 and Q16.16 on both cores). Exits
 # 0 when both images are within their budgets, 2 when one is over, 1 on panic, 124 on timeout.
 set -uo pipefail

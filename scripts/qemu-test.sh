@@ -2,10 +2,12 @@
 # Runs the joint core on QEMU and checks it against the host. `qemu-test.sh` (or `m4f`): the
 # Cortex-M4F images (thumbv7em-none-eabihf) on mps2-an386. `qemu-test.sh m0`: the FPU-less
 # images (thumbv6m-none-eabi: soft-float f32 and the Q16.16 step, the STM32G0B1 board's
-# instruction set) on mps2-an385, a Cortex-M3 without FPU: QEMU 7.2's only Cortex-M0 machine,
-# `microbit` (nRF51), has no SysTick (the nRF51's M0 is built without it), so the bench could
-# not count instructions there, and thumbv6m code runs unchanged on an M3 (ARMv7-M executes
-# every ARMv6-M instruction), so the instruction stream measured is the M0+'s.
+# instruction set) on mps2-an385, a Cortex-M3 without FPU: thumbv6m code runs unchanged on an
+# M3 (ARMv7-M executes every ARMv6-M instruction), so the instruction stream measured is the
+# M0+'s. QEMU 7.2's only Cortex-M0 machine, `microbit` (nRF51), was tried: semihosting works
+# and its SysTick counts (QEMU models one the real nRF51 lacks), but its 16 KiB of RAM do not
+# hold these images (the parity and bench images lock up on a HardFault there; the node alone
+# is ~9 KiB and needs 17-20 KiB of stack).
 #   1. builds the QEMU images (firmware-qemu, profile fw);
 #   2. qemu-core-checks: on-target facts about the core, exit status counts;
 #   3. qemu-parity: the scripted session's every output, compared bit for bit with the
