@@ -33,11 +33,12 @@ run m0 thumbv6m-none-eabi mps2-an385 || { st=$?; [[ $status -eq 0 ]] && status=$
 full() { # CORE NAME -> the figure, or "?"
     grep -F "bench full \"$2\" " "$LOG_DIR/$1.out" 2>/dev/null | awk '{print $NF}' | grep . || echo "?"
 }
-echo "== full step, instructions (trunk joint + inertia/offset + spring, assist mode)"
-printf '| %-22s | %8s | %11s | %20s | %11s |\n' "" "M4F f32" "M4F Q16.16" "M0+ soft-float f32" "M0+ Q16.16"
-printf '|%s|%s|%s|%s|%s|\n' "------------------------" "----------" "-------------" "----------------------" "-------------"
-for row in "full step" "full step + Dahl state (walk)"; do
-    printf '| %-22s | %8s | %11s | %20s | %11s |\n' "${row/ (walk)/}" \
+echo "== full step, instructions (trunk joint + inertia/offset + spring, assist mode; the same with gravity)"
+printf '| %-40s | %8s | %11s | %20s | %11s |\n' "" "M4F f32" "M4F Q16.16" "M0+ soft-float f32" "M0+ Q16.16"
+printf '|%s|%s|%s|%s|%s|\n' "------------------------------------------" "----------" "-------------" "----------------------" "-------------"
+for row in "full step" "full step + Dahl state (walk)" "full step + 2-D table, fused" \
+    "full step, arm: series + residual table"; do
+    printf '| %-40s | %8s | %11s | %20s | %11s |\n' "${row/ (walk)/}" \
         "$(full m4f "f32 $row")" "$(full m4f "Q16.16 $row")" "$(full m0 "f32 $row")" "$(full m0 "Q16.16 $row")"
 done
 exit $status

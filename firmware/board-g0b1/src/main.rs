@@ -5,12 +5,10 @@
 //! the HAL set-up is here: clocks, pins, interrupts, the memory map (`memory.x`).
 //!
 //! The control step is Q16.16 by default (cargo feature `q16`): on a part without an FPU every
-//! f32 operation is a library call, and the Q16.16 full step takes 0.37x the instructions of
-//! the soft-float one (scripts/fw-bench.sh). `--no-default-features` builds the f32 step, which
-//! has every term; the Q16.16 node refuses a set with a term it lacks (gravity table, series,
-//! Stribeck, asymmetric, ripple, cable spring, dry friction without a Dahl state) with SDO
-//! abort 0x08000020, and names its step in its identity (0x1018 product code 0x4A4E0002,
-//! 0x1008 "joint-node q16.16").
+//! f32 operation is a library call, and the Q16.16 full step takes 0.40x the instructions of
+//! the soft-float one, 0.3–0.6x with a gravity table or series (scripts/fw-bench.sh). Both steps
+//! have every term; `--no-default-features` builds the f32 one. The node names its step in its
+//! identity (0x1018 product code 0x4A4E0002, 0x1008 "joint-node q16.16").
 //!
 //! Pins (NUCLEO-G0B1RE morpho headers; PA11/PA12 are the Nucleo's USB): FDCAN1 RX PD0,
 //! TX PD1; encoder TIM3 CH1/CH2 on PB4/PB5; H-bridge TIM1 CH1/CH1N PA8/PB13 and CH2/CH2N

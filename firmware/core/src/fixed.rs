@@ -1,8 +1,14 @@
-//! Fixed-point path for boards without an FPU: friction + weight + spring in Q16.16
-//! ([`I16F16`]: ±32768 range, 1.5e-5 resolution), with the pre-sliding (Dahl) friction state
-//! when `presliding.sigma > 0` ([`DahlFx`], [`disturbance_stateful_fx`]).
+//! Fixed-point path for boards without an FPU: the whole control step in Q16.16 ([`I16F16`]:
+//! ±32768 range, 1.5e-5 resolution), [`ControllerFx`]: friction + weight + spring here, with the
+//! pre-sliding (Dahl) friction state when `presliding.sigma > 0` ([`DahlFx`],
+//! [`disturbance_stateful_fx`]); the gravity table with fusion, the gravity series and the effect
+//! terms in [`crate::fixed_gravity`]; inertia, offset, the assist law, the modes, the limits
+//! and 1/(N − 1) in [`ControllerFx::step`]. A board picks it or the f32 step when its image is
+//! built ([`Arithmetic`], the node's type parameter) and names it in its identity.
 //!
-//! Every operation saturates instead of wrapping or panicking. The sine uses a quarter-wave
+//! Terms are Q16.16 values carried in an i64 and saturated once, on the total: nothing wraps,
+//! and no intermediate saturates (`tests/fixed_accuracy.rs` measures every term against f64
+//! over the parameter table's ranges). The sine uses a quarter-wave
 //! table of 257 points built at compile time, indexed by the angle converted to a 32-bit phase
 //! (full turn = 2³²) with 64-bit arithmetic, so large angles lose no precision in the range
 //! reduction; linear interpolation between points bounds its error to ~5e-6.
@@ -14,8 +20,8 @@
 //!
 //! The Dahl state follows the f32 path ([`crate::model::Presliding`]): the same exact
 //! exponential update over each step's travel, `F' = T + (F − T)·exp(−(σ/c)·|Δq|)` with
-//! `T = c·sign(Δq)`, its level the whole Coulomb level `friction.c + dry_friction.c` (dry
-//! friction is otherwise one of the effect terms this path leaves out). `exp(−x)` is
+//! `T = c·sign(Δq)`, its level the whole Coulomb level `friction.c + dry_friction.c` (outside
+//! a Dahl state dry friction is one of the effect terms). `exp(−x)` is
 //! `2^(−n)·exp(−g)` with `x·log₂e = n + g/ln 2`: a shift and a 10-term Taylor series in 64-bit
 //! integers (error < 4e-8). F is carried with 24 fractional bits and handed out in Q16.16, never
 //! outside `[−c, c]`. Limits of the format: σ/c saturates at 32767 1/rad (a pre-sliding
@@ -111,18 +117,21 @@ const fn build_sin_table() -> [i32; QUARTER_POINTS + 1] {
 }
 
 /// 2³²/(2π): radians in Q16.16 → phase in turns·2³² after `>> 16`.
-const RAD_TO_PHASE: i64 = 683_565_276;
+/// 2⁴⁸/(2π), rounded: radians in Q16.16 → phase in turns·2³² after `>> 32`. With 16 bits more
+/// than 2³²/(2π) its rounding moves the phase by ~1e-14·θ instead of ~1e-10·θ (6e-4 rad at the
+/// ripple term's 6e6 rad); the wrapping product keeps every bit the phase needs.
+const RAD_TO_PHASE: i64 = 44_798_133_900_177;
 
 /// sin of a Q16.16 angle in radians, Q16.16 result.
 pub fn sin_fx(theta: Fx) -> Fx {
     sin_wide(w(theta))
 }
 
-/// sin of a Q16.16 angle carried in an i64: the phase (turns·2³²) is the low 32 bits of
-/// `θ·2³²/(2π)`, which a wrapping 64-bit product keeps exactly, so no angle the i64 holds
+/// sin of a Q16.16 angle carried in an i64: the phase (turns·2³²) is bits 32..64 of
+/// `θ·2⁴⁸/(2π)`, which a wrapping 64-bit product keeps exactly, so no angle the i64 holds
 /// loses precision to the range reduction.
-fn sin_wide(theta: Wide) -> Fx {
-    let phase = (theta.wrapping_mul(RAD_TO_PHASE) >> 16) as u32;
+pub(crate) fn sin_wide(theta: Wide) -> Fx {
+    let phase = (theta.wrapping_mul(RAD_TO_PHASE) >> 32) as u32;
     let quadrant = phase >> 30;
     let mut pos = phase & 0x3FFF_FFFF;
     if quadrant & 1 == 1 {
@@ -143,33 +152,33 @@ fn sin_wide(theta: Wide) -> Fx {
 /// back to Q16.16 ([`sat`]): a total beyond ±32768 N·m sits at the rail with its sign, and one
 /// inside is exact to the terms' rounding even when a term alone (K·(q − q0) at q = 1000 rad)
 /// or a factor (q̇|q̇| at 1000 rad/s) is beyond the format.
-type Wide = i64;
+pub(crate) type Wide = i64;
 
 #[inline(always)]
-fn w(x: Fx) -> Wide {
+pub(crate) fn w(x: Fx) -> Wide {
     i64::from(x.to_bits())
 }
 
 #[inline(always)]
-fn sat(x: Wide) -> Fx {
+pub(crate) fn sat(x: Wide) -> Fx {
     Fx::from_bits(sat32(x))
 }
 
 /// Q16.16 × Q16.16 (both in range: the product is below 2⁶²), floor.
 #[inline(always)]
-fn mul(c: Fx, x: Fx) -> Wide {
+pub(crate) fn mul(c: Fx, x: Fx) -> Wide {
     (w(c) * w(x)) >> 16
 }
 
 /// Q16.16 coefficient × a wide value (|x| < 2⁴⁷), floor: split so no product passes 2⁶².
 #[inline(always)]
-fn mul_wide(c: Fx, x: Wide) -> Wide {
+pub(crate) fn mul_wide(c: Fx, x: Wide) -> Wide {
     w(c) * (x >> 16) + ((w(c) * (x & 0xffff)) >> 16)
 }
 
 /// sign(v) smoothed inside the band: `v·(1/band)` clamped to ±1, by the band's inverse kept as
 /// a [`Gain`] (a 64-bit division is a library call of hundreds of instructions on a Cortex-M0+).
-fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
+pub(crate) fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
     let one = Fx::ONE;
     if band > Fx::ZERO {
         clamp_fx(inv_band.times(v), -one, one)
@@ -182,21 +191,21 @@ fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
     }
 }
 
-fn viscous_w(p: &FixedParams, qd: Fx) -> Wide {
+pub(crate) fn viscous_w(p: &FixedParams, qd: Fx) -> Wide {
     // q̇|q̇| < 2³⁰ in Q32, < 2⁴⁶ in Q16.
     let q2 = (w(qd) * w(qd).abs()) >> 16;
     mul_wide(p.fa, q2) + mul(p.fb, qd)
 }
 
-fn friction_w(p: &FixedParams, qd: Fx) -> Wide {
+pub(crate) fn friction_w(p: &FixedParams, qd: Fx) -> Wide {
     viscous_w(p, qd) + mul(p.fc, sign_smooth_fx(qd, p.v_band, p.inv_band))
 }
 
-fn weight_w(p: &FixedParams, q: Fx) -> Wide {
+pub(crate) fn weight_w(p: &FixedParams, q: Fx) -> Wide {
     mul(p.amplitude, sin_wide(mul(p.s, q) + w(p.phi)))
 }
 
-fn spring_w(p: &FixedParams, q: Fx, qd: Fx) -> Wide {
+pub(crate) fn spring_w(p: &FixedParams, q: Fx, qd: Fx) -> Wide {
     mul_wide(p.k, w(q) - w(p.q0)) + mul(p.b, qd)
 }
 
@@ -323,7 +332,7 @@ const INV_FACTORIAL_Q30: [i64; 11] = [
 /// exp(−x) in Q6.26 for `x_q32` ≥ 0, x with 32 fractional bits: `2^(−n)·exp(−g)` with
 /// `x·log₂e = n + f`, `g = f·ln 2 ∈ [0, ln 2)`, and exp(−g) by its Taylor series to g¹⁰
 /// (truncation < 4e-10) in Horner form, all in 64-bit integers.
-fn exp_neg_q26(x_q32: i64) -> i64 {
+pub(crate) fn exp_neg_q26(x_q32: i64) -> i64 {
     // exp(−32) < 2^-46 is 0 in Q26, and x < 2^37 keeps x·log₂e (Q56) below 2^62.
     if x_q32 >= 32 << 32 {
         return 0;
@@ -362,43 +371,6 @@ impl Arithmetic {
             Arithmetic::Q16 => "Q16.16",
         }
     }
-}
-
-/// A term of the f32 step that the Q16.16 step does not have: a set that enables one is refused
-/// at commit on a Q16.16 board (commit error 8, SDO abort 0x08000020) and at boot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Unsupported {
-    /// the parameter that switches the term on; `None` for the gravity table and series
-    pub param: Option<ParamId>,
-    pub term: &'static str,
-}
-
-/// The first term `raw` switches on that [`ControllerFx`] cannot compute, if any. What the
-/// Q16.16 step has: friction (a, b, c with its band), the Dahl state (its level includes
-/// dry friction), weight, inertia, offset, spring-damper, the assist law, the velocity and
-/// position modes, torque and rate limits. What it has not: the gravity table (with or without
-/// fusion), the analytic gravity series, Stribeck, asymmetric friction, position ripple, the
-/// cable spring, and dry friction without a Dahl state.
-pub fn unsupported(raw: &crate::params::RawParams) -> Option<Unsupported> {
-    if raw.table.n_axes > 0 {
-        return Some(Unsupported { param: None, term: "gravity_table" });
-    }
-    if raw.series.n_terms > 0 {
-        return Some(Unsupported { param: None, term: "gravity_series" });
-    }
-    let pre_on = raw.get(ParamId::PreslidingSigma) > 0.0;
-    let terms = [
-        (ParamId::StribeckLevel, "stribeck"),
-        (ParamId::AsymmetricDelta, "asymmetric_friction"),
-        (ParamId::RippleAmplitude, "position_ripple"),
-        (ParamId::CableK, "cable_spring"),
-        (ParamId::DryFrictionC, "dry_friction"),
-    ];
-    terms
-        .iter()
-        .find(|(id, _)| raw.get(*id) != 0.0 && !(pre_on && *id == ParamId::DryFrictionC))
-        .map(|&(id, term)| Unsupported { param: Some(id), term })
 }
 
 /// A positive coefficient as `m·2^(−s)` with `m < 2³¹`: products with a Q16.16 value keep 31
@@ -442,8 +414,14 @@ impl Gain {
 
     /// `self·x` for a Q-anything integer, in the same format, rounded to nearest, as i64.
     #[inline]
-    fn mul_wide(self, x: i32) -> i64 {
-        let p = self.m * i64::from(x);
+    pub(crate) fn mul_wide(self, x: i32) -> i64 {
+        self.mul_i64(i64::from(x))
+    }
+
+    /// [`Gain::mul_wide`] for |x| < 2³³ (the product stays below 2⁶³).
+    #[inline]
+    pub(crate) fn mul_i64(self, x: i64) -> i64 {
+        let p = self.m * x;
         if self.s == 0 {
             p
         } else {
@@ -485,6 +463,12 @@ pub struct StepParams {
     pub pos_kp: Gain,
     pub pos_kd: Gain,
     pub inv_ratio_m1: Gain,
+    /// σ_m of the gravity model (> 0: the table is fused with it)
+    pub table_sigma_model: Fx,
+    /// k of the fusion clamp τ_m ± k·σ_m
+    pub table_clamp_k: Fx,
+    /// Stribeck, asymmetric, ripple, cable spring, dry friction
+    pub extra: crate::fixed_gravity::ExtraFx,
 }
 
 impl StepParams {
@@ -504,6 +488,9 @@ impl StepParams {
             pos_kp: g(ParamId::PosKp),
             pos_kd: g(ParamId::PosKd),
             inv_ratio_m1: Gain::new(p.inv_ratio_m1()),
+            table_sigma_model: f(ParamId::TableSigmaModel),
+            table_clamp_k: f(ParamId::TableClampK),
+            extra: crate::fixed_gravity::ExtraFx::new(&p.terms().extra),
         }
     }
 }
@@ -538,9 +525,10 @@ fn scaled(x: f32, frac: i32) -> i64 {
     }
 }
 
-/// f32 → Q16.16, saturating (see [`scaled`]).
+/// f32 → Q16.16 as the step converts its inputs and the table's values: rounded to nearest
+/// with halves away from zero (the `fixed` crate rounds them to even), saturating, NaN → 0.
 #[inline]
-fn fx(x: f32) -> Fx {
+pub fn fx(x: f32) -> Fx {
     Fx::from_bits(sat32(scaled(x, 16)))
 }
 
@@ -551,8 +539,8 @@ fn to_f32(x: Fx) -> f32 {
     x.to_bits() as f32 * (1.0 / 65536.0)
 }
 
-/// The Q16.16 twin of [`crate::control::Controller`]: the same law, modes and limits on the
-/// terms [`unsupported`] does not name, in integers only (f32 only at the edges: the inputs and
+/// The Q16.16 twin of [`crate::control::Controller`]: the same law, modes, limits and terms
+/// (gravity table and fusion, series and effect terms in [`crate::fixed_gravity`]), in integers only (f32 only at the edges: the inputs and
 /// the [`crate::control::Output`] are converted, so the node and the board glue stay the same).
 /// Every operation saturates; none wraps. Out of range for Q16.16 (±32768): an input q̈ beyond
 /// 32767 rad/s² is taken as 32767 (the f32 step clamps at 1e6), and every torque saturates at
@@ -593,22 +581,73 @@ impl ControllerFx {
         &self.dahl
     }
 
-    /// `C_c` of the Q16.16 step: `J·q̈ + friction (or viscous + Dahl) + weight + C_0 + spring`.
+    /// Gravity: the weight term plus the series (the model side τ_m), with the table added or
+    /// fused ([`crate::control::gravity`]).
+    fn gravity_w(&self, p: &ParamSet, angles: &[Fx; 4]) -> Wide {
+        use crate::fixed_gravity::{fuse_w, series_w, table_w};
+        let [q, ..] = *angles;
+        let wgt = weight_w(&self.p.terms, q);
+        let s = p.series();
+        let tau_m = if s.n_terms == 0 { wgt } else { wgt + series_w(s, angles) };
+        let lut = p.lut();
+        if lut.n_axes() == 0 {
+            return tau_m;
+        }
+        let sigma_m = self.p.table_sigma_model;
+        let fused = sigma_m > Fx::ZERO;
+        let (tau_t, sigma_t) = table_w(p.table(), lut, angles, fused);
+        if fused {
+            let data = if lut.residual() { tau_m + tau_t } else { tau_t };
+            fuse_w(tau_m, sigma_m, data, sigma_t, self.p.table_clamp_k)
+        } else {
+            tau_m + tau_t
+        }
+    }
+
+    /// The effect terms at (q, q̇).
     #[inline]
-    fn disturbance(&mut self, q: Fx, qd: Fx, qdd: Fx) -> Fx {
+    fn extra_w(&self, q: Fx, qd: Fx) -> Wide {
+        if !self.p.extra.any {
+            return 0;
+        }
         let t = &self.p.terms;
-        sat(disturbance_stateful_w(t, &mut self.dahl, q, qd) + self.p.j.mul_wide(qdd.to_bits()) + w(self.p.c0))
+        self.p.extra.torque_w(q, qd, sign_smooth_fx(qd, t.v_band, t.inv_band))
+    }
+
+    /// `C_c` of the Q16.16 step: `J·q̈ + friction (or viscous + Dahl) + gravity + C_0 + spring +
+    /// effect terms`, every term of [`crate::control::disturbance_stateful`].
+    #[inline]
+    fn disturbance(&mut self, p: &ParamSet, angles: &[Fx; 4], qd: Fx, qdd: Fx) -> Fx {
+        let [q, ..] = *angles;
+        let t = &self.p.terms;
+        let fric = if t.dahl_on { viscous_w(t, qd) + w(self.dahl.update(t, q, qd)) } else { friction_w(t, qd) };
+        sat(fric
+            + self.gravity_w(p, angles)
+            + spring_w(&self.p.terms, q, qd)
+            + self.extra_w(q, qd)
+            + self.p.j.mul_wide(qdd.to_bits())
+            + w(self.p.c0))
     }
 
     /// One step of length `dt` s, with f32 inputs and outputs like
     /// [`crate::control::Controller::step`].
-    pub fn step(&mut self, mode: crate::control::Mode, inp: &crate::control::Input, dt: f32) -> crate::control::Output {
+    pub fn step(
+        &mut self,
+        p: &ParamSet,
+        mode: crate::control::Mode,
+        inp: &crate::control::Input,
+        dt: f32,
+    ) -> crate::control::Output {
         use crate::control::{Mode, Output};
         use crate::math::is_finite;
         // dt in Q1.31: 0 < dt ≤ 1 s, else the rate limiter freezes for this step (as in f32).
         // 0 < dt ≤ 1 in one unsigned compare of the bits, as the f32 step does.
         let dt_q31: i64 = if dt.to_bits().wrapping_sub(1) < 1.0f32.to_bits() { scaled(dt, 31) } else { 0 };
-        let finite = is_finite(inp.q) && is_finite(inp.qd) && is_finite(inp.qdd) && is_finite(inp.assist_cmd);
+        let finite = is_finite(inp.q)
+            && is_finite(inp.qd)
+            && is_finite(inp.qdd)
+            && is_finite(inp.assist_cmd)
+            && inp.others.iter().all(|&o| is_finite(o));
         let limit = self.p.torque_limit;
         let mut out = Output { bad_input: !finite, ..Output::default() };
         let target = if !finite {
@@ -616,7 +655,9 @@ impl ControllerFx {
             Fx::ZERO
         } else {
             let (q, qd, qdd) = (fx(inp.q), fx(inp.qd), fx(inp.qdd));
-            let c_c = self.disturbance(q, qd, qdd);
+            let [o0, o1, o2] = inp.others;
+            let angles = [q, fx(o0), fx(o1), fx(o2)];
+            let c_c = self.disturbance(p, &angles, qd, qdd);
             out.c_c = to_f32(c_c);
             match mode {
                 Mode::Off => {
@@ -638,14 +679,18 @@ impl ControllerFx {
                     let integ = Fx::from_bits(sat32(i64::from(self.integ.to_bits()) + di));
                     self.integ = clamp_fx(integ, -limit, limit);
                     let fric = if t.dahl_on { viscous_w(t, v) + w(self.dahl.force()) } else { friction_w(t, v) };
-                    let ff = sat(fric + weight_w(t, q) + w(self.p.c0) + spring_w(t, q, v));
+                    let ff =
+                        sat(fric + self.gravity_w(p, &angles) + w(self.p.c0) + spring_w(t, q, v) + self.extra_w(q, v));
                     self.p.vel_kp.times(err).saturating_add(self.integ).saturating_add(ff)
                 }
                 Mode::Position(x) => {
                     self.integ = Fx::ZERO;
                     let t = &self.p.terms;
                     let x = if is_finite(x) { fx(x) } else { q };
-                    let ff = sat(weight_w(t, q) + w(self.p.c0) + spring_w(t, q, Fx::ZERO));
+                    let ff = sat(self.gravity_w(p, &angles)
+                        + w(self.p.c0)
+                        + spring_w(t, q, Fx::ZERO)
+                        + self.extra_w(q, Fx::ZERO));
                     self.p.pos_kp.times(x.saturating_sub(q)).saturating_sub(self.p.pos_kd.times(qd)).saturating_add(ff)
                 }
             }

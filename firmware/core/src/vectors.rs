@@ -247,8 +247,7 @@ pub enum Tag {
     /// One control step.
     Step,
     /// The same step through the Q16.16 controller ([`crate::fixed::ControllerFx`]), which a
-    /// board built for it runs instead (on sets with terms it lacks it computes without them:
-    /// what is compared is its arithmetic; the node refuses such sets).
+    /// board built for it runs instead.
     Fixed,
 }
 
@@ -500,7 +499,7 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
         self.summary.steps += 1;
         let index = self.summary.records;
         self.emit(Record::step(index, &out, fx, inp.qd, inp.qdd));
-        let out = self.ctl_fx.step(mode, inp, dt);
+        let out = self.ctl_fx.step(self.active.current(), mode, inp, dt);
         let index = self.summary.records;
         self.emit(Record::fixed_step(index, &out, self.ctl_fx.presliding().force()));
     }

@@ -34,7 +34,7 @@ use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
-use crate::fixed::{self, Arithmetic, ControllerFx};
+use crate::fixed::{Arithmetic, ControllerFx};
 
 /// A control step the node can run: what it needs of [`Controller`] and [`ControllerFx`].
 pub trait ControlStep: Default {
@@ -70,8 +70,8 @@ impl ControlStep for ControllerFx {
         ControllerFx::reset(self);
     }
     #[inline]
-    fn step(&mut self, _: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
-        ControllerFx::step(self, mode, inp, dt)
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        ControllerFx::step(self, p, mode, inp, dt)
     }
 }
 use crate::math;
@@ -291,7 +291,7 @@ impl ParamStorage for MemoryStorage {
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
     /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
-    /// set's, 8 a term the board's Q16.16 step does not compute
+    /// set's
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -465,7 +465,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let mut faults = Faults::NONE;
         match self.storage.load() {
             Some(raw) => {
-                if self.unsupported(&raw).is_some() || self.active.replace(&raw).is_err() {
+                if self.active.replace(&raw).is_err() {
                     faults = Faults::PARAMS_REJECTED;
                     self.active.reset_to_defaults();
                 }
@@ -1348,14 +1348,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 return Err(Abort::DeviceState);
             }
         }
-        if let Some(u) = self.unsupported(&self.staged) {
-            self.set_commit_error(
-                8,
-                u.param.map_or(0xFFFF, |p| p.index() as u16),
-                format_args!("{} is not in this joint's Q16.16 control step: set it to 0 or use an f32 board", u.term),
-            );
-            return Err(Abort::CannotStore);
-        }
         match self.active.replace(&self.staged) {
             Ok(()) => {
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
@@ -1378,14 +1370,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 self.set_commit_error(code, param, format_args!("{}", Brief(&e)));
                 Err(abort)
             }
-        }
-    }
-
-    /// A term `raw` enables that this node's control step does not compute (Q16.16 only).
-    fn unsupported(&self, raw: &RawParams) -> Option<fixed::Unsupported> {
-        match C::ARITHMETIC {
-            Arithmetic::F32 => None,
-            Arithmetic::Q16 => fixed::unsupported(raw),
         }
     }
 
