@@ -29,7 +29,7 @@ case "$CORE" in
          STACK_BUDGET=20480 ;;
     m0)  TARGET=thumbv6m-none-eabi MACHINE=mps2-an385 CORE_NAME="Cortex-M0+ code on an FPU-less M3"
          # The G0B1 has 144 KiB of RAM, plenty; the budget is the larger measured peak (Q16.16
-         # node 19.8 KiB, f32 node 17.1 KiB: Thumb-1 and soft-float take more stack than the
+         # node 19.5 KiB, f32 node 17.1 KiB: Thumb-1 and soft-float take more stack than the
          # M4F's 16.8 KiB) plus ~20 %, so a regression is noticed long before the RAM runs out.
          STACK_BUDGET=24576 ;;
     *) echo "usage: qemu-test.sh [m4f|m0]" >&2; exit 2 ;;

@@ -6,7 +6,7 @@
 //!
 //! The control step is Q16.16 by default (cargo feature `q16`): on a part without an FPU every
 //! f32 operation is a library call, and the Q16.16 full step takes 0.40x the instructions of
-//! the soft-float one, 0.3–0.6x with a gravity table or series (scripts/fw-bench.sh). Both steps
+//! the soft-float one, 0.26–0.51x with a gravity table or series (scripts/fw-bench.sh). Both steps
 //! have every term; `--no-default-features` builds the f32 one. The node names its step in its
 //! identity (0x1018 product code 0x4A4E0002, 0x1008 "joint-node q16.16").
 //!

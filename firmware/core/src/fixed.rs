@@ -379,7 +379,8 @@ impl Arithmetic {
 /// (1/(N − 1) = 1e-4 is 6.5 Q16.16 steps).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Gain {
-    m: i64,
+    /// < 2³⁰; an i32 so a table of per-cell gains stays 8 bytes a cell
+    m: i32,
     s: u32,
 }
 
@@ -400,9 +401,10 @@ impl Gain {
             // x ≥ 2^30: larger than anything a Q16.16 product can hold; saturate the gain.
             Gain { m: (1 << 30) - 1, s: 0 }
         } else if s > 62 {
-            Gain { m: m >> (s - 62).min(63), s: 62 }
+            Gain { m: (m >> (s - 62).min(63)) as i32, s: 62 }
         } else {
-            Gain { m, s: s as u32 }
+            // m < 2^30 (shifted up to 30 bits at most)
+            Gain { m: m as i32, s: s as u32 }
         }
     }
 
@@ -418,10 +420,27 @@ impl Gain {
         self.mul_i64(i64::from(x))
     }
 
+    /// `self·d` as a fraction in Q8.24 for 0 ≤ d < 2³² (a distance into a grid cell times the
+    /// cell's 1/span), limited to [0, 1].
+    #[inline]
+    pub(crate) fn frac_q24(self, d: i64) -> i64 {
+        // m < 2³⁰, d < 2³²: the product stays below 2⁶².
+        let p = i64::from(self.m) * d.clamp(0, (1 << 32) - 1);
+        let f = if self.s >= 8 {
+            p >> (self.s - 8)
+        } else if p == 0 {
+            0
+        } else {
+            // s < 8 is a gain ≥ 2²², a span below 2⁻²² rad: any d ≥ 2⁻¹⁶ is past it.
+            1 << 24
+        };
+        f.min(1 << 24)
+    }
+
     /// [`Gain::mul_wide`] for |x| < 2³³ (the product stays below 2⁶³).
     #[inline]
     pub(crate) fn mul_i64(self, x: i64) -> i64 {
-        let p = self.m * x;
+        let p = i64::from(self.m) * x;
         if self.s == 0 {
             p
         } else {
@@ -469,6 +488,8 @@ pub struct StepParams {
     pub table_clamp_k: Fx,
     /// Stribeck, asymmetric, ripple, cable spring, dry friction
     pub extra: crate::fixed_gravity::ExtraFx,
+    /// the gravity table's grid and per-cell 1/span as Q16.16 holds them
+    pub table: crate::fixed_gravity::TableFx,
 }
 
 impl StepParams {
@@ -491,6 +512,7 @@ impl StepParams {
             table_sigma_model: f(ParamId::TableSigmaModel),
             table_clamp_k: f(ParamId::TableClampK),
             extra: crate::fixed_gravity::ExtraFx::new(&p.terms().extra),
+            table: crate::fixed_gravity::TableFx::new(p.table(), p.lut()),
         }
     }
 }
@@ -595,7 +617,7 @@ impl ControllerFx {
         }
         let sigma_m = self.p.table_sigma_model;
         let fused = sigma_m > Fx::ZERO;
-        let (tau_t, sigma_t) = table_w(p.table(), lut, angles, fused);
+        let (tau_t, sigma_t) = table_w(p.table(), &self.p.table, lut, angles, fused);
         if fused {
             let data = if lut.residual() { tau_m + tau_t } else { tau_t };
             fuse_w(tau_m, sigma_m, data, sigma_t, self.p.table_clamp_k)
@@ -698,7 +720,7 @@ impl ControllerFx {
         let limited_target = clamp_fx(target, -limit, limit);
         // rate·dt: the gain's mantissa (< 2³¹) times dt (Q31) fits an i64; then to Q16.16.
         let rl = self.p.rate_limit;
-        let step_wide = (rl.m * dt_q31) >> 15;
+        let step_wide = (i64::from(rl.m) * dt_q31) >> 15;
         let step_max = Fx::from_bits(sat32(step_wide >> rl.s.min(63)));
         let up = self.prev_tau.saturating_add(step_max);
         let down = self.prev_tau.saturating_sub(step_max);

@@ -3,8 +3,9 @@
 //! friction, position ripple, cable spring), the integer twins of [`crate::table`],
 //! [`crate::series`] and [`crate::model::Extra`].
 //!
-//! The table and the series are read from the set in force (their f32 values converted as they
-//! are used: a few integer instructions each, and no second copy of a 1 KiB table in the node);
+//! The table's values and the series are read from the set in force (their f32 values
+//! converted as they are used: a few integer instructions each, and no second copy of the
+//! table's 1 KiB of values in the node);
 //! everything is carried as [`Wide`] Q16.16 values and saturated only in the step's total.
 //! - Table: each axis's cell is found by binary search on the grid (converted), the fraction
 //!   is `(x − g_i)·(1/span)` in Q8.24 with the Lut's 1/span, corners are weighted in Q8.24.
@@ -16,7 +17,7 @@
 use crate::fixed::{exp_neg_q26, fx, mul, mul_wide, sat, sin_wide, w, Fx, Gain, Wide};
 use crate::model::Extra;
 use crate::series::RawSeries;
-use crate::table::{Lut, RawTable, AXES_MAX, CELLS_MAX};
+use crate::table::{Lut, RawTable, AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 
 /// `Σ a_k·sin(n_k·angles + φ_k)`, `angles = [q, o0, o1, o2]`.
 pub(crate) fn series_w(s: &RawSeries, angles: &[Fx; 4]) -> Wide {
@@ -32,13 +33,42 @@ pub(crate) fn series_w(s: &RawSeries, angles: &[Fx; 4]) -> Wide {
     acc
 }
 
+/// The table's grid and the reciprocal of each cell's span as Q16.16 holds the grid, computed
+/// when a set is put in force so the step neither converts the grid nor divides.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TableFx {
+    grid: [[Fx; AXIS_POINTS_MAX]; AXES_MAX],
+    inv_span: [[Gain; AXIS_POINTS_MAX]; AXES_MAX],
+}
+
+impl TableFx {
+    pub fn new(t: &RawTable, lut: &Lut) -> TableFx {
+        let mut tf = TableFx::default();
+        let n = (lut.n_axes() as usize).min(AXES_MAX);
+        for ((g, inv), src) in tf.grid.iter_mut().zip(tf.inv_span.iter_mut()).zip(t.grid.iter()).take(n) {
+            for (d, &x) in g.iter_mut().zip(src.iter()) {
+                *d = fx(x);
+            }
+            // 1/span of the held grid: the fraction is 0 and (to 2⁻²⁴) 1 at the held points, so
+            // the interpolation has no step at a cell edge (the f32 Lut's 1/span of the f32
+            // grid would leave one of up to 2⁻¹⁶/span).
+            for (i, r) in inv.iter_mut().enumerate() {
+                let (a, b) = (g.get(i).copied().unwrap_or(Fx::ZERO), g.get(i + 1).copied().unwrap_or(Fx::ZERO));
+                let span = b.to_bits() as f32 - a.to_bits() as f32;
+                *r = Gain::new(if span > 0.0 { 65536.0 / span } else { 0.0 });
+            }
+        }
+        tf
+    }
+}
+
 /// Cell and fraction (Q8.24) of `x` along `axis`, clamped to the grid.
-fn locate(t: &RawTable, lut: &Lut, axis: usize, x: Fx) -> (usize, i64) {
+fn locate(tf: &TableFx, lut: &Lut, axis: usize, x: Fx) -> (usize, i64) {
     let (points, _) = lut.shape(axis);
     let last = points.saturating_sub(1).max(1);
-    let empty = [0.0f32; crate::table::AXIS_POINTS_MAX];
-    let grid = t.grid.get(axis).unwrap_or(&empty);
-    let g = |i: usize| fx(grid.get(i).copied().unwrap_or(0.0));
+    let empty = [Fx::ZERO; AXIS_POINTS_MAX];
+    let grid = tf.grid.get(axis).unwrap_or(&empty);
+    let g = |i: usize| grid.get(i).copied().unwrap_or(Fx::ZERO);
     let (g0, gl) = (g(0), g(last));
     let x = if x < g0 {
         g0
@@ -56,18 +86,13 @@ fn locate(t: &RawTable, lut: &Lut, axis: usize, x: Fx) -> (usize, i64) {
             hi = mid;
         }
     }
-    // The fraction against the cell as Q16.16 holds it (one 64-bit division per axis), so it is
-    // exactly 0 and 1 at the held grid points and the interpolation is continuous; the f32
-    // Lut's 1/span would leave steps of up to 2⁻¹⁶/span at the cell edges.
-    let (a, b) = (w(g(lo)), w(g(lo + 1)));
-    let span = b - a;
-    let d = (w(x) - a).clamp(0, span.max(0));
-    (lo, if span > 0 { (d << 24) / span } else { 0 })
+    let inv = tf.inv_span.get(axis).and_then(|r| r.get(lo)).copied().unwrap_or_default();
+    (lo, inv.frac_q24(w(x) - w(g(lo))))
 }
 
 /// Torque and (with `with_sigma`) σ of the table at `angles = [q, o0, o1, o2]`, each axis
 /// reading its own source; multilinear over the cell's 2ⁿ corners.
-pub(crate) fn table_w(t: &RawTable, lut: &Lut, angles: &[Fx; 4], with_sigma: bool) -> (Wide, Wide) {
+pub(crate) fn table_w(t: &RawTable, tf: &TableFx, lut: &Lut, angles: &[Fx; 4], with_sigma: bool) -> (Wide, Wide) {
     let n = (lut.n_axes() as usize).min(AXES_MAX);
     if n == 0 {
         return (0, 0);
@@ -77,7 +102,7 @@ pub(crate) fn table_w(t: &RawTable, lut: &Lut, angles: &[Fx; 4], with_sigma: boo
     let mut origin = 0usize;
     for axis in 0..n {
         let x = angles.get(lut.source(axis)).copied().unwrap_or(Fx::ZERO);
-        let (i, f) = locate(t, lut, axis, x);
+        let (i, f) = locate(tf, lut, axis, x);
         let (_, st) = lut.shape(axis);
         origin += i * st;
         if let (Some(fr), Some(s)) = (frac.get_mut(axis), stride.get_mut(axis)) {
@@ -196,7 +221,7 @@ pub fn fuse_fx(tau_m: Fx, sigma_m: Fx, data: Fx, sigma_d: Fx, k: Fx) -> Fx {
 
 /// [`table_w`] saturated: torque and σ of a table at `angles`.
 pub fn table_fx(t: &RawTable, lut: &Lut, angles: &[Fx; 4], with_sigma: bool) -> (Fx, Fx) {
-    let (v, s) = table_w(t, lut, angles, with_sigma);
+    let (v, s) = table_w(t, &TableFx::new(t, lut), lut, angles, with_sigma);
     (sat(v), sat(s))
 }
 
