@@ -9,6 +9,8 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 echo "== format (cargo fmt --check; rustfmt.toml)"
 cargo fmt --all -- --check
+# The G0B1 image is a workspace of its own: --all above does not reach it.
+cargo fmt --manifest-path firmware/board-g0b1/Cargo.toml -- --check
 echo "== host crates keep their dependency rules (cargo tree)"
 bash scripts/check-deps.sh --self-test
 bash scripts/check-deps.sh
@@ -26,7 +28,7 @@ echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
 echo "== board image lints (G431, G0B1)"
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf -- -D warnings
-cargo clippy -q --profile fw -p firmware-g0b1 --target thumbv6m-none-eabi -- -D warnings
+cargo clippy -q --profile fw --manifest-path firmware/board-g0b1/Cargo.toml --target thumbv6m-none-eabi -- -D warnings
 echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
 cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl -p diag-bench --lib --bins -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"
