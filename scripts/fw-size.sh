@@ -21,7 +21,7 @@ RAM_STRETCH=$((12 * 1024))
 G0B1=(--manifest-path firmware/board-g0b1/Cargo.toml)
 case "${1:-g431}" in
     g431) TARGET=thumbv7em-none-eabihf PKG=firmware CRATE=(-p firmware) FEATURES=()
-          MAP=firmware/board/memory.x FLASH_BUDGET=$((64 * 1024)) FLASH_STRETCH=$((48 * 1024)) ;;
+          MAP=memory.x FLASH_BUDGET=$((64 * 1024)) FLASH_STRETCH=$((48 * 1024)) ;;
     g0b1) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 CRATE=("${G0B1[@]}") FEATURES=()
           MAP=firmware/board-g0b1/memory.x FLASH_BUDGET=$((120 * 1024)) FLASH_STRETCH=$((96 * 1024)) ;;
     g0b1-f32) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 CRATE=("${G0B1[@]}") FEATURES=(--no-default-features)
