@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Idempotent setup for a fresh Debian 12 machine with rustup: the Cortex-M target, llvm-tools
+# Idempotent setup for a fresh Debian 12 machine with rustup: the Cortex-M targets, llvm-tools
 # (llvm-size for the firmware size report), qemu-system-arm (firmware tests on an emulated
 # Cortex-M4F), socat (a pty pair that carries slcan between two programs) and can-utils (its
 # offline log converters read the bus captures jointctl writes).
@@ -18,10 +18,13 @@ if ! command -v cargo >/dev/null 2>&1; then
     fi
 fi
 
-if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
-    log "adding rust target thumbv7em-none-eabihf"
-    rustup target add thumbv7em-none-eabihf >&2
-fi
+# thumbv7em: the G431 (Cortex-M4F); thumbv6m: the FPU-less G0B1 (Cortex-M0+) and its QEMU images.
+for target in thumbv7em-none-eabihf thumbv6m-none-eabi; do
+    if ! rustup target list --installed | grep -qx "$target"; then
+        log "adding rust target $target"
+        rustup target add "$target" >&2
+    fi
+done
 if ! rustup component list --installed | grep -q '^llvm-tools'; then
     log "adding rustup component llvm-tools"
     rustup component add llvm-tools >&2

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Every test: the firmware size budget, the firmware on an emulated Cortex-M4F (QEMU) with
-# bit-parity against the PC, the control step's instruction budget, the core's no-panic lints,
+# Every test: the firmware size budgets (G431, G0B1), the firmware on an emulated Cortex-M4F
+# and on the FPU-less Cortex-M0+ instruction set (QEMU) with bit-parity against the PC (f32
+# and Q16.16 steps), the control step's instruction budgets on both cores, the core's no-panic lints,
 # and the host test suite (core, CANopen, host-sim, identification, diagnosis, python-canopen
 # interop, end-to-end), and the diagnosis's null test on 500 generated logs.
 set -euo pipefail
@@ -8,17 +9,26 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 echo "== format (cargo fmt --check; rustfmt.toml)"
 cargo fmt --all -- --check
+# The G0B1 image is a workspace of its own: --all above does not reach it.
+cargo fmt --manifest-path firmware/board-g0b1/Cargo.toml -- --check
 echo "== host crates keep their dependency rules (cargo tree)"
 bash scripts/check-deps.sh --self-test
 bash scripts/check-deps.sh
-echo "== firmware image size (budget: flash ≤ 64 KiB, RAM ≤ 16 KiB)"
-bash scripts/fw-size.sh
+echo "== firmware image size, STM32G431 (budget: flash ≤ 64 KiB, RAM ≤ 16 KiB)"
+bash scripts/fw-size.sh g431
+echo "== firmware image size, STM32G0B1, Q16.16 step (budget: flash ≤ 120 KiB, RAM ≤ 16 KiB)"
+bash scripts/fw-size.sh g0b1
 echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
-bash scripts/qemu-test.sh
-echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400)"
+bash scripts/qemu-test.sh m4f
+echo "== firmware on QEMU (mps2-an385: the M0+ instruction set without FPU; f32 soft-float and Q16.16)"
+bash scripts/qemu-test.sh m0
+echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400 on the M4F, Q16.16 ≤ 2500 on the M0+)"
 bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
+echo "== board image lints (G431, G0B1)"
+cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -q --profile fw --manifest-path firmware/board-g0b1/Cargo.toml --target thumbv6m-none-eabi -- -D warnings
 echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
 cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl -p diag-bench --lib --bins -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"

@@ -1,17 +1,20 @@
-//! Link setup of the board image: the G431 memory map from the workspace root and the
-//! cortex-m-rt and defmt link scripts, for the binary only (the library also builds on
-//! the host for its unit tests, where none of this applies).
-use std::{env, fs, path::PathBuf};
+//! Link setup of the G431 image: its memory map (the `memory.x` at the workspace root, found as
+//! every board's is: see link_map.rs) and the cortex-m-rt and defmt link scripts, for the
+//! binary only (the library also builds on the host for its unit tests, where none of this
+//! applies).
+//!
+//! Only with the `g431` feature, which the binary requires: the G0B1 image uses this crate's
+//! library without it, and a map this script put on the search path would reach that image's
+//! link too.
+#[path = "link_map.rs"]
+mod link_map;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out = PathBuf::from(env::var_os("OUT_DIR").ok_or("cargo did not set OUT_DIR")?);
-    let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").ok_or("no CARGO_MANIFEST_DIR")?);
-    let memory_x = manifest.join("../../memory.x");
-    fs::copy(&memory_x, out.join("memory.x"))
-        .map_err(|e| format!("copying {} into OUT_DIR: {e}", memory_x.display()))?;
-    println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rerun-if-changed={}", memory_x.display());
-    if env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("none") {
+    if std::env::var_os("CARGO_FEATURE_G431").is_none() {
+        return Ok(());
+    }
+    link_map::provide_memory_x()?;
+    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("none") {
         println!("cargo:rustc-link-arg-bins=--nmagic");
         println!("cargo:rustc-link-arg-bins=-Tlink.x");
         println!("cargo:rustc-link-arg-bins=-Tdefmt.x");

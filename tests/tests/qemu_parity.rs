@@ -19,6 +19,9 @@
 #[path = "../../firmware/qemu/src/canopen_session.rs"]
 mod canopen_session;
 
+use joint_core::canopen::ControlStep;
+use joint_core::control::Controller;
+use joint_core::fixed::ControllerFx;
 use joint_core::vectors::{self, first_mismatch, Mismatch, Record};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -173,17 +176,29 @@ fn qemu_matches_host_to_the_last_bit() {
 fn a_single_bit_difference_is_caught_and_named() {
     let (host, _) = host_session();
     let mut other = host.clone();
-    let victim = other.iter().position(|r| r.index == 300).expect("session has a record 300");
+    let victim = other.iter().position(|r| r.index >= 300 && r.tag == vectors::Tag::Step).expect("a step record");
+    let index = other[victim].index;
     other[victim].words[1] ^= 1;
     let m = first_mismatch(&host, &other).expect("a flipped bit must be noticed");
     let text = describe(m, &host);
-    assert!(text.starts_with("record 300 (u_motor)"), "{text}");
+    assert!(text.starts_with(&format!("record {index} (u_motor)")), "{text}");
+    // and in the Q16.16 step's records
+    let mut other = host.clone();
+    let victim = other.iter().position(|r| r.index >= 300 && r.tag == vectors::Tag::Fixed).expect("a Q16.16 record");
+    let index = other[victim].index;
+    other[victim].words[0] ^= 1;
+    let text = describe(first_mismatch(&host, &other).expect("noticed"), &host);
+    assert!(text.starts_with(&format!("record {index} (fx_tau_out)")), "{text}");
 }
 
 /// The CANopen session natively: its lines as the image prints them, and the summary.
 fn host_canopen() -> (Vec<String>, canopen_session::Summary) {
+    host_canopen_with::<Controller>()
+}
+
+fn host_canopen_with<C: ControlStep>() -> (Vec<String>, canopen_session::Summary) {
     let mut lines = Vec::new();
-    let summary = canopen_session::run(&mut |l: &canopen_session::Line| {
+    let summary = canopen_session::run_with::<C>(&mut |l: &canopen_session::Line| {
         let mut s = String::new();
         l.write(&mut s).expect("formatting into a String");
         lines.push(s.trim_end().to_string());
@@ -225,8 +240,18 @@ fn canopen_mismatch(host: &[String], qemu: &[&str]) -> Option<String> {
 
 #[test]
 fn canopen_session_on_qemu_matches_host_byte_for_byte() {
-    let (host, summary) = host_canopen();
-    let text = qemu_output("QEMU_CANOPEN_LOG", "qemu-canopen");
+    canopen_session_matches::<Controller>("QEMU_CANOPEN_LOG", "qemu-canopen");
+}
+
+/// The same session on a node whose control step runs in Q16.16 (the FPU-less board's).
+#[test]
+fn canopen_session_q16_on_qemu_matches_host_byte_for_byte() {
+    canopen_session_matches::<ControllerFx>("QEMU_CANOPEN_Q16_LOG", "qemu-canopen-q16");
+}
+
+fn canopen_session_matches<C: ControlStep>(log_var: &str, bin: &str) {
+    let (host, summary) = host_canopen_with::<C>();
+    let text = qemu_output(log_var, bin);
     let qemu: Vec<&str> = text.lines().filter(|l| !l.starts_with("# ")).collect();
     let qemu_summary =
         text.lines().find_map(|l| l.strip_prefix("# canopen ")).expect("the image printed no summary line");
@@ -251,7 +276,8 @@ fn canopen_session_on_qemu_matches_host_byte_for_byte() {
     assert!(summary.max_tau > 0.5, "torque while operational with the host: {summary:?}");
     assert_eq!(summary.final_tau, 0.0, "the watchdog faded the torque after the host went silent");
     println!(
-        "QEMU CANopen session: {} lines ({} frames, {} control steps), every byte identical",
+        "QEMU CANopen session ({} node): {} lines ({} frames, {} control steps), every byte identical",
+        C::ARITHMETIC.name(),
         host.len(),
         summary.frames,
         canopen_session::STEPS

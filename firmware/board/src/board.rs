@@ -1,4 +1,6 @@
-//! Thin hardware adapters for the B-G431B-ESC1, and what each one honestly does.
+//! Thin hardware adapters, and what each one honestly does. Shared by the board images: the
+//! G0B1 crate includes this file by path; each board's `hal` module names the timers and the
+//! flash page size, its `main` the pins. The pins below are the B-G431B-ESC1's.
 //!
 //! - [`QeiEncoder`]: TIM4 in x4 quadrature mode on PB6/PB7 (the board's encoder/Hall
 //!   connector J8, A+ and B+), unwrapped to a joint angle with [`QuadratureUnwrap`].
@@ -15,8 +17,8 @@
 //! Pin choices follow ST's UM2516 (B-G431B-ESC1 user manual); check them against the
 //! board revision's schematic before driving a motor.
 
+use crate::hal::{EncoderTimer as TIM4, PwmTimer as TIM1};
 use embassy_stm32::flash::{Blocking, Error as FlashError, Flash};
-use embassy_stm32::peripherals::{TIM1, TIM4};
 use embassy_stm32::timer::complementary_pwm::ComplementaryPwm;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::timer::Channel;
@@ -112,7 +114,7 @@ extern "C" {
 /// Start of the flash in the address map; embassy's flash driver takes offsets from here.
 const FLASH_BASE: u32 = 0x0800_0000;
 /// G431 page size (memory.x's `__param_page_size`).
-const PAGE: usize = 2048;
+const PAGE: usize = crate::hal::PARAM_PAGE;
 
 /// The parameter pages, addressed from 0.
 pub struct ParamFlash {

@@ -10,7 +10,7 @@
 //! only waits for the ticker, reads the encoder, takes the node's lock for the tick and
 //! writes the PWM. Nothing here allocates or blocks.
 
-use joint_core::canopen::{NmtState, Node, ParamStorage};
+use joint_core::canopen::{ControlStep, NmtState, Node, ParamStorage};
 use joint_core::control::{Differentiator, Output};
 use joint_core::params::{ParamId, ParamSet};
 use joint_core::safety::Faults;
@@ -93,9 +93,9 @@ impl ControlLoop {
     /// One tick at `now_us` with the encoder's reading. Returns the node's output; the
     /// caller restarts its ticker when [`ControlLoop::nominal_period_us`] changed (a commit
     /// of a new `controller_rate_hz`).
-    pub fn tick<S: ParamStorage>(
+    pub fn tick<S: ParamStorage, C: ControlStep>(
         &mut self,
-        node: &mut Node<S>,
+        node: &mut Node<S, C>,
         now_us: u64,
         position: Result<f32, EncoderError>,
     ) -> TickOutput {

@@ -14,6 +14,7 @@
 pub mod canopen;
 pub mod control;
 pub mod fixed;
+pub mod fixed_gravity;
 pub mod math;
 pub mod model;
 pub mod params;

@@ -389,6 +389,18 @@ impl Lut {
         (i, (x - a) * inv)
     }
 
+    /// Where axis `a` reads its angle (0: own q, 1..=3: the other joints' slots).
+    #[inline]
+    pub fn source(&self, a: usize) -> usize {
+        self.source.get(a).copied().unwrap_or(0) as usize
+    }
+
+    /// Grid points of axis `a` and the stride of its index in the value arrays.
+    #[inline]
+    pub fn shape(&self, a: usize) -> (usize, usize) {
+        (self.points.get(a).copied().unwrap_or(2) as usize, self.stride.get(a).copied().unwrap_or(0) as usize)
+    }
+
     /// Axes of the table (0: no table).
     #[inline]
     pub fn n_axes(&self) -> u8 {

@@ -21,7 +21,7 @@
 //! are reused by the cost benchmark.
 
 use crate::control::{Controller, Differentiator, Input, Mode, Output};
-use crate::fixed::{self, DahlFx, FixedParams, Fx};
+use crate::fixed::{self, ControllerFx, DahlFx, FixedParams, Fx};
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, RawParams};
 use crate::series::SeriesError;
@@ -246,6 +246,9 @@ pub enum Tag {
     Replace,
     /// One control step.
     Step,
+    /// The same step through the Q16.16 controller ([`crate::fixed::ControllerFx`]), which a
+    /// board built for it runs instead.
+    Fixed,
 }
 
 impl Tag {
@@ -253,6 +256,7 @@ impl Tag {
         match self {
             Tag::Replace => 'R',
             Tag::Step => 'S',
+            Tag::Fixed => 'Q',
         }
     }
 }
@@ -263,6 +267,9 @@ pub const WORDS: usize = 8;
 /// Names of the words of a step record, for messages naming the first difference.
 pub const STEP_FIELDS: [&str; WORDS] =
     ["tau_out", "u_motor", "c_c", "assist", "flags", "fixed_disturbance", "qd", "qdd"];
+/// Names of the words of a Q16.16 step record.
+pub const FIXED_FIELDS: [&str; WORDS] =
+    ["fx_tau_out", "fx_u_motor", "fx_c_c", "fx_assist", "fx_flags", "fx_dahl_force", "unused", "unused"];
 /// Names of the words of a replace record.
 pub const REPLACE_FIELDS: [&str; WORDS] =
     ["result", "detail", "old_set_kept", "unused", "unused", "unused", "unused", "unused"];
@@ -293,6 +300,7 @@ impl Record {
         let tag = match it.next()? {
             "R" => Tag::Replace,
             "S" => Tag::Step,
+            "Q" => Tag::Fixed,
             _ => return None,
         };
         let index = it.next()?.parse().ok()?;
@@ -315,8 +323,27 @@ impl Record {
         let names = match self.tag {
             Tag::Replace => &REPLACE_FIELDS,
             Tag::Step => &STEP_FIELDS,
+            Tag::Fixed => &FIXED_FIELDS,
         };
         names.get(i).copied().unwrap_or("?")
+    }
+
+    fn fixed_step(index: u32, out: &Output, dahl: Fx) -> Record {
+        let flags = u32::from(out.limited) | (u32::from(out.bad_input) << 1);
+        Record {
+            tag: Tag::Fixed,
+            index,
+            words: [
+                out.tau_out.to_bits(),
+                out.u_motor.to_bits(),
+                out.c_c.to_bits(),
+                out.assist.to_bits(),
+                flags,
+                dahl.to_bits() as u32,
+                0,
+                0,
+            ],
+        }
     }
 
     fn step(index: u32, out: &Output, fixed: Fx, qd: f32, qdd: f32) -> Record {
@@ -419,6 +446,7 @@ struct Runner<'a, F: FnMut(&Record)> {
     rng: XorShift32,
     active: ActiveParams,
     ctl: Controller,
+    ctl_fx: ControllerFx,
     fixed: FixedParams,
     fixed_dahl: DahlFx,
     summary: Summary,
@@ -442,6 +470,8 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
                 self.fixed_dahl = DahlFx::new();
                 self.ctl.reset();
                 self.ctl.reset_presliding();
+                self.ctl_fx.configure(self.active.current());
+                self.ctl_fx.reset();
             }
             Err(_) => {
                 self.summary.rejected += 1;
@@ -469,6 +499,9 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
         self.summary.steps += 1;
         let index = self.summary.records;
         self.emit(Record::step(index, &out, fx, inp.qd, inp.qdd));
+        let out = self.ctl_fx.step(self.active.current(), mode, inp, dt);
+        let index = self.summary.records;
+        self.emit(Record::fixed_step(index, &out, self.ctl_fx.presliding().force()));
     }
 
     fn random_steps(&mut self, n: u32) {
@@ -558,6 +591,7 @@ pub fn session<F: FnMut(&Record)>(sink: &mut F) -> Summary {
         rng: XorShift32::new(SESSION_SEED),
         active: ActiveParams::default(),
         ctl: Controller::new(),
+        ctl_fx: ControllerFx::default(),
         fixed: FixedParams::default(),
         fixed_dahl: DahlFx::new(),
         summary: Summary::default(),
@@ -648,7 +682,7 @@ mod tests {
         assert_eq!(s.rejected_but_changed, 0);
         assert_eq!(s.unexpected_results, 0);
         assert_eq!(s.unsafe_outputs, 0);
-        assert_eq!(s.records, s.steps + 12);
+        assert_eq!(s.records, 2 * s.steps + 12);
     }
 
     #[test]
@@ -666,6 +700,7 @@ mod tests {
                     saw.0 |= r.words[4] & 1 != 0;
                     saw.1 |= r.words[4] & 2 != 0;
                 }
+                Tag::Fixed => {}
                 Tag::Replace => {
                     saw.2 |= r.words[0] == 0;
                     saw.3 |= r.words[0] != 0;

@@ -20,7 +20,7 @@
 
 use core::fmt::{self, Write};
 
-use joint_core::canopen::{od, CanFrame, MemoryStorage, Node, NodeConfig};
+use joint_core::canopen::{od, CanFrame, ControlStep, MemoryStorage, Node, NodeConfig};
 use joint_core::control::Output;
 use joint_core::math;
 use joint_core::params::{ParamId, RawParams, PARAMS};
@@ -136,15 +136,15 @@ fn abort_code(frame: &CanFrame) -> Option<u32> {
     Some(u32::from_le_bytes(c))
 }
 
-struct Run<'a, E: FnMut(&Line)> {
-    node: Node<MemoryStorage>,
+struct Run<'a, E: FnMut(&Line), C: ControlStep> {
+    node: Node<MemoryStorage, C>,
     emit: &'a mut E,
     s: Summary,
     step: u32,
     expected_abort: Option<u32>,
 }
 
-impl<E: FnMut(&Line)> Run<'_, E> {
+impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     fn now(&self) -> u64 {
         u64::from(self.step) * PERIOD_US
     }
@@ -274,9 +274,19 @@ impl<E: FnMut(&Line)> Run<'_, E> {
 }
 
 /// Runs the session; `emit` gets every line in order.
-pub fn run(emit: &mut impl FnMut(&Line)) -> Summary {
-    let node = Node::new(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0);
-    let mut r = Run { node, emit, s: Summary::default(), step: 0, expected_abort: None };
+/// `C` is the node's control step: the session is the same for a node whose step runs in Q16.16 (what the FPU-less
+/// board image runs); only its control outputs differ.
+///
+/// The node is built straight into the session's state: a node moved from a local (≈ 9 KiB)
+/// can cost the stack the image measures a second copy.
+pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
+    let mut r = Run {
+        node: Node::<MemoryStorage, C>::with_step(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0),
+        emit,
+        s: Summary::default(),
+        step: 0,
+        expected_abort: None,
+    };
     // The first process call sends the boot-up message.
     r.rx_opt("boot", None, None);
     for step in 0..STEPS {

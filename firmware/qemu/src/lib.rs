@@ -10,6 +10,8 @@
 //! file). Everything else is empty on the host so that `cargo check --workspace` stays green.
 #![cfg_attr(target_os = "none", no_std)]
 
+#[cfg(target_os = "none")]
+pub mod canopen_image;
 pub mod canopen_session;
 #[cfg(target_os = "none")]
 pub mod rt;
@@ -93,8 +95,8 @@ macro_rules! entry {
 #[cfg(not(target_os = "none"))]
 pub fn host_main(name: &str) {
     eprintln!(
-        "{name} is a test image for qemu-system-arm -M mps2-an386; build it with \
-         --target thumbv7em-none-eabihf and run scripts/qemu-test.sh"
+        "{name} is a test image for qemu-system-arm -M mps2-an386 (thumbv7em-none-eabihf, \
+         scripts/qemu-test.sh) or -M mps2-an385 (thumbv6m-none-eabi, scripts/qemu-test-m0.sh)"
     );
     std::process::exit(2);
 }

@@ -7,6 +7,7 @@ use core::panic::PanicInfo;
 
 // Reset is written in assembly so that nothing touches an FPU register (or the .bss/.data
 // the compiler may assume initialised) before CPACR grants access to CP10/CP11.
+#[cfg(not(armv6m))]
 core::arch::global_asm!(
     ".section .text.Reset,\"ax\",%progbits",
     ".global Reset",
@@ -34,6 +35,39 @@ core::arch::global_asm!(
     "    bhs 4f",
     "    ldr r3, [r2], #4",
     "    str r3, [r0], #4",
+    "    b 3b",
+    "4:  bl __qemu_entry",
+    "    b 4b",
+    ".ltorg",
+    ".size Reset, . - Reset",
+);
+
+// The thumbv6m images (Cortex-M0+ instruction set, run on mps2-an385's Cortex-M3): no FPU to
+// enable, and Thumb-1 has no post-indexed stores, so the pointers are advanced by hand.
+#[cfg(armv6m)]
+core::arch::global_asm!(
+    ".section .text.Reset,\"ax\",%progbits",
+    ".global Reset",
+    ".type Reset,%function",
+    ".thumb_func",
+    "Reset:",
+    "    ldr r0, =__sbss",
+    "    ldr r1, =__ebss",
+    "    movs r2, #0",
+    "1:  cmp r0, r1",
+    "    bhs 2f",
+    "    str r2, [r0]",
+    "    adds r0, #4",
+    "    b 1b",
+    "2:  ldr r0, =__sdata",
+    "    ldr r1, =__edata",
+    "    ldr r2, =__sidata",
+    "3:  cmp r0, r1",
+    "    bhs 4f",
+    "    ldr r3, [r2]",
+    "    str r3, [r0]",
+    "    adds r0, #4",
+    "    adds r2, #4",
     "    b 3b",
     "4:  bl __qemu_entry",
     "    b 4b",

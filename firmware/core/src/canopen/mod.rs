@@ -18,5 +18,7 @@ pub mod sdo;
 pub mod storage;
 
 pub use frame::CanFrame;
-pub use node::{JointState, MemoryStorage, NmtState, NoStorage, Node, NodeConfig, ParamStorage, StorageError};
+pub use node::{
+    ControlStep, JointState, MemoryStorage, NmtState, NoStorage, Node, NodeConfig, ParamStorage, StorageError,
+};
 pub use sdo::Abort;

@@ -34,6 +34,46 @@ use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
+use crate::fixed::{Arithmetic, ControllerFx};
+
+/// A control step the node can run: what it needs of [`Controller`] and [`ControllerFx`].
+pub trait ControlStep: Default {
+    /// named in the node's identity
+    const ARITHMETIC: Arithmetic;
+    /// A new set is in force (the pre-sliding state starts afresh).
+    fn configure(&mut self, p: &ParamSet);
+    /// Forget the integrator and the last output.
+    fn reset(&mut self);
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output;
+}
+
+impl ControlStep for Controller {
+    const ARITHMETIC: Arithmetic = Arithmetic::F32;
+    fn configure(&mut self, _: &ParamSet) {
+        self.reset_presliding();
+    }
+    fn reset(&mut self) {
+        Controller::reset(self);
+    }
+    #[inline]
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        Controller::step(self, p, mode, inp, dt)
+    }
+}
+
+impl ControlStep for ControllerFx {
+    const ARITHMETIC: Arithmetic = Arithmetic::Q16;
+    fn configure(&mut self, p: &ParamSet) {
+        ControllerFx::configure(self, p);
+    }
+    fn reset(&mut self) {
+        ControllerFx::reset(self);
+    }
+    #[inline]
+    fn step(&mut self, p: &ParamSet, mode: Mode, inp: &Input, dt: f32) -> Output {
+        ControllerFx::step(self, p, mode, inp, dt)
+    }
+}
 use crate::math;
 use crate::params::{ActiveParams, ParamError, ParamId, ParamSet, RawParams, PARAMS};
 use crate::safety::{Faults, Safety, SafetyConfig};
@@ -135,12 +175,20 @@ pub struct NodeConfig {
     pub device_name: &'static str,
     /// 0x100A
     pub software_version: &'static str,
+    /// The control step's arithmetic, named in the identity by [`NodeConfig::with_arithmetic`].
+    /// [`Node::new`] sets it (and the identity) from the node's step type, so it cannot lie;
+    /// a host sets it to describe a board (the EDS).
+    pub arithmetic: Arithmetic,
 }
 
 /// Identity of this project's joint node. The vendor id is 0 ("unassigned" in CiA's list):
 /// we hold no CiA vendor id; a product shipping to others must get one.
 pub const DEFAULT_IDENTITY: Identity =
     Identity { vendor_id: 0x0000_0000, product_code: 0x4A4E_0001, revision: 0x0001_0000, serial: 0 };
+
+/// Product code (0x1018 sub 2) of a joint node whose control step runs in Q16.16: the host
+/// reads which numbers the joint computes from the identity (and the EDS names it).
+pub const PRODUCT_CODE_Q16: u32 = 0x4A4E_0002;
 
 impl NodeConfig {
     pub const fn new(node_id: u8) -> NodeConfig {
@@ -149,7 +197,26 @@ impl NodeConfig {
             identity: DEFAULT_IDENTITY,
             device_name: "joint-node",
             software_version: env!("CARGO_PKG_VERSION"),
+            arithmetic: Arithmetic::F32,
         }
+    }
+
+    /// The same node with its control step in `a`: a Q16.16 node has its own product code
+    /// ([`PRODUCT_CODE_Q16`]) and device name, so a master (and its EDS) tells them apart.
+    pub const fn with_arithmetic(self, a: Arithmetic) -> NodeConfig {
+        let mut c = self;
+        c.arithmetic = a;
+        match a {
+            Arithmetic::F32 => {
+                c.identity.product_code = DEFAULT_IDENTITY.product_code;
+                c.device_name = "joint-node";
+            }
+            Arithmetic::Q16 => {
+                c.identity.product_code = PRODUCT_CODE_Q16;
+                c.device_name = "joint-node q16.16";
+            }
+        }
+        c
     }
 }
 
@@ -223,7 +290,8 @@ impl ParamStorage for MemoryStorage {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
-    /// changed outside pre-operational, 6 gravity series
+    /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
+    /// set's
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -280,7 +348,11 @@ enum Transfer {
 }
 
 /// The joint's CANopen node. See the module documentation.
-pub struct Node<S: ParamStorage> {
+///
+/// `C` is the control step: [`Controller`] (f32, the default) or [`ControllerFx`] (Q16.16),
+/// a type rather than a flag so a board image links only the step it runs (both in the G431's
+/// 64 KiB cost it 10 KiB of flash).
+pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     cfg: NodeConfig,
     storage: S,
     nmt: NmtState,
@@ -289,7 +361,7 @@ pub struct Node<S: ParamStorage> {
     staged: RawParams,
     commit_error: Option<CommitError>,
     safety: Safety,
-    controller: Controller,
+    controller: C,
     heartbeat_ms: u16,
     next_heartbeat_us: u64,
     host_id: u8,
@@ -335,10 +407,26 @@ fn frame(id: u16, data: [u8; 8], len: u8) -> CanFrame {
 }
 
 impl<S: ParamStorage> Node<S> {
-    /// A node at boot time `now_us`: the stored set if it passes the check, else the defaults
-    /// (with [`Faults::PARAMS_REJECTED`] latched when a stored set was refused).
+    /// A node with the f32 control step at boot time `now_us`: the stored set if it passes the
+    /// check, else the defaults (with [`Faults::PARAMS_REJECTED`] latched when a stored set was
+    /// refused). [`Node::with_step`] builds one with another step.
+    #[inline(always)]
     pub fn new(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
-        let mut cfg = cfg;
+        Self::with_step(cfg, storage, now_us)
+    }
+}
+
+impl<S: ParamStorage, C: ControlStep> Node<S, C> {
+    /// A node whose control step is `C` (`Node::<_, ControllerFx>::with_step` for Q16.16); see
+    /// [`Node::new`].
+    ///
+    /// Always inlined: out of line, the ≈ 9 KiB node is built in this function's frame and
+    /// then copied into the caller's, which doubles the stack building it takes (measured
+    /// in the QEMU CANopen image, scripts/qemu-test.sh); inlined, it is built in place.
+    #[inline(always)]
+    pub fn with_step(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
+        // The identity names the step the node really runs, whatever the config said.
+        let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
         cfg.node_id = cfg.node_id.clamp(1, 127);
         let mut node = Node {
             cfg,
@@ -349,7 +437,7 @@ impl<S: ParamStorage> Node<S> {
             active: ActiveParams::new(ParamSet::defaults()),
             commit_error: None,
             safety: Safety::new(SafetyConfig::from_seconds(0.0, 0.0, 0.0), now_us),
-            controller: Controller::new(),
+            controller: C::default(),
             heartbeat_ms: DEFAULT_HEARTBEAT_MS,
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
@@ -390,7 +478,7 @@ impl<S: ParamStorage> Node<S> {
         self.safety.raise(faults);
         self.commit_error = None;
         self.controller.reset();
-        self.controller.reset_presliding();
+        self.controller.configure(self.active.current());
         self.assist_cmd = 0.0;
         self.others = [0.0; 3];
         self.reset_communication(now_us);
@@ -1264,7 +1352,7 @@ impl<S: ParamStorage> Node<S> {
             Ok(()) => {
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
                 // The Dahl friction state belongs to the set that made it (its σ and level).
-                self.controller.reset_presliding();
+                self.controller.configure(self.active.current());
                 self.commit_error = None;
                 Ok(())
             }

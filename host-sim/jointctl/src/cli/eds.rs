@@ -12,12 +12,26 @@ pub struct EdsArgs {
     /// EDS file to write (stdout when absent or -)
     #[arg(long, value_name = "FILE.eds")]
     pub out: Option<PathBuf>,
+    /// The board's control step: f32 (the G431 image) or q16 (the G0B1 image's default);
+    /// named in the EDS's product number and name
+    #[arg(long, value_enum, default_value = "f32")]
+    pub step: Step,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum Step {
+    F32,
+    Q16,
 }
 
 pub fn run(a: &EdsArgs) -> anyhow::Result<()> {
     let mut plan = Plan::new();
     let out = plan.file("--out", a.out.as_deref().unwrap_or(Path::new(STDOUT)));
     let outs = plan.check()?;
-    outs.write(out, joint_can::eds::generate().as_bytes())?;
+    let a = match a.step {
+        Step::F32 => joint_core::fixed::Arithmetic::F32,
+        Step::Q16 => joint_core::fixed::Arithmetic::Q16,
+    };
+    outs.write(out, joint_can::eds::generate_for(a).as_bytes())?;
     Ok(())
 }
