@@ -193,7 +193,7 @@ pub(crate) fn sign_smooth_fx(v: Fx, band: Fx, inv_band: Gain) -> Fx {
 
 pub(crate) fn viscous_w(p: &FixedParams, qd: Fx) -> Wide {
     // q̇|q̇| < 2³⁰ in Q32, < 2⁴⁶ in Q16.
-    let q2 = (w(qd) * w(qd).abs()) >> 16;
+    let q2 = (w(qd) * i64::abs(w(qd))) >> 16; // integer |x|: a path call, not a float method
     mul_wide(p.fa, q2) + mul(p.fb, qd)
 }
 
@@ -776,7 +776,7 @@ mod tests {
             let want = Fx::saturating_from_num(x);
             let got = fx(x);
             // The fixed crate rounds ties to even, `scaled` away from zero: one LSB at most.
-            assert!((i64::from(got.to_bits()) - i64::from(want.to_bits())).abs() <= 1, "{x}: {got} vs {want}");
+            assert!(i64::abs(i64::from(got.to_bits()) - i64::from(want.to_bits())) <= 1, "{x}: {got} vs {want}");
         }
         assert_eq!(fx(1.5), Fx::from_num(1.5));
         assert_eq!(fx(-40000.0), Fx::MIN);

