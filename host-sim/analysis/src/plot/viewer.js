@@ -21,6 +21,17 @@
   function lower(a, v) { var l = 0, h = a.length; while (l < h) { var m = (l + h) >> 1; if (a[m] < v) l = m + 1; else h = m; } return l; }
   function view(fig) {
     var d = JSON.parse(fig.querySelector("script.iv-data").textContent);
+    // values arrive as integer steps (x as differences): back to numbers, once
+    d.series.forEach(function (s) {
+      s.levels.forEach(function (lv) {
+        var acc = 0, x = new Float64Array(lv.x.length);
+        for (var i = 0; i < x.length; i++) { acc += lv.x[i]; x[i] = d.xq[0] + acc * d.xq[1]; }
+        lv.x = x;
+        var dec = function (a) { return a.map(function (k) { return k === null ? null : s.yq[0] + k * s.yq[1]; }); };
+        lv.lo = dec(lv.lo);
+        if (lv.hi) lv.hi = dec(lv.hi);
+      });
+    });
     var svg = fig.querySelector("svg.plot");
     var W = d.w, H = d.h, L = 70, R = 14, T = 30, B = 46, pw = W - L - R, ph = H - T - B;
     var dpr = window.devicePixelRatio || 1;
