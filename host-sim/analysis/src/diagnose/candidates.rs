@@ -844,7 +844,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
         Kind::Ripple => {
             // Periodogram of the current residual binned over q, then refinement of the best
             // peaks on the real criterion.
-            let (beta, _) = ctx.g.solve();
+            let (beta, rss_now) = ctx.g.solve();
             let p = ctx.p;
             let qs: Vec<f64> = idx.iter().map(|&i| d.q[i as usize]).collect();
             let qmin = qs.iter().copied().fold(f64::INFINITY, f64::min);
@@ -931,6 +931,11 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // harmonics refined on the real criterion, and kept when it pays its three values
             // (period and two amplitudes) by BIC.
             let Effect::Ripple { harmonics, .. } = first else { return Some(first) };
+            // (not when the first period takes under 1 % of the residual: there is no ripple to
+            // look further into, and the search costs as much again)
+            if r_first > 0.99 * rss_now {
+                return Some(first);
+            }
             let mut left = sum.clone();
             for hk in 1..=u32::from(harmonics) {
                 let w = std::f64::consts::TAU * f * f64::from(hk);

@@ -735,12 +735,24 @@ fn try_kinds(
     // The held-out gain of a term can hardly exceed its training gain, so a candidate that does
     // not lower the thinned training RSS by half the minimum gain is not fitted in full.
     let cur_rss = grid.g.solve().1;
+    let timing = std::env::var_os("DIAG_TIMING").is_some();
     let work = |k: Kind| -> Option<Scored> {
+        let t0 = std::time::Instant::now();
         let e = search_in(k, &grid, base, chosen)?;
+        let t1 = t0.elapsed().as_secs_f64();
         if !chosen.is_empty() && grid.rss_effect(&e) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
             return None;
         }
-        Some(round.fit_and_score(e, split, bits, n_regimes))
+        let s = round.fit_and_score(e, split, bits, n_regimes);
+        if timing {
+            eprintln!(
+                "[select] {} after {}: search {t1:.3} s, fit and score {:.3} s",
+                k.name(),
+                chosen.len(),
+                t0.elapsed().as_secs_f64() - t1
+            );
+        }
+        Some(s)
     };
     // Kinds differ a lot in cost, the costliest searches first (measured on a 1 M-sample log:
     // ripple ≈ 0.1 s, delay ≈ 0.04 s, the others ≤ 0.03 s).
@@ -875,8 +887,17 @@ pub fn select(
             let effects = cur.scored.effects.clone();
             let kinds: Vec<Kind> =
                 Kind::ALL.iter().copied().filter(|k| !effects.iter().any(|e| e.kind() == *k)).collect();
+            let t1 = std::time::Instant::now();
             let round = Round::new(d, base, &effects, &fit_idx, split);
+            let t_round = t1.elapsed().as_secs_f64();
             let next = try_kinds(&kinds, &round, &grid_idx, split, bits, n_regimes);
+            if std::env::var_os("DIAG_TIMING").is_some() {
+                eprintln!(
+                    "[select] round {}: design {t_round:.3} s, candidates {:.3} s",
+                    chosen.len() + 1,
+                    t1.elapsed().as_secs_f64() - t_round
+                );
+            }
             let cur_s = cur.scored.clone();
             // A further effect must also take a real share of what is left above the floor
             // (a quarter of the excess MSE), not only shave a significant sliver off noise.
