@@ -518,23 +518,21 @@ fn torque_mode(
     let core_sgn: Vec<f64> = qd.iter().map(|&v| sgn_band(v, core_band)).collect();
     // What the model predicts given the estimated q̇ (its error from the preparation stage):
     // the sign's expectation, so rest and reversals are not a random ±c from velocity noise.
-    let sgn: Vec<f64> = (0..n)
-        .map(|i| {
-            let v = qd[i];
-            match (prep.rest[i], prep.direction[i]) {
-                (true, _) => 0.0,
-                // next to a rest the way q goes says the direction the estimate cannot
-                (false, d) if d != 0 => {
-                    if band > 0.0 {
-                        crate::prep::expected_sign(f64::from(d) * v.abs(), band, prep.qd_err[i])
-                    } else {
-                        f64::from(d)
-                    }
+    let sgn: Vec<f64> = par::per_sample(n, |i| {
+        let v = qd[i];
+        match (prep.rest[i], prep.direction[i]) {
+            (true, _) => 0.0,
+            // next to a rest the way q goes says the direction the estimate cannot
+            (false, d) if d != 0 => {
+                if band > 0.0 {
+                    crate::prep::expected_sign(f64::from(d) * v.abs(), band, prep.qd_err[i])
+                } else {
+                    f64::from(d)
                 }
-                _ => crate::prep::expected_sign(v, band, prep.qd_err[i]),
             }
-        })
-        .collect();
+            _ => crate::prep::expected_sign(v, band, prep.qd_err[i]),
+        }
+    });
     let mut data = Data {
         n,
         t: log.t.clone(),
@@ -565,29 +563,41 @@ fn torque_mode(
     // y = d − rest: the rest is what the model predicts outside its linear terms (gravity table,
     // the core's f32 rounding), the prediction less the linear part at the core's own sign.
     let des0 = candidates::Design::new(&data, &base, &[]);
-    let mut x = vec![0.0; des0.cols.len()];
-    let mut y = Vec::with_capacity(n);
+    let p0 = des0.cols.len();
     data.y = vec![0.0; n];
-    for i in 0..n {
-        des0.row(&data, i, &mut x);
+    let y = par::per_sample(n, |i| {
+        let (mut buf, mut wide) = ([0.0; 32], Vec::new());
+        let x: &mut [f64] = if p0 <= 32 {
+            &mut buf[..p0]
+        } else {
+            wide.resize(p0, 0.0);
+            &mut wide
+        };
+        des0.row(&data, i, x);
         let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-        y.push(data.u[i] - tau[i] - (pred0[i] - lin));
-    }
+        data.u[i] - tau[i] - (pred0[i] - lin)
+    });
     data.y = y;
     // From here on every model sees the expected sign; the file's residual r0 too.
     data.sgn = sgn;
-    let mut r0 = Vec::with_capacity(n);
-    let mut non_friction = Vec::with_capacity(n);
-    for i in 0..n {
-        des0.row(&data, i, &mut x);
+    let (r0, non_friction): (Vec<f64>, Vec<f64>) = par::per_sample(n, |i| {
+        let (mut buf, mut wide) = ([0.0; 32], Vec::new());
+        let x: &mut [f64] = if p0 <= 32 {
+            &mut buf[..p0]
+        } else {
+            wide.resize(p0, 0.0);
+            &mut wide
+        };
+        des0.row(&data, i, x);
         let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-        r0.push(data.y[i] - lin);
         let fric: f64 =
             x.iter().zip(&base.beta0).zip(&des0.cols).filter(|(_, c)| c.is_friction()).map(|((a, b), _)| a * b).sum();
         // the model's torque less its friction: inertia, weight, springs, offset, table
         // (d − y is the fixed rest: gravity table, the core's rounding)
-        non_friction.push(data.u[i] - tau[i] - data.y[i] + lin - fric);
-    }
+        (data.y[i] - lin, data.u[i] - tau[i] - data.y[i] + lin - fric)
+    })
+    .into_iter()
+    .unzip();
     data.load = transmitted_load(tau, &data.u, &non_friction);
     lap("expected sign, design, file residual");
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
@@ -613,8 +623,17 @@ fn torque_mode(
         // (on at most 150 000 training rows, as the selection's fits)
         let fit_idx = candidates::thin_idx(&split.train, 150_000);
         let rs = select::fit_and_score(&data, &base, &[], &fit_idx, &split, &regimes.bits, regimes.defs.len());
-        let mut x = vec![0.0; rs.design.cols.len()];
-        let r1: Vec<f64> = (0..n).map(|i| select::residual_at(&data, &rs.design, &rs.beta, i, &mut x)).collect();
+        let p1 = rs.design.cols.len();
+        let r1: Vec<f64> = par::per_sample(n, |i| {
+            let (mut buf, mut wide) = ([0.0; 32], Vec::new());
+            let x: &mut [f64] = if p1 <= 32 {
+                &mut buf[..p1]
+            } else {
+                wide.resize(p1, 0.0);
+                &mut wide
+            };
+            select::residual_at(&data, &rs.design, &rs.beta, i, x)
+        });
         at_file.min(torque_floor(&r1, &data, (&rs.design.cols, &rs.beta), prep, &split.holdout))
     };
     // A pure sign jumps to ±c at any motion, however slow: inside a rest, a creep below the

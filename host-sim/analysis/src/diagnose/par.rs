@@ -38,6 +38,22 @@ where
     out.into_iter().map(|(_, t)| t).collect()
 }
 
+/// `f` over `0..n` in contiguous chunks on the available cores, the per-sample results in
+/// sample order: the same numbers as one loop (each sample is computed alone).
+pub(crate) fn per_sample<T, F>(n: usize, f: F) -> Vec<T>
+where
+    T: Send,
+    F: Fn(usize) -> T + Sync,
+{
+    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).clamp(1, 8);
+    if threads == 1 || n < 50_000 {
+        return (0..n).map(&f).collect();
+    }
+    let chunk = n.div_ceil(4 * threads);
+    let ranges: Vec<std::ops::Range<usize>> = (0..n).step_by(chunk).map(|a| a..(a + chunk).min(n)).collect();
+    costliest_first(&ranges, threads, |_| 0, |r| r.clone().map(&f).collect::<Vec<T>>()).into_iter().flatten().collect()
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -49,5 +65,12 @@ mod tests {
         let out = costliest_first(&jobs, 2, |&j| (j % 3) as u8, |&j| j * j);
         assert_eq!(out, jobs.iter().map(|j| j * j).collect::<Vec<_>>());
         assert_eq!(costliest_first(&jobs, 1, |_| 0, |&j| j + 1)[49], 50);
+    }
+
+    #[test]
+    fn per_sample_keeps_the_order() {
+        let v = per_sample(200_001, |i| i as u64 * 3);
+        assert_eq!(v.len(), 200_001);
+        assert!(v.iter().enumerate().all(|(i, &x)| x == i as u64 * 3));
     }
 }

@@ -238,8 +238,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             eprintln!("[prep] {what}: {:.3} s", t_start.elapsed().as_secs_f64());
         }
     };
-    let (log, glitches) = drop_glitches(log)?;
-    let (log, stale) = drop_stale(&log);
+    let (clean, glitches) = drop_glitches(log)?;
+    let (log, stale) = drop_stale(&clean);
     let n = log.len();
     if n < 2 {
         return Err(PrepError::Refused(format!("the log has {n} usable samples")));
@@ -583,7 +583,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // Only a direction next to a rest (q has left the rest's band) says it moves.
     let sign_unknown: Vec<bool> =
         (0..n).map(|i| !rest[i] && before_through[i] == 0 && qd.values[i].abs() < 3.0 * qd_err[i]).collect();
-    let mut out = log;
+    let mut out = log.into_owned();
     out.qd = Some(qd.values);
     out.qdd = Some(qdd.values);
     let report = PrepReport {
@@ -1033,7 +1033,7 @@ struct Glitch {
 /// 98 % than [`GLITCH_WIDTHS`] times its width (a column whose central 98 % is one value is
 /// held to the absolute bound only) — and drops their rows. More than [`MAX_GLITCH_SHARE`] of
 /// the rows: the log is refused (a unit or a column mix-up, not glitches). Reported by line.
-fn drop_glitches(log: &JointLog) -> Result<(JointLog, Vec<Glitch>), PrepError> {
+fn drop_glitches(log: &JointLog) -> Result<(std::borrow::Cow<'_, JointLog>, Vec<Glitch>), PrepError> {
     let n = log.len();
     let mut cols: Vec<(&str, &[f64])> = vec![("q", &log.q)];
     for (name, c) in [("qd", &log.qd), ("qdd", &log.qdd), ("u", &log.u), ("tau", &log.tau), ("temp", &log.temp)] {
@@ -1061,7 +1061,7 @@ fn drop_glitches(log: &JointLog) -> Result<(JointLog, Vec<Glitch>), PrepError> {
         }
     }
     if found.is_empty() {
-        return Ok((log.clone(), found));
+        return Ok((std::borrow::Cow::Borrowed(log), found));
     }
     found.sort_by_key(|g| g.row);
     let mut rows: Vec<usize> = found.iter().map(|g| g.row).collect();
@@ -1077,7 +1077,7 @@ fn drop_glitches(log: &JointLog) -> Result<(JointLog, Vec<Glitch>), PrepError> {
     // one glitch per row in the result (the first column named)
     found.dedup_by_key(|g| g.row);
     let keep: Vec<usize> = (0..n).filter(|i| rows.binary_search(i).is_err()).collect();
-    Ok((select_rows(log, &keep), found))
+    Ok((std::borrow::Cow::Owned(select_rows(log, &keep)), found))
 }
 
 fn describe_glitches(g: &[Glitch], k: usize) -> String {
@@ -1127,7 +1127,7 @@ fn select_rows(log: &JointLog, keep: &[usize]) -> JointLog {
 }
 
 /// Drops rows whose measured values all repeat the previous row's.
-fn drop_stale(log: &JointLog) -> (JointLog, usize) {
+fn drop_stale(log: &JointLog) -> (std::borrow::Cow<'_, JointLog>, usize) {
     let n = log.len();
     let same = |i: usize| -> bool {
         let eq = |c: &Option<Vec<f64>>| c.as_ref().is_none_or(|v| v[i] == v[i - 1]);
@@ -1143,9 +1143,10 @@ fn drop_stale(log: &JointLog) -> (JointLog, usize) {
     let keep: Vec<usize> = (0..n).filter(|&i| i == 0 || !same(i)).collect();
     let dropped = n - keep.len();
     if dropped == 0 {
-        return (log.clone(), 0);
+        // (no copy of a clean log: a 1 M-row log's columns are 50 MB)
+        return (std::borrow::Cow::Borrowed(log), 0);
     }
-    (select_rows(log, &keep), dropped)
+    (std::borrow::Cow::Owned(select_rows(log, &keep)), dropped)
 }
 
 /// Median time step (robust to jitter and the odd gap).
