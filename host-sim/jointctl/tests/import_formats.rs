@@ -226,21 +226,15 @@ fn a_ros2_bag_from_the_official_mcap_tooling_imports() {
     assert!(py.status.success(), "{}", String::from_utf8_lossy(&py.stderr));
     let (a, b) = (d.path().join("a.csv"), d.path().join("b.csv"));
     ok(&["import", "--format", "dfki-pendulum", "--input", s(&dfki), "--out", s(&a)]);
-    ok(&[
-        "import",
-        "--format",
-        "mcap",
-        "--input",
-        s(&bag),
-        "--topic",
-        "/joint_states",
-        "--joint-name",
-        "elbow",
-        "--tau-topic",
-        "/load_torque",
-        "--out",
-        s(&b),
-    ]);
+    // jointctl import --format mcap on the bag: TOPIC, JOINT and any further options
+    let mcap = |topic: &str, joint: &str, more: &[&str]| {
+        let mut args = vec!["import", "--format", "mcap", "--input", s(&bag), "--topic", topic, "--joint-name", joint];
+        args.extend_from_slice(more);
+        args.extend_from_slice(&["--out", s(&b)]);
+        jointctl(&args)
+    };
+    let o = mcap("/joint_states", "elbow", &["--tau-topic", "/load_torque"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let want = joint_formats::log::JointLog::read_file(&a).unwrap();
     let got = joint_formats::log::JointLog::read_file(&b).unwrap();
     assert_eq!(got.len(), want.len());
@@ -256,34 +250,10 @@ fn a_ros2_bag_from_the_official_mcap_tooling_imports() {
         assert_eq!(gt[k], 0.5 * wu[k - k % 2], "row {k}");
     }
     // a topic or joint the bag does not have is named with what it has
-    let o = jointctl(&[
-        "import",
-        "--format",
-        "mcap",
-        "--input",
-        s(&bag),
-        "--topic",
-        "/joint_states",
-        "--joint-name",
-        "knee",
-        "--out",
-        s(&b),
-    ]);
+    let o = mcap("/joint_states", "knee", &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("`knee`") && err.contains("wrist, elbow"), "{err}");
-    let o = jointctl(&[
-        "import",
-        "--format",
-        "mcap",
-        "--input",
-        s(&bag),
-        "--topic",
-        "/load_torque",
-        "--joint-name",
-        "elbow",
-        "--out",
-        s(&b),
-    ]);
+    let o = mcap("/load_torque", "elbow", &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("std_msgs/msg/Float64"), "{err}");
 }

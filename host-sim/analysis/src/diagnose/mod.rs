@@ -566,35 +566,30 @@ fn torque_mode(
     let p0 = des0.cols.len();
     data.y = vec![0.0; n];
     let y = par::per_sample(n, |i| {
-        let (mut buf, mut wide) = ([0.0; 32], Vec::new());
-        let x: &mut [f64] = if p0 <= 32 {
-            &mut buf[..p0]
-        } else {
-            wide.resize(p0, 0.0);
-            &mut wide
-        };
-        des0.row(&data, i, x);
-        let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-        data.u[i] - tau[i] - (pred0[i] - lin)
+        par::with_row(p0, |x| {
+            des0.row(&data, i, x);
+            let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
+            data.u[i] - tau[i] - (pred0[i] - lin)
+        })
     });
     data.y = y;
     // From here on every model sees the expected sign; the file's residual r0 too.
     data.sgn = sgn;
     let (r0, non_friction): (Vec<f64>, Vec<f64>) = par::per_sample(n, |i| {
-        let (mut buf, mut wide) = ([0.0; 32], Vec::new());
-        let x: &mut [f64] = if p0 <= 32 {
-            &mut buf[..p0]
-        } else {
-            wide.resize(p0, 0.0);
-            &mut wide
-        };
-        des0.row(&data, i, x);
-        let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-        let fric: f64 =
-            x.iter().zip(&base.beta0).zip(&des0.cols).filter(|(_, c)| c.is_friction()).map(|((a, b), _)| a * b).sum();
-        // the model's torque less its friction: inertia, weight, springs, offset, table
-        // (d − y is the fixed rest: gravity table, the core's rounding)
-        (data.y[i] - lin, data.u[i] - tau[i] - data.y[i] + lin - fric)
+        par::with_row(p0, |x| {
+            des0.row(&data, i, x);
+            let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
+            let fric: f64 = x
+                .iter()
+                .zip(&base.beta0)
+                .zip(&des0.cols)
+                .filter(|(_, c)| c.is_friction())
+                .map(|((a, b), _)| a * b)
+                .sum();
+            // the model's torque less its friction: inertia, weight, springs, offset, table
+            // (d − y is the fixed rest: gravity table, the core's rounding)
+            (data.y[i] - lin, data.u[i] - tau[i] - data.y[i] + lin - fric)
+        })
     })
     .into_iter()
     .unzip();
@@ -624,16 +619,8 @@ fn torque_mode(
         let fit_idx = candidates::thin_idx(&split.train, 150_000);
         let rs = select::fit_and_score(&data, &base, &[], &fit_idx, &split, &regimes.bits, regimes.defs.len());
         let p1 = rs.design.cols.len();
-        let r1: Vec<f64> = par::per_sample(n, |i| {
-            let (mut buf, mut wide) = ([0.0; 32], Vec::new());
-            let x: &mut [f64] = if p1 <= 32 {
-                &mut buf[..p1]
-            } else {
-                wide.resize(p1, 0.0);
-                &mut wide
-            };
-            select::residual_at(&data, &rs.design, &rs.beta, i, x)
-        });
+        let r1: Vec<f64> =
+            par::per_sample(n, |i| par::with_row(p1, |x| select::residual_at(&data, &rs.design, &rs.beta, i, x)));
         at_file.min(torque_floor(&r1, &data, (&rs.design.cols, &rs.beta), prep, &split.holdout))
     };
     // A pure sign jumps to ±c at any motion, however slow: inside a rest, a creep below the

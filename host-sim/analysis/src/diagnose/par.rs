@@ -54,6 +54,16 @@ where
     costliest_first(&ranges, threads, |_| 0, |r| r.clone().map(&f).collect::<Vec<T>>()).into_iter().flatten().collect()
 }
 
+/// `f` on a zeroed row buffer of `p` values (on the stack up to 32, the usual design width),
+/// for per-sample passes that cannot share one buffer across threads.
+pub(crate) fn with_row<R>(p: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
+    let mut buf = [0.0; 32];
+    match buf.get_mut(..p) {
+        Some(x) => f(x),
+        None => f(&mut vec![0.0; p]),
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
