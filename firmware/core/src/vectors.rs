@@ -329,40 +329,19 @@ impl Record {
     }
 
     fn fixed_step(index: u32, out: &Output, dahl: Fx) -> Record {
-        let flags = u32::from(out.limited) | (u32::from(out.bad_input) << 1);
-        Record {
-            tag: Tag::Fixed,
-            index,
-            words: [
-                out.tau_out.to_bits(),
-                out.u_motor.to_bits(),
-                out.c_c.to_bits(),
-                out.assist.to_bits(),
-                flags,
-                dahl.to_bits() as u32,
-                0,
-                0,
-            ],
-        }
+        Record { tag: Tag::Fixed, index, words: step_words(out, [dahl.to_bits() as u32, 0, 0]) }
     }
 
     fn step(index: u32, out: &Output, fixed: Fx, qd: f32, qdd: f32) -> Record {
-        let flags = u32::from(out.limited) | (u32::from(out.bad_input) << 1);
-        Record {
-            tag: Tag::Step,
-            index,
-            words: [
-                out.tau_out.to_bits(),
-                out.u_motor.to_bits(),
-                out.c_c.to_bits(),
-                out.assist.to_bits(),
-                flags,
-                fixed.to_bits() as u32,
-                qd.to_bits(),
-                qdd.to_bits(),
-            ],
-        }
+        Record { tag: Tag::Step, index, words: step_words(out, [fixed.to_bits() as u32, qd.to_bits(), qdd.to_bits()]) }
     }
+}
+
+/// A step's outputs as record words: τ_out, u_motor, C_c, assist, the flags, then `rest`.
+fn step_words(out: &Output, rest: [u32; 3]) -> [u32; 8] {
+    let flags = u32::from(out.limited) | (u32::from(out.bad_input) << 1);
+    let [a, b, c] = rest;
+    [out.tau_out.to_bits(), out.u_motor.to_bits(), out.c_c.to_bits(), out.assist.to_bits(), flags, a, b, c]
 }
 
 /// Compact code of a replace result: 0 = accepted, otherwise 1 + the error kind.
