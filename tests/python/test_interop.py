@@ -370,3 +370,52 @@ def test_garbage_frames_leave_the_node_alive_and_unchanged(rig):
     after = {o.name: node.sdo[o.name].raw for o in params(node)}
     assert after == before
     assert node.sdo[0x1018][2].raw == 0x4A4E0001
+
+
+def test_sync_triggered_tpdo_and_the_error_history(rig):
+    """A master's SYNC drives a synchronous TPDO (transmission type N = every Nth SYNC), the
+    SYNC and EMCY COB-IDs read as CiA 301 says, and the error history (0x1003) records an EMCY
+    and is cleared by writing 0, all through python-canopen's own SYNC producer and the EDS."""
+    network, node, _ = rig
+    assert node.sdo[0x1005].raw == 0x80
+    assert node.sdo[0x1014].raw == 0x80 + NODE
+    assert node.sdo[0x1029][1].raw == 1  # a communication error leaves the NMT state alone
+    node.tpdo.read(from_od=True)
+    tp1 = node.tpdo[1]
+    node.sdo[0x1800][2].raw = 2  # every 2nd SYNC
+    node.nmt.state = "OPERATIONAL"
+    got = []
+    tp1.add_callback(lambda m: got.append(m.timestamp))
+    time.sleep(0.3)
+    assert got == [], "no SYNC, no synchronous TPDO (its event timer does not drive it)"
+    network.sync.start(0.02)  # python-canopen's SYNC producer, 50 Hz
+    time.sleep(1.0)
+    network.sync.stop()
+    time.sleep(0.05)
+    n = len(got)
+    assert 18 <= n <= 32, n  # ~25 = 50 SYNCs / 2
+    period = (got[-1] - got[0]) / (n - 1)
+    assert 0.03 < period < 0.05, period
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1800][2].raw = 0  # acyclic synchronous: not served
+    assert abort_code(e) == 0x06090030
+    node.sdo[0x1800][2].raw = 0xFE
+    preop(node)
+    # the error history: clear, cause one EMCY (a refused commit), read it back, clear again
+    node.sdo[0x1003][0].raw = 0
+    assert node.sdo[0x1003][0].raw == 0
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1003][0].raw = 3  # only 0 may be written
+    assert abort_code(e) == 0x06090030
+    node.emcy.reset()
+    old = node.sdo["controller_accel_cutoff"].raw
+    node.sdo["controller_accel_cutoff"].raw = 600.0  # in range, but >= half the 1 kHz rate
+    with pytest.raises(SdoAbortedError):
+        node.sdo["params_commit"].raw = 1
+    wait_for(lambda: any(x.code == 0x6320 for x in node.emcy.log), 2, "EMCY 0x6320")
+    assert node.sdo[0x1003][0].raw == 1
+    assert node.sdo[0x1003][1].raw & 0xFFFF == 0x6320
+    node.sdo["params_commit"].raw = 0  # discard the staged set
+    assert node.sdo["controller_accel_cutoff"].raw == old
+    node.sdo[0x1003][0].raw = 0
+    assert node.sdo[0x1003][0].raw == 0

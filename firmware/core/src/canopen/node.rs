@@ -101,6 +101,13 @@ pub const DEFAULT_HOST_ID: u8 = 0x7F;
 pub const DEFAULT_HEARTBEAT_MS: u16 = 100;
 /// Default TPDO event timer, ms (100 Hz telemetry).
 pub const DEFAULT_TPDO_MS: u16 = 10;
+/// 0x1005 default: the SYNC at COB-ID 0x80 (CiA 301), consumed only.
+pub const DEFAULT_SYNC_COB: u32 = 0x80;
+/// 0x1029 sub 1 default: 1, the NMT state stays where it is on a communication error. CiA 301's
+/// default is 0 (pre-operational); a joint keeps operational because its safety layer already
+/// fades the torque on a lost heartbeat or bus-off, and its TPDOs keep reporting why (the
+/// fault bits). A master that wants the CiA behaviour writes 0 (or 2: stopped).
+pub const DEFAULT_ERROR_BEHAVIOUR: u8 = 1;
 /// A segmented transfer with no segment for this long is aborted (0x05040000).
 pub const SDO_TIMEOUT_US: u64 = 1_000_000;
 /// Largest segmented download the node buffers: the gravity table's torque array.
@@ -322,6 +329,8 @@ struct Tpdo {
     event_ms: u16,
     next_us: u64,
     last_us: Option<u64>,
+    /// SYNCs counted since the last synchronous transmission (types 1..=240)
+    syncs: u8,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -373,6 +382,13 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     transfer: Transfer,
     buf: [u8; SDO_BUFFER],
     last_faults: Faults,
+    /// 0x1003: the last EMCY codes (code | error register << 16), newest first
+    error_history: [u32; od::ERROR_HISTORY_LEN],
+    error_count: u8,
+    /// 0x1005 (consumer only: bit 30 never set)
+    sync_cob: u32,
+    /// 0x1029 sub 1
+    error_behaviour: u8,
     /// a refused commit waits for its EMCY
     pending_commit_emcy: bool,
     now_us: u64,
@@ -442,8 +458,12 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
             rpdo_cob: [0; od::RPDO_COUNT as usize],
-            tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None };
+            tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None, syncs: 0 };
                 od::TPDO_COUNT as usize],
+            error_history: [0; od::ERROR_HISTORY_LEN],
+            error_count: 0,
+            sync_cob: DEFAULT_SYNC_COB,
+            error_behaviour: DEFAULT_ERROR_BEHAVIOUR,
             assist_cmd: 0.0,
             others: [0.0; 3],
             state: JointState::default(),
@@ -498,8 +518,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 event_ms: DEFAULT_TPDO_MS,
                 next_us: now_us,
                 last_us: None,
+                syncs: 0,
             };
         }
+        self.sync_cob = DEFAULT_SYNC_COB;
+        self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
         self.nmt = NmtState::Initialising;
         self.boot_sent = false;
@@ -638,6 +661,17 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             NmtState::Stopped | NmtState::Initialising => return,
             NmtState::PreOperational | NmtState::Operational => {}
         }
+        if u32::from(id) == self.sync_cob & 0x7FF {
+            // SYNC: 0 bytes, or 1 with the producer's counter
+            if d.len() <= 1 {
+                if self.nmt == NmtState::Operational {
+                    self.on_sync(now_us, tx);
+                }
+            } else {
+                self.dropped = self.dropped.saturating_add(1);
+            }
+            return;
+        }
         if id == sdo::RX_BASE + me {
             if let Some(resp) = self.sdo_request(now_us, d) {
                 tx(frame(sdo::TX_BASE + me, resp, 8));
@@ -722,6 +756,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             if !new.is_empty() {
                 let b = faults.bits().to_le_bytes();
                 self.emcy(emcy_code(new), [b[0], b[1], 0, 0, 0], tx);
+                // 0x1029: a communication error (host heartbeat lost, bus-off) and the NMT state
+                let comm = new.intersects(Faults::HEARTBEAT_LOST) || new.intersects(Faults::CAN_BUS_OFF);
+                if comm && self.nmt == NmtState::Operational {
+                    match self.error_behaviour {
+                        0 => self.go(NmtState::PreOperational, now_us),
+                        2 => self.go(NmtState::Stopped, now_us),
+                        _ => {}
+                    }
+                }
             } else if faults.is_empty() && !self.last_faults.is_empty() {
                 self.emcy(EMCY_RESET, [0; 5], tx);
             }
@@ -755,11 +798,32 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
     }
 
+    /// A SYNC while operational: each synchronous TPDO (type N in 1..=240) goes out on every
+    /// Nth SYNC, with the state as it is now.
+    fn on_sync(&mut self, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
+        for n in 0..od::TPDO_COUNT {
+            let Some(t) = self.tpdo.get_mut(n as usize) else { continue };
+            if t.cob_id & COB_INVALID != 0 || !(1..=240).contains(&t.transmission) {
+                continue;
+            }
+            t.syncs = t.syncs.saturating_add(1);
+            if t.syncs < t.transmission {
+                continue;
+            }
+            t.syncs = 0;
+            t.last_us = Some(now_us);
+            let cob = (t.cob_id & 0x7FF) as u16;
+            let (data, len) = self.tpdo_payload(n);
+            tx(frame(cob, data, len));
+        }
+    }
+
     fn tpdo_timer(&mut self, n: u8, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
         let Some(t) = self.tpdo.get(n as usize).copied() else {
             return;
         };
-        if t.cob_id & COB_INVALID != 0 || t.event_ms == 0 || now_us < t.next_us {
+        // the event timer drives event-driven types only; synchronous ones wait for SYNC
+        if t.cob_id & COB_INVALID != 0 || t.event_ms == 0 || now_us < t.next_us || t.transmission < 0xFE {
             return;
         }
         if let Some(last) = t.last_us {
@@ -797,6 +861,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     }
 
     fn emcy(&mut self, code: u16, mfr: [u8; 5], tx: &mut impl FnMut(CanFrame)) {
+        if code != EMCY_RESET {
+            // 0x1003: newest first, the oldest falls off
+            let entry = u32::from(code) | (u32::from(self.error_register()) << 16);
+            self.error_history.rotate_right(1);
+            if let Some(first) = self.error_history.first_mut() {
+                *first = entry;
+            }
+            self.error_count = self.error_count.saturating_add(1).min(od::ERROR_HISTORY_LEN as u8);
+        }
         let c = code.to_le_bytes();
         let d = [c[0], c[1], self.error_register(), mfr[0], mfr[1], mfr[2], mfr[3], mfr[4]];
         tx(frame(EMCY_BASE + u16::from(self.cfg.node_id), d, 8));
@@ -1013,6 +1086,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         Ok(match info.key {
             Key::DeviceType => put_u32(0),
             Key::ErrorRegister => put_u8(self.error_register()),
+            Key::ErrorHistoryCount => put_u8(self.error_count),
+            Key::ErrorHistory(s) => put_u32(if s <= self.error_count {
+                self.error_history.get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)
+            } else {
+                0
+            }),
+            Key::SyncCobId => put_u32(self.sync_cob),
+            Key::EmcyCobId => put_u32(u32::from(EMCY_BASE + u16::from(self.cfg.node_id))),
+            Key::ErrorBehaviour => put_u8(self.error_behaviour),
             Key::DeviceName => Value::Big(Big::DeviceName),
             Key::SoftwareVersion => Value::Big(Big::SoftwareVersion),
             Key::Count(n) => put_u8(n),
@@ -1100,7 +1182,18 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             | Key::TpdoCobId(_)
             | Key::TpdoType(_)
             | Key::TpdoInhibit(_)
-            | Key::TpdoEvent(_) => self.write_comm(info.key, u),
+            | Key::TpdoEvent(_)
+            | Key::SyncCobId
+            | Key::ErrorBehaviour => self.write_comm(info.key, u),
+            Key::ErrorHistoryCount => {
+                // CiA 301: only 0 may be written, and it clears the history
+                if u != 0 {
+                    return Err(Abort::InvalidValue);
+                }
+                self.error_count = 0;
+                self.error_history = [0; od::ERROR_HISTORY_LEN];
+                Ok(())
+            }
             Key::Param(p) => self.stage_param(p, u),
             Key::TableShape(s) => self.write_shape(s, u as u8),
             Key::TableGrid | Key::TableTorque | Key::TableSigma => self.stage_table(info.key, data),
@@ -1206,13 +1299,28 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 }
             }
             Key::TpdoType(n) => {
-                // Only event-driven (254/255) transmission: there is no SYNC consumer.
-                if u != 0xFE && u != 0xFF {
+                // event-driven (254/255) or synchronous, every 1st..240th SYNC; acyclic (0) and
+                // RTR-only (252/253) types are not served
+                if !(u == 0xFE || u == 0xFF || (1..=240).contains(&u)) {
                     return Err(Abort::InvalidValue);
                 }
                 if let Some(t) = self.tpdo.get_mut(n as usize) {
                     t.transmission = u as u8;
+                    t.syncs = 0;
                 }
+            }
+            Key::SyncCobId => {
+                // a consumer: 11-bit id, no producer bit (30), no extended frame (29)
+                if u & !0x7FF != 0 {
+                    return Err(Abort::InvalidValue);
+                }
+                self.sync_cob = u;
+            }
+            Key::ErrorBehaviour => {
+                if u > 2 {
+                    return Err(Abort::InvalidValue);
+                }
+                self.error_behaviour = u as u8;
             }
             Key::TpdoInhibit(n) => {
                 if let Some(t) = self.tpdo.get_mut(n as usize) {

@@ -99,6 +99,16 @@ pub enum Key {
     RestoreAll,
     ConsumerHeartbeat,
     ProducerHeartbeat,
+    /// 0x1003 sub 0: number of errors in the history (write 0 to clear it)
+    ErrorHistoryCount,
+    /// 0x1003 sub 1..=8: the newest error first
+    ErrorHistory(u8),
+    /// 0x1005: COB-ID of the SYNC the node consumes
+    SyncCobId,
+    /// 0x1014: COB-ID of the node's EMCY
+    EmcyCobId,
+    /// 0x1029 sub 1: what a communication error does to the NMT state
+    ErrorBehaviour,
     /// 1 vendor, 2 product, 3 revision, 4 serial
     Identity(u8),
     RpdoCobId(u8),
@@ -168,6 +178,9 @@ pub struct ObjectInfo {
 
 pub const DEVICE_TYPE: u16 = 0x1000;
 pub const ERROR_REGISTER: u16 = 0x1001;
+/// pre-defined error field: the last EMCY codes, newest first
+pub const ERROR_HISTORY: u16 = 0x1003;
+pub const COB_ID_SYNC: u16 = 0x1005;
 pub const DEVICE_NAME: u16 = 0x1008;
 pub const SOFTWARE_VERSION: u16 = 0x100A;
 pub const STORE_PARAMETERS: u16 = 0x1010;
@@ -175,6 +188,10 @@ pub const RESTORE_DEFAULTS: u16 = 0x1011;
 pub const CONSUMER_HEARTBEAT: u16 = 0x1016;
 pub const PRODUCER_HEARTBEAT: u16 = 0x1017;
 pub const IDENTITY: u16 = 0x1018;
+pub const COB_ID_EMCY: u16 = 0x1014;
+pub const ERROR_BEHAVIOUR: u16 = 0x1029;
+/// Entries the error history keeps.
+pub const ERROR_HISTORY_LEN: usize = 8;
 pub const RPDO_COMM: u16 = 0x1400;
 pub const RPDO_MAP: u16 = 0x1600;
 pub const TPDO_COMM: u16 = 0x1800;
@@ -293,16 +310,20 @@ const fn map_entry(index: u16, sub: u8, bits: u8) -> u32 {
 
 /// Every index of the dictionary, ascending.
 pub fn indices() -> impl Iterator<Item = u16> {
-    const LOW: [u16; 9] = [
+    const LOW: [u16; 13] = [
         DEVICE_TYPE,
         ERROR_REGISTER,
+        ERROR_HISTORY,
+        COB_ID_SYNC,
         DEVICE_NAME,
         SOFTWARE_VERSION,
         STORE_PARAMETERS,
         RESTORE_DEFAULTS,
+        COB_ID_EMCY,
         CONSUMER_HEARTBEAT,
         PRODUCER_HEARTBEAT,
         IDENTITY,
+        ERROR_BEHAVIOUR,
     ];
     const HIGH: [u16; 15] = [
         TABLE_SHAPE,
@@ -331,6 +352,16 @@ pub fn indices() -> impl Iterator<Item = u16> {
 }
 
 const SUB0: &[u8] = &[0];
+const ERROR_HISTORY_NAMES: [&str; ERROR_HISTORY_LEN] = [
+    "standard_error_field_1",
+    "standard_error_field_2",
+    "standard_error_field_3",
+    "standard_error_field_4",
+    "standard_error_field_5",
+    "standard_error_field_6",
+    "standard_error_field_7",
+    "standard_error_field_8",
+];
 const SUBS_1: &[u8] = &[0, 1];
 const SUBS_2: &[u8] = &[0, 1, 2];
 const SUBS_3: &[u8] = &[0, 1, 2, 3];
@@ -346,6 +377,10 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
     match index {
         DEVICE_TYPE => o("device_type", Var, SUB0),
         ERROR_REGISTER => o("error_register", Var, SUB0),
+        ERROR_HISTORY => o("pre_defined_error_field", Array, SUBS_8),
+        COB_ID_SYNC => o("cob_id_sync", Var, SUB0),
+        COB_ID_EMCY => o("cob_id_emcy", Var, SUB0),
+        ERROR_BEHAVIOUR => o("error_behaviour", Array, SUBS_1),
         DEVICE_NAME => o("manufacturer_device_name", Var, SUB0),
         SOFTWARE_VERSION => o("manufacturer_software_version", Var, SUB0),
         STORE_PARAMETERS => o("store_parameters", Array, SUBS_1),
@@ -413,6 +448,10 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         key,
     };
     let highest = obj.subs.last().copied().unwrap_or(0);
+    if index == ERROR_HISTORY && sub == 0 {
+        // not the highest sub-index but the number of errors recorded; writing 0 clears them
+        return Ok(mk("number_of_errors", Unsigned8, Rw, Key::ErrorHistoryCount));
+    }
     if sub == 0 && obj.kind != ObjectKind::Var {
         return Ok(mk("highest_sub_index", Unsigned8, Const, Key::Count(highest)));
     }
@@ -420,6 +459,13 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
     let info = match index {
         DEVICE_TYPE => mk("device_type", Unsigned32, Const, Key::DeviceType),
         ERROR_REGISTER => SubInfo { pdo: true, ..mk("error_register", Unsigned8, Ro, Key::ErrorRegister) },
+        ERROR_HISTORY => {
+            let name = ERROR_HISTORY_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
+            mk(name, Unsigned32, Ro, Key::ErrorHistory(sub))
+        }
+        COB_ID_SYNC => mk("cob_id_sync", Unsigned32, Rw, Key::SyncCobId),
+        COB_ID_EMCY => SubInfo { node_relative: true, ..mk("cob_id_emcy", Unsigned32, Ro, Key::EmcyCobId) },
+        ERROR_BEHAVIOUR => mk("communication_error", Unsigned8, Rw, Key::ErrorBehaviour),
         DEVICE_NAME => mk("manufacturer_device_name", VisibleString, Const, Key::DeviceName),
         SOFTWARE_VERSION => mk("manufacturer_software_version", VisibleString, Const, Key::SoftwareVersion),
         STORE_PARAMETERS => mk("save_all_parameters", Unsigned32, Rw, Key::StoreAll),
