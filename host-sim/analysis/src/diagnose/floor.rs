@@ -24,13 +24,18 @@ pub fn variogram_noise(r: &[f64]) -> (f64, f64) {
     // each lag on its own (up to 30 medians of 200 000 differences): on the available cores
     let lags: Vec<usize> = (1..=max_lag).collect();
     let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).clamp(1, 8);
-    let v: Vec<f64> = super::par::costliest_first(&lags, threads, |_| 0, |&k| {
-        let mut d: Vec<f64> = (0..n - k).step_by(stride).map(|i| (r[i + k] - r[i]).abs()).collect();
-        let mid = d.len() / 2;
-        let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-        let s = 1.4826 * *m;
-        s * s
-    });
+    let v: Vec<f64> = super::par::costliest_first(
+        &lags,
+        threads,
+        |_| 0,
+        |&k| {
+            let mut d: Vec<f64> = (0..n - k).step_by(stride).map(|i| (r[i + k] - r[i]).abs()).collect();
+            let mid = d.len() / 2;
+            let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+            let s = 1.4826 * *m;
+            s * s
+        },
+    );
     // For each ρ on a grid, V(k) = s2·2(1 − ρ^k) + c·k² is linear in (s2, c) ≥ 0.
     let mut best = (f64::INFINITY, 0.0, 0.0);
     for step in 0..=95 {
