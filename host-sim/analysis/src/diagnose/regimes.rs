@@ -27,14 +27,7 @@ pub struct Regimes {
 }
 
 fn percentile(v: &[f64], p: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s: Vec<f64> = v.to_vec();
-    let k = ((s.len() - 1) as f64 * p).round() as usize;
-    let k = k.min(s.len() - 1);
-    let (_, x, _) = s.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    *x
+    crate::prep::quantile::at_rounded(&mut v.to_vec(), p).unwrap_or(0.0)
 }
 
 /// Every stride-th value, for percentiles of long logs.

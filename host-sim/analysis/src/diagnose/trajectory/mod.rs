@@ -621,12 +621,5 @@ fn max_of(x: &[f64]) -> f64 {
 }
 
 fn percentile(v: &[f64], p: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    let last = s.len() - 1;
-    let k = ((last as f64 * p).round() as usize).min(last);
-    let (_, x, _) = s.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    *x
+    crate::prep::quantile::at_rounded(&mut v.to_vec(), p).unwrap_or(0.0)
 }
