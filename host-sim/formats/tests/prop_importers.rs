@@ -84,7 +84,7 @@ proptest! {
             Record { t_ns: t, iface: "can0".into(), id, extended: false, remote: false, fd_flags: None, data }
         }).collect();
         let o = DecodeOpts { node: 5, map: "q=q,qd=qd".into(), load_cell: false };
-        if let Ok(d) = candump::decode(&recs, &pdos, &o) {
+        if let Ok(d) = candump::decode(recs.iter().map(Record::view), &pdos, &o) {
             let log = JointLog::parse(d.csv.as_bytes(), "decoded").expect("decoded text is a joint log");
             check_log(&log);
             prop_assert_eq!(log.len(), d.rows);

@@ -29,6 +29,34 @@ pub struct Record {
     pub data: Vec<u8>,
 }
 
+/// A frame as the decoder and the capture writer read it, borrowed (a live bus's frames need
+/// no copy into [`Record`]s to be decoded or written).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRef<'a> {
+    pub t_ns: u64,
+    pub id: u32,
+    pub extended: bool,
+    pub remote: bool,
+    pub data: &'a [u8],
+}
+
+impl FrameRef<'_> {
+    /// The line `candump -l` writes for this frame on `iface` (no line end); `fd_flags` for a
+    /// CAN FD frame.
+    pub fn line(&self, iface: &str, fd_flags: Option<u8>) -> String {
+        let (s, ns) = (self.t_ns / 1_000_000_000, self.t_ns % 1_000_000_000);
+        let stamp = if ns % 1000 == 0 { format!("{s:010}.{:06}", ns / 1000) } else { format!("{s:010}.{ns:09}") };
+        let id = if self.extended { format!("{:08X}", self.id) } else { format!("{:03X}", self.id) };
+        let hex: String = self.data.iter().map(|b| format!("{b:02X}")).collect();
+        let frame = match (fd_flags, self.remote) {
+            (Some(f), _) => format!("{id}##{f:X}{hex}"),
+            (None, true) => format!("{id}#R"),
+            (None, false) => format!("{id}#{hex}"),
+        };
+        format!("({stamp}) {iface} {frame}")
+    }
+}
+
 /// The error-frame flag of SocketCAN's 32-bit id (candump writes error frames with it).
 const CAN_ERR_FLAG: u32 = 0x2000_0000;
 
@@ -102,18 +130,14 @@ impl Record {
         Ok(Some(Record { t_ns, iface, id, extended, remote, fd_flags, data }))
     }
 
+    /// The frame, borrowed.
+    pub fn view(&self) -> FrameRef<'_> {
+        FrameRef { t_ns: self.t_ns, id: self.id, extended: self.extended, remote: self.remote, data: &self.data }
+    }
+
     /// The line `candump -l` writes for this frame (no line end).
     pub fn line(&self) -> String {
-        let (s, ns) = (self.t_ns / 1_000_000_000, self.t_ns % 1_000_000_000);
-        let stamp = if ns % 1000 == 0 { format!("{s:010}.{:06}", ns / 1000) } else { format!("{s:010}.{ns:09}") };
-        let id = if self.extended { format!("{:08X}", self.id) } else { format!("{:03X}", self.id) };
-        let hex: String = self.data.iter().map(|b| format!("{b:02X}")).collect();
-        let frame = match (self.fd_flags, self.remote) {
-            (Some(f), _) => format!("{id}##{f:X}{hex}"),
-            (None, true) => format!("{id}#R"),
-            (None, false) => format!("{id}#{hex}"),
-        };
-        format!("({stamp}) {} {frame}", self.iface)
+        self.view().line(&self.iface, self.fd_flags)
     }
 }
 
@@ -137,11 +161,11 @@ pub fn parse_capture(text: &str, file: &str) -> Result<(Vec<Record>, usize), Str
     Ok((out, skipped))
 }
 
-/// The capture text of `records`, one line each.
-pub fn write_capture(records: &[Record]) -> String {
-    let mut s = String::with_capacity(records.len() * 40);
-    for r in records {
-        s.push_str(&r.line());
+/// The capture text of classic `frames` seen on `iface`, one line each.
+pub fn write_capture<'a>(frames: impl IntoIterator<Item = FrameRef<'a>>, iface: &str) -> String {
+    let mut s = String::new();
+    for f in frames {
+        s.push_str(&f.line(iface, None));
         s.push('\n');
     }
     s
@@ -178,8 +202,12 @@ pub struct Decoded {
     pub notes: Vec<String>,
 }
 
-/// Decodes `records` into joint-log CSV text (see the module documentation).
-pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decoded, String> {
+/// Decodes `frames` into joint-log CSV text (see the module documentation).
+pub fn decode<'a>(
+    frames: impl IntoIterator<Item = FrameRef<'a>>,
+    pdos: &PdoMap,
+    o: &DecodeOpts,
+) -> Result<Decoded, String> {
     let map = if o.map.trim().is_empty() { default_map(o.load_cell) } else { o.map.clone() };
     let entries: Vec<Entry> = csv_map::parse_entries(&map, |c| c == "faults")?;
     if entries.iter().any(|e| e.column == "t") {
@@ -208,6 +236,15 @@ pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decod
     let Some(row_cob) = slots.first().map(|s| s.0) else {
         return Err("--map: nothing mapped".into());
     };
+    // the slots each COB-ID carries, found once rather than per frame
+    let mut groups: Vec<(u32, Vec<usize>)> = Vec::new();
+    for (i, (cob, _)) in slots.iter().enumerate() {
+        match groups.iter_mut().find(|g| g.0 == *cob) {
+            Some(g) => g.1.push(i),
+            None => groups.push((*cob, vec![i])),
+        }
+    }
+    let mut got: Vec<f64> = Vec::with_capacity(slots.len());
     let hb_id = 0x700 + u32::from(o.node);
     let mut last: Vec<Option<f64>> = vec![None; slots.len()];
     let mut nmt: Option<u8> = None;
@@ -219,9 +256,10 @@ pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decod
     header.push_str(",nmt\n");
     let mut csv = header;
     let (mut rows, mut early, mut same_time, mut short) = (0usize, 0usize, 0usize, 0usize);
-    let t0 = records.first().map_or(0, |r| r.t_ns);
+    let mut t0: Option<u64> = None;
     let mut last_t: Option<u64> = None;
-    for r in records {
+    for r in frames {
+        let t0 = *t0.get_or_insert(r.t_ns);
         if r.extended || r.remote {
             continue;
         }
@@ -229,17 +267,20 @@ pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decod
             nmt = r.data.first().copied();
             continue;
         }
+        let Some((_, mine)) = groups.iter().find(|g| g.0 == r.id) else { continue };
         // a frame shorter than its mapping gives nothing: no value of it is taken
-        let mine: Vec<usize> = slots.iter().enumerate().filter(|(_, s)| s.0 == r.id).map(|(i, _)| i).collect();
-        if mine.is_empty() {
-            continue;
+        got.clear();
+        for &i in mine {
+            match slots.get(i).and_then(|(_, m)| m.value(r.data)) {
+                Some(x) => got.push(x),
+                None => break,
+            }
         }
-        let got: Option<Vec<f64>> = mine.iter().map(|&i| slots.get(i).and_then(|(_, m)| m.value(&r.data))).collect();
-        let Some(got) = got else {
+        if got.len() < mine.len() {
             short += 1;
             continue;
-        };
-        for (&i, x) in mine.iter().zip(got) {
+        }
+        for (&i, &x) in mine.iter().zip(&got) {
             if let Some(v) = last.get_mut(i) {
                 *v = Some(x);
             }
@@ -247,20 +288,21 @@ pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decod
         if r.id != row_cob {
             continue;
         }
-        let vals: Option<Vec<f64>> = last.iter().copied().collect();
-        let Some(vals) = vals else {
+        if last.iter().any(Option::is_none) {
             early += 1;
             continue;
-        };
-        if last_t.is_some_and(|lt| r.t_ns <= lt) {
+        }
+        // (a capture's stamps need not be in order: a row before the one written, or before the
+        // first frame, is not written)
+        if last_t.is_some_and(|lt| r.t_ns <= lt) || r.t_ns < t0 {
             same_time += 1;
             continue;
         }
         last_t = Some(r.t_ns);
         csv.push_str(&crate::log::fmt_num((r.t_ns - t0) as f64 / 1e9));
-        for (e, v) in entries.iter().zip(vals) {
+        for (e, v) in entries.iter().zip(last.iter().flatten()) {
             csv.push(',');
-            csv.push_str(&crate::log::fmt_num(e.apply(v)));
+            csv.push_str(&crate::log::fmt_num(e.apply(*v)));
         }
         csv.push(',');
         if let Some(b) = nmt {
@@ -280,7 +322,7 @@ pub fn decode(records: &[Record], pdos: &PdoMap, o: &DecodeOpts) -> Result<Decod
         notes.push(format!("{early} frames before every mapped value had arrived once: not written"));
     }
     if same_time > 0 {
-        notes.push(format!("{same_time} rows with the time of the one before: not written"));
+        notes.push(format!("{same_time} rows whose time did not increase: not written"));
     }
     if short > 0 {
         notes.push(format!("{short} frames shorter than their mapping: not taken"));
@@ -342,13 +384,20 @@ mod tests {
                    (100.002000) can0 185#2E0BF6FF\n(100.002000) can0 185#2E0BF6FF\n(100.003000) can0 185#0000\n";
         let (recs, _) = parse_capture(cap, "c").unwrap();
         let o = DecodeOpts { node: 5, map: "q=q,qd=qd:*2,temp=temperature".into(), load_cell: false };
-        let d = decode(&recs, &pdos, &o).unwrap();
+        let d = decode(recs.iter().map(Record::view), &pdos, &o).unwrap();
         assert_eq!(d.csv, "t,q,qd,temp,nmt\n0.002,0.2862,-0.02,25,5\n", "{}", d.csv);
         assert!(d.notes.iter().any(|n| n.contains("1 frames before")), "{:?}", d.notes);
-        assert!(d.notes.iter().any(|n| n.contains("1 rows with the time")), "{:?}", d.notes);
+        assert!(d.notes.iter().any(|n| n.contains("1 rows whose time did not increase")), "{:?}", d.notes);
         assert!(d.notes.iter().any(|n| n.contains("1 frames shorter")), "{:?}", d.notes);
+        // stamps out of order (two interfaces merged): a row earlier than the first frame is
+        // not written, nothing wraps
+        let cap = "(100.000000) can0 285#C409\n(99.000000) can0 185#D2040A00\n(100.001000) can0 185#D2040A00\n";
+        let (recs2, _) = parse_capture(cap, "c").unwrap();
+        let d2 = decode(recs2.iter().map(Record::view), &pdos, &o).unwrap();
+        assert_eq!(d2.rows, 1, "{}", d2.csv);
+        assert!(d2.csv.ends_with("0.001,0.1234,0.02,25,\n"), "{}", d2.csv);
         let o = DecodeOpts { map: "q=position".into(), ..o };
-        let e = decode(&recs, &pdos, &o).unwrap_err();
+        let e = decode(recs.iter().map(Record::view), &pdos, &o).unwrap_err();
         assert!(e.contains("no object named `position`") && e.contains("q, qd, temperature"), "{e}");
     }
 }

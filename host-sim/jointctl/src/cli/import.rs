@@ -174,7 +174,8 @@ fn convert_and_write(a: &ImportArgs) -> anyhow::Result<()> {
             let pdos = PdoMap::from_eds(&read_text(eds_path)?, &eds_file, node).map_err(anyhow::Error::msg)?;
             let (records, errors) = candump::parse_capture(&read_text(&a.input)?, &file).map_err(anyhow::Error::msg)?;
             let o = DecodeOpts { node, map: a.map.clone().unwrap_or_default(), load_cell: a.load_cell };
-            let d = candump::decode(&records, &pdos, &o).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+            let d = candump::decode(records.iter().map(candump::Record::view), &pdos, &o)
+                .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
             // the decoded text is a joint log: the spec's reader must take it
             let log = JointLog::parse(d.csv.as_bytes(), &file).context("decoded capture")?;
             let mut notes = d.notes;

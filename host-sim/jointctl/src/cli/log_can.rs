@@ -6,7 +6,7 @@ use clap::Args;
 use joint_can::tap::Tape;
 use joint_can::BusSpec;
 use joint_core::canopen::node::NMT_START;
-use joint_formats::import::candump::{self, DecodeOpts, Record};
+use joint_formats::import::candump::{self, DecodeOpts, FrameRef};
 use joint_formats::import::eds::PdoMap;
 use joint_formats::output::Plan;
 use std::io::Write;
@@ -71,28 +71,25 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
         BusSpec::Slcan { .. } => "slcan0".to_string(),
         BusSpec::Replay { .. } => "replay0".to_string(),
     };
-    let records: Vec<Record> = tape
-        .lock()
-        .map_err(|_| anyhow::anyhow!("capture lock poisoned"))?
-        .iter()
-        .map(|(t, f)| Record {
+    let tape = tape.lock().map_err(|_| anyhow::anyhow!("capture lock poisoned"))?;
+    // the tape's frames as the decoder and the capture writer read them, without a copy
+    let frames = || {
+        tape.iter().map(|(t, f)| FrameRef {
             t_ns: t * 1000,
-            iface: iface.clone(),
             id: u32::from(f.id()),
             extended: false,
             remote: false,
-            fd_flags: None,
-            data: f.data().to_vec(),
+            data: f.data(),
         })
-        .collect();
+    };
     let pdos = PdoMap::from_eds(&joint_can::eds::generate(), "the joint's EDS", a.node).map_err(anyhow::Error::msg)?;
     let decoded =
-        candump::decode(&records, &pdos, &DecodeOpts { node: a.node, map: String::new(), load_cell: a.load_cell })
+        candump::decode(frames(), &pdos, &DecodeOpts { node: a.node, map: String::new(), load_cell: a.load_cell })
             .map_err(|e| {
                 anyhow::anyhow!("{e} on {} in {:.1} s (is it operational? use --start)", m.bus.describe(), a.seconds)
             })?;
     if let Some(slot) = cap_out {
-        outs.write(slot, candump::write_capture(&records).as_bytes())?;
+        outs.write(slot, candump::write_capture(frames(), &iface).as_bytes())?;
     }
     outs.write(out, decoded.csv.as_bytes())?;
     let mut o = outs.human();
@@ -101,7 +98,7 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
             o,
             "{}",
             serde_json::json!({"node": a.node, "rows": decoded.rows, "out": a.out.display().to_string(),
-                "frames": records.len(), "candump": a.candump.as_ref().map(|p| p.display().to_string()),
+                "frames": tape.len(), "candump": a.candump.as_ref().map(|p| p.display().to_string()),
                 "simulated": a.bus.is_sim(), "tpdo1_before_first_tpdo2": decoded.early, "notes": decoded.notes})
         );
     } else {
@@ -114,7 +111,7 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
             a.out.display(),
             a.candump
                 .as_ref()
-                .map(|p| format!(" (capture of {} frames → {})", records.len(), p.display()))
+                .map(|p| format!(" (capture of {} frames → {})", tape.len(), p.display()))
                 .unwrap_or_default(),
             a.bus.sim_note()
         );
