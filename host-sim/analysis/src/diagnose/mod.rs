@@ -719,6 +719,9 @@ fn torque_floor(
         })
         .sum::<f64>()
         / n;
+    if std::env::var_os("DIAG_TRACE").is_some() {
+        eprintln!("[trace] floor: residual noise {noise:.5}, estimates' share {:.5} (J {j:.4})", prop2.sqrt());
+    }
     (noise * noise + prop2).sqrt()
 }
 

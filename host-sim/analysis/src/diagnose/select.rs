@@ -738,9 +738,21 @@ fn try_kinds(
     let timing = std::env::var_os("DIAG_TIMING").is_some();
     let work = |k: Kind| -> Option<Scored> {
         let t0 = std::time::Instant::now();
-        let e = search_in(k, &grid, base, chosen)?;
+        let Some(e) = search_in(k, &grid, base, chosen) else {
+            if trace() && !chosen.is_empty() {
+                eprintln!("[trace]   {} not applicable or not found", k.name());
+            }
+            return None;
+        };
         let t1 = t0.elapsed().as_secs_f64();
         if !chosen.is_empty() && grid.rss_effect(&e) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
+            if trace() {
+                eprintln!(
+                    "[trace]   {} pruned: thinned training RSS {:.4e} of {cur_rss:.4e}",
+                    k.name(),
+                    grid.rss_effect(&e)
+                );
+            }
             return None;
         }
         let s = round.fit_and_score(e, split, bits, n_regimes);
@@ -764,6 +776,31 @@ fn try_kinds(
     };
     let out = super::par::costliest_first(kinds, threads, cost, |&k| work(k));
     out.into_iter().flatten().collect()
+}
+
+/// `DIAG_TRACE=1`: every round's outcomes on stderr (for reading why a verdict came out).
+fn trace() -> bool {
+    std::env::var_os("DIAG_TRACE").is_some()
+}
+
+fn trace_round(round: usize, outcomes: &[Outcome], reference_rmse: f64, floor: f64) {
+    eprintln!("[trace] round {round}: reference {reference_rmse:.5}, floor {floor:.5}");
+    for o in outcomes {
+        eprintln!(
+            "[trace]   {:24} rmse {:.5} p {:.2e} gain {:.3} significant {} {}",
+            o.name,
+            o.scored.rmse(),
+            o.p,
+            o.gain,
+            o.significant,
+            o.implausible.unwrap_or("")
+        );
+        if std::env::var_os("DIAG_TRACE_BETA").is_some() {
+            let cols: Vec<String> =
+                o.scored.design.cols.iter().zip(&o.scored.beta).map(|(c, b)| format!("{c:?}={b:.4}")).collect();
+            eprintln!("[trace]     {}", cols.join(" "));
+        }
+    }
 }
 
 /// The whole torque-mode selection. `floor` = noise floor (N·m); selection stops there.
@@ -827,6 +864,18 @@ pub fn select(
         })
         .collect();
 
+    if trace() {
+        eprintln!(
+            "[trace] m0 {:.5} refit {:.5} (p {:.2e}, gain {:.3}, significant {})",
+            m0.rmse(),
+            refit.scored.rmse(),
+            refit.p,
+            refit.gain,
+            refit.significant
+        );
+        trace_round(1, std::slice::from_ref(&refit), m0.rmse(), floor);
+        trace_round(1, &candidates, refit.scored.rmse(), floor);
+    }
     let mut chosen: Vec<Outcome> = Vec::new();
     let best_first = parsimonious(&candidates, alpha_each).cloned();
     // Look-ahead for two effects that mask each other: when no single effect is significant
@@ -910,6 +959,9 @@ pub fn select(
                     o
                 })
                 .collect();
+            if trace() {
+                trace_round(chosen.len() + 1, &next, cur_s.rmse(), floor);
+            }
             let best = parsimonious(&next, alpha_each).cloned();
             match best {
                 Some(o) => chosen.push(o),
