@@ -15,97 +15,145 @@ use crate::series::{self, SeriesError};
 pub use crate::table::RawTable;
 use crate::table::{self, Lut, TableError};
 
-/// Identifier of a scalar parameter; its value is the index into [`PARAMS`] and into
-/// [`RawParams::values`], and the CANopen sub-index base of its manufacturer object.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u16)]
-pub enum ParamId {
-    FrictionA,
-    FrictionB,
-    FrictionC,
-    FrictionVBand,
-    WeightAmplitude,
-    WeightS,
-    WeightPhi,
-    InertiaJ,
-    OffsetC0,
-    SpringK,
-    SpringB,
-    SpringQ0,
-    TableSigmaModel,
-    TableClampK,
-    Ratio,
-    Fraction,
-    AssistK,
-    TorqueLimit,
-    RateLimit,
-    ControlRateHz,
-    HeartbeatTimeout,
-    FaultRampTime,
-    AccelCutoff,
-    VelKp,
-    VelKi,
-    PosKp,
-    PosKd,
-    StribeckLevel,
-    StribeckSpeed,
-    AsymmetricDelta,
-    RippleAmplitude,
-    RipplePeriod,
-    RipplePhase,
-    CableK,
-    CableEngage,
-    CableWidth,
-    DryFrictionC,
-    PreslidingSigma,
+/// Declares the parameter table once: the [`ParamId`] enum (explicit discriminants, so a
+/// term's CANopen sub-index base can never move), [`ParamId::ALL`], [`PARAM_COUNT`] and
+/// [`PARAMS`] all come from the one list below. A compile-time check refuses a list whose
+/// numbers are not 0, 1, 2, … in order, so a new term is appended with the next number and
+/// everything that follows from the table (object dictionary, EDS, TOML sections and keys,
+/// push/pull, `jointctl` help) picks it up.
+macro_rules! param_table {
+    ($($id:ident = $idx:literal : $name:literal, $section:literal, $key:literal, $unit:literal,
+       $min:expr, $max:expr, $default:expr, $safety:expr, $doc:literal;)*) => {
+        /// Identifier of a scalar parameter; its value is the index into [`PARAMS`] and into
+        /// [`RawParams::values`], and the CANopen sub-index base of its manufacturer object.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[repr(u16)]
+        pub enum ParamId {
+            $($id = $idx,)*
+        }
+
+        /// Number of scalar parameters.
+        pub const PARAM_COUNT: usize = [$($idx),*].len();
+
+        // The numbers are the table positions: 0, 1, 2, … (checked when the crate compiles).
+        #[allow(clippy::indexing_slicing)]
+        const _: () = {
+            let idx: [usize; PARAM_COUNT] = [$($idx),*];
+            let mut i = 0;
+            while i < PARAM_COUNT {
+                assert!(idx[i] == i, "parameter numbers must run 0, 1, 2, … in table order (append new terms)");
+                i += 1;
+            }
+        };
+
+        impl ParamId {
+            /// All ids in table order.
+            pub const ALL: [ParamId; PARAM_COUNT] = [$(ParamId::$id,)*];
+        }
+
+        /// The parameter table, in [`ParamId`] order.
+        pub static PARAMS: [ParamDesc; PARAM_COUNT] = [
+            $(ParamDesc {
+                id: ParamId::$id,
+                name: $name,
+                section: $section,
+                key: $key,
+                unit: $unit,
+                min: $min,
+                max: $max,
+                default: $default,
+                doc: $doc,
+                safety: $safety,
+            },)*
+        ];
+    };
 }
 
-pub const PARAM_COUNT: usize = 38;
+param_table! {
+    // id = number: name, TOML section, key, unit, min, max, default, safety-relevant, doc;
+    FrictionA = 0: "friction_a", "friction", "a", "N·m·s²/rad²", 0.0, 1.0e3, 0.0, false,
+       "quadratic friction coefficient a of a·q̇|q̇| (trunk paper eq. 3)";
+    FrictionB = 1: "friction_b", "friction", "b", "N·m·s/rad", 0.0, 1.0e3, 0.0, false,
+       "viscous friction coefficient b of b·q̇";
+    FrictionC = 2: "friction_c", "friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
+       "Coulomb friction level c of c·sign(q̇)";
+    FrictionVBand = 3: "friction_v_band", "friction", "v_band", "rad/s", 0.0, 1.0, 0.01, false,
+       "velocity band around zero where sign(q̇) is linear (q̇/band), so a noisy zero velocity does not chatter";
+    WeightAmplitude = 4: "weight_amplitude", "weight", "amplitude", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "weight torque amplitude C_w0 of C_w0·sin(s·q + φ) (trunk paper eq. 4)";
+    WeightS = 5: "weight_s", "weight", "s", "1", -100.0, 100.0, 1.0, false,
+       "angle scale s of sin(s·q + φ), q in rad";
+    WeightPhi = 6: "weight_phi", "weight", "phi", "rad", -10.0, 10.0, 0.0, false,
+       "phase φ of sin(s·q + φ)";
+    InertiaJ = 7: "inertia_j", "inertia", "j", "kg·m²", 0.0, 1.0e3, 0.0, false,
+       "apparent inertia at the joint output (I_a of trunk paper eq. 2)";
+    OffsetC0 = 8: "offset_c0", "offset", "c0", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "constant torque offset C_0";
+    SpringK = 9: "spring_k", "spring", "k", "N·m/rad", 0.0, 1.0e4, 0.0, false,
+       "spring stiffness K of K·(q − q0) (elastic-joint paper eq. 1)";
+    SpringB = 10: "spring_b", "spring", "b", "N·m·s/rad", 0.0, 1.0e3, 0.0, false,
+       "spring damping B of B·q̇ (elastic-joint paper eq. 2)";
+    SpringQ0 = 11: "spring_q0", "spring", "q0", "rad", -100.0, 100.0, 0.0, false,
+       "spring rest angle q0";
+    TableSigmaModel = 12: "gravity_table_sigma_model", "gravity_table", "sigma_model", "N·m", 0.0, 1.0e3, 0.0, false,
+       "σ_m of the analytic gravity model (arm paper eq. 6); > 0 fuses the table with the weight term, 0 adds the table as a term";
+    TableClampK = 13: "gravity_table_clamp_k", "gravity_table", "clamp_k", "1", 0.0, 100.0, 1.0, false,
+       "k of the fusion clamp τ_model ± k·σ_model (arm paper eq. 8)";
+    Ratio = 14: "compensation_ratio", "compensation", "ratio", "1", 1.01, 1.0e4, 160.0, true,
+       "transmission ratio N; the motor command is the output torque / (N − 1) (trunk paper eq. 6)";
+    Fraction = 15: "compensation_fraction", "compensation", "fraction", "1", 0.0, 1.0, 0.0, true,
+       "share of the disturbance C_c that is compensated (the paper used 0.7; 1 is undamped)";
+    AssistK = 16: "compensation_assist_k", "compensation", "assist_k", "N·m/rad", -1.0e3, 1.0e3, 0.0, false,
+       "desired support torque K·q (trunk paper eq. 8)";
+    TorqueLimit = 17: "compensation_torque_limit", "compensation", "torque_limit", "N·m", 0.0, 1.0e4, 10.0, true,
+       "output torque limit, applied after the compensation law";
+    RateLimit = 18: "compensation_rate_limit", "compensation", "rate_limit", "N·m/s", 0.1, 1.0e6, 2000.0, true,
+       "largest change of the output torque per second";
+    ControlRateHz = 19: "controller_rate_hz", "controller", "rate_hz", "Hz", 100.0, 10000.0, 1000.0, true,
+       "control loop rate";
+    HeartbeatTimeout = 20: "controller_heartbeat_timeout", "controller", "heartbeat_timeout", "s", 0.0, 60.0, 0.5, true,
+       "host heartbeat timeout before the torque ramps to zero (0 = no host watchdog)";
+    FaultRampTime = 21: "controller_fault_ramp_time", "controller", "fault_ramp_time", "s", 0.001, 10.0, 0.2, true,
+       "time in which the torque ramps to zero after a fault";
+    AccelCutoff = 22: "controller_accel_cutoff", "controller", "accel_cutoff", "Hz", 0.1, 1000.0, 20.0, false,
+       "cut-off of the low-pass filter on the estimated acceleration (must be below half the control rate)";
+    VelKp = 23: "controller_vel_kp", "controller", "vel_kp", "N·m·s/rad", 0.0, 1.0e4, 20.0, false,
+       "velocity mode proportional gain (characterisation sweeps)";
+    VelKi = 24: "controller_vel_ki", "controller", "vel_ki", "N·m/rad", 0.0, 1.0e5, 100.0, false,
+       "velocity mode integral gain";
+    PosKp = 25: "controller_pos_kp", "controller", "pos_kp", "N·m/rad", 0.0, 1.0e5, 100.0, false,
+       "position mode stiffness (static poses)";
+    PosKd = 26: "controller_pos_kd", "controller", "pos_kd", "N·m·s/rad", 0.0, 1.0e4, 10.0, false,
+       "position mode damping";
+    // The effect terms below share the names and formulas of host-sim's plant effect sections
+    // (spec §3 vocabulary), so `jointctl diagnose --emit-model` output runs on the joint as is.
+    StribeckLevel = 27: "stribeck_level", "stribeck", "level", "N·m", 0.0, 1.0e3, 0.0, false,
+       "Stribeck friction above the Coulomb level at rest: level·exp(−(q̇/speed)²)·sign(q̇)";
+    StribeckSpeed = 28: "stribeck_speed", "stribeck", "speed", "rad/s", 1.0e-4, 100.0, 0.05, false,
+       "speed over which the Stribeck excess decays";
+    AsymmetricDelta = 29: "asymmetric_friction_delta", "asymmetric_friction", "delta", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "direction-dependent Coulomb level: c + delta forward, c − delta backward (delta·|sign(q̇)|)";
+    RippleAmplitude = 30: "position_ripple_amplitude", "position_ripple", "amplitude", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "torque ripple periodic in position: amplitude·sin(2π·q/period + phase)";
+    RipplePeriod = 31: "position_ripple_period", "position_ripple", "period", "rad", 1.0e-3, 100.0, 1.0, false,
+       "period of the position ripple (gear mesh, cogging)";
+    RipplePhase = 32: "position_ripple_phase", "position_ripple", "phase", "rad", -10.0, 10.0, 0.0, false,
+       "phase of the position ripple";
+    CableK = 33: "cable_spring_k", "cable_spring", "k", "N·m/rad", -1.0e4, 1.0e4, 0.0, false,
+       "stiffness of a one-sided cable/harness spring, engaged above `engage`";
+    CableEngage = 34: "cable_spring_engage", "cable_spring", "engage", "rad", -100.0, 100.0, 0.0, false,
+       "angle where the cable spring engages";
+    CableWidth = 35: "cable_spring_width", "cable_spring", "width", "rad", 1.0e-4, 10.0, 0.01, false,
+       "width of the quadratic blend into the cable spring's slope";
+    DryFrictionC = 36: "dry_friction_c", "dry_friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
+       "extra Coulomb torque c·sign(q̇); with presliding on it joins friction_c as the Dahl state's level";
+    // Appended last so every CANopen index above keeps its place (0x2000 + table position).
+    PreslidingSigma = 37: "presliding_sigma", "presliding", "sigma", "N·m/rad", 0.0, 1.0e7, 0.0, false,
+       "pre-sliding stiffness σ of a Dahl friction state F that replaces c·sign(q̇): dF/dq = σ·(1 − F/c·sign(dq)), |F| ≤ c = friction_c + dry_friction_c (0 = off)";
+}
 
 impl ParamId {
-    /// All ids in table order.
-    pub const ALL: [ParamId; PARAM_COUNT] = [
-        ParamId::FrictionA,
-        ParamId::FrictionB,
-        ParamId::FrictionC,
-        ParamId::FrictionVBand,
-        ParamId::WeightAmplitude,
-        ParamId::WeightS,
-        ParamId::WeightPhi,
-        ParamId::InertiaJ,
-        ParamId::OffsetC0,
-        ParamId::SpringK,
-        ParamId::SpringB,
-        ParamId::SpringQ0,
-        ParamId::TableSigmaModel,
-        ParamId::TableClampK,
-        ParamId::Ratio,
-        ParamId::Fraction,
-        ParamId::AssistK,
-        ParamId::TorqueLimit,
-        ParamId::RateLimit,
-        ParamId::ControlRateHz,
-        ParamId::HeartbeatTimeout,
-        ParamId::FaultRampTime,
-        ParamId::AccelCutoff,
-        ParamId::VelKp,
-        ParamId::VelKi,
-        ParamId::PosKp,
-        ParamId::PosKd,
-        ParamId::StribeckLevel,
-        ParamId::StribeckSpeed,
-        ParamId::AsymmetricDelta,
-        ParamId::RippleAmplitude,
-        ParamId::RipplePeriod,
-        ParamId::RipplePhase,
-        ParamId::CableK,
-        ParamId::CableEngage,
-        ParamId::CableWidth,
-        ParamId::DryFrictionC,
-        ParamId::PreslidingSigma,
-    ];
-
     pub const fn index(self) -> usize {
         self as usize
     }
@@ -116,7 +164,7 @@ impl ParamId {
 
     #[allow(clippy::indexing_slicing)]
     pub fn desc(self) -> &'static ParamDesc {
-        // PARAMS is declared in ParamId order (a test checks it), so the index always exists.
+        // PARAMS is declared in ParamId order (checked at compile time), so the index exists.
         &PARAMS[self.index() % PARAM_COUNT]
     }
 
@@ -128,6 +176,21 @@ impl ParamId {
     pub fn from_name(name: &str) -> Option<ParamId> {
         PARAMS.iter().find(|d| d.name == name || d.toml_path_eq(name)).map(|d| d.id)
     }
+}
+
+/// The TOML sections of the table, each once, in the order they first appear. The model
+/// file's parser and the list of terms the joint compensates follow from this, so a term added
+/// to the table (appended, even to a section declared earlier) is in the model file at once.
+pub fn sections() -> impl Iterator<Item = &'static str> {
+    PARAMS.iter().enumerate().filter_map(|(i, d)| {
+        let first = !PARAMS.iter().take(i).any(|e| e.section == d.section);
+        first.then_some(d.section)
+    })
+}
+
+/// The parameters of one TOML section, in table order.
+pub fn section_params(section: &str) -> impl Iterator<Item = &'static ParamDesc> + '_ {
+    PARAMS.iter().filter(move |d| d.section == section)
 }
 
 /// Declaration of one scalar parameter.
@@ -158,106 +221,6 @@ impl ParamDesc {
         s == self.section && k == self.key
     }
 }
-
-macro_rules! p {
-    ($id:ident, $name:literal, $section:literal, $key:literal, $unit:literal, $min:expr, $max:expr, $default:expr, $safety:expr, $doc:literal) => {
-        ParamDesc {
-            id: ParamId::$id,
-            name: $name,
-            section: $section,
-            key: $key,
-            unit: $unit,
-            min: $min,
-            max: $max,
-            default: $default,
-            doc: $doc,
-            safety: $safety,
-        }
-    };
-}
-
-/// The parameter table. Order must equal [`ParamId`] order.
-pub static PARAMS: [ParamDesc; PARAM_COUNT] = [
-    p!(FrictionA, "friction_a", "friction", "a", "N·m·s²/rad²", 0.0, 1.0e3, 0.0, false,
-       "quadratic friction coefficient a of a·q̇|q̇| (trunk paper eq. 3)"),
-    p!(FrictionB, "friction_b", "friction", "b", "N·m·s/rad", 0.0, 1.0e3, 0.0, false,
-       "viscous friction coefficient b of b·q̇"),
-    p!(FrictionC, "friction_c", "friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
-       "Coulomb friction level c of c·sign(q̇)"),
-    p!(FrictionVBand, "friction_v_band", "friction", "v_band", "rad/s", 0.0, 1.0, 0.01, false,
-       "velocity band around zero where sign(q̇) is linear (q̇/band), so a noisy zero velocity does not chatter"),
-    p!(WeightAmplitude, "weight_amplitude", "weight", "amplitude", "N·m", -1.0e3, 1.0e3, 0.0, false,
-       "weight torque amplitude C_w0 of C_w0·sin(s·q + φ) (trunk paper eq. 4)"),
-    p!(WeightS, "weight_s", "weight", "s", "1", -100.0, 100.0, 1.0, false,
-       "angle scale s of sin(s·q + φ), q in rad"),
-    p!(WeightPhi, "weight_phi", "weight", "phi", "rad", -10.0, 10.0, 0.0, false,
-       "phase φ of sin(s·q + φ)"),
-    p!(InertiaJ, "inertia_j", "inertia", "j", "kg·m²", 0.0, 1.0e3, 0.0, false,
-       "apparent inertia at the joint output (I_a of trunk paper eq. 2)"),
-    p!(OffsetC0, "offset_c0", "offset", "c0", "N·m", -1.0e3, 1.0e3, 0.0, false,
-       "constant torque offset C_0"),
-    p!(SpringK, "spring_k", "spring", "k", "N·m/rad", 0.0, 1.0e4, 0.0, false,
-       "spring stiffness K of K·(q − q0) (elastic-joint paper eq. 1)"),
-    p!(SpringB, "spring_b", "spring", "b", "N·m·s/rad", 0.0, 1.0e3, 0.0, false,
-       "spring damping B of B·q̇ (elastic-joint paper eq. 2)"),
-    p!(SpringQ0, "spring_q0", "spring", "q0", "rad", -100.0, 100.0, 0.0, false,
-       "spring rest angle q0"),
-    p!(TableSigmaModel, "gravity_table_sigma_model", "gravity_table", "sigma_model", "N·m", 0.0, 1.0e3, 0.0, false,
-       "σ_m of the analytic gravity model (arm paper eq. 6); > 0 fuses the table with the weight term, 0 adds the table as a term"),
-    p!(TableClampK, "gravity_table_clamp_k", "gravity_table", "clamp_k", "1", 0.0, 100.0, 1.0, false,
-       "k of the fusion clamp τ_model ± k·σ_model (arm paper eq. 8)"),
-    p!(Ratio, "compensation_ratio", "compensation", "ratio", "1", 1.01, 1.0e4, 160.0, true,
-       "transmission ratio N; the motor command is the output torque / (N − 1) (trunk paper eq. 6)"),
-    p!(Fraction, "compensation_fraction", "compensation", "fraction", "1", 0.0, 1.0, 0.0, true,
-       "share of the disturbance C_c that is compensated (the paper used 0.7; 1 is undamped)"),
-    p!(AssistK, "compensation_assist_k", "compensation", "assist_k", "N·m/rad", -1.0e3, 1.0e3, 0.0, false,
-       "desired support torque K·q (trunk paper eq. 8)"),
-    p!(TorqueLimit, "compensation_torque_limit", "compensation", "torque_limit", "N·m", 0.0, 1.0e4, 10.0, true,
-       "output torque limit, applied after the compensation law"),
-    p!(RateLimit, "compensation_rate_limit", "compensation", "rate_limit", "N·m/s", 0.1, 1.0e6, 2000.0, true,
-       "largest change of the output torque per second"),
-    p!(ControlRateHz, "controller_rate_hz", "controller", "rate_hz", "Hz", 100.0, 10000.0, 1000.0, true,
-       "control loop rate"),
-    p!(HeartbeatTimeout, "controller_heartbeat_timeout", "controller", "heartbeat_timeout", "s", 0.0, 60.0, 0.5, true,
-       "host heartbeat timeout before the torque ramps to zero (0 = no host watchdog)"),
-    p!(FaultRampTime, "controller_fault_ramp_time", "controller", "fault_ramp_time", "s", 0.001, 10.0, 0.2, true,
-       "time in which the torque ramps to zero after a fault"),
-    p!(AccelCutoff, "controller_accel_cutoff", "controller", "accel_cutoff", "Hz", 0.1, 1000.0, 20.0, false,
-       "cut-off of the low-pass filter on the estimated acceleration (must be below half the control rate)"),
-    p!(VelKp, "controller_vel_kp", "controller", "vel_kp", "N·m·s/rad", 0.0, 1.0e4, 20.0, false,
-       "velocity mode proportional gain (characterisation sweeps)"),
-    p!(VelKi, "controller_vel_ki", "controller", "vel_ki", "N·m/rad", 0.0, 1.0e5, 100.0, false,
-       "velocity mode integral gain"),
-    p!(PosKp, "controller_pos_kp", "controller", "pos_kp", "N·m/rad", 0.0, 1.0e5, 100.0, false,
-       "position mode stiffness (static poses)"),
-    p!(PosKd, "controller_pos_kd", "controller", "pos_kd", "N·m·s/rad", 0.0, 1.0e4, 10.0, false,
-       "position mode damping"),
-    // The effect terms below share the names and formulas of host-sim's plant effect sections
-    // (spec §3 vocabulary), so `jointctl diagnose --emit-model` output runs on the joint as is.
-    p!(StribeckLevel, "stribeck_level", "stribeck", "level", "N·m", 0.0, 1.0e3, 0.0, false,
-       "Stribeck friction above the Coulomb level at rest: level·exp(−(q̇/speed)²)·sign(q̇)"),
-    p!(StribeckSpeed, "stribeck_speed", "stribeck", "speed", "rad/s", 1.0e-4, 100.0, 0.05, false,
-       "speed over which the Stribeck excess decays"),
-    p!(AsymmetricDelta, "asymmetric_friction_delta", "asymmetric_friction", "delta", "N·m", -1.0e3, 1.0e3, 0.0, false,
-       "direction-dependent Coulomb level: c + delta forward, c − delta backward (delta·|sign(q̇)|)"),
-    p!(RippleAmplitude, "position_ripple_amplitude", "position_ripple", "amplitude", "N·m", -1.0e3, 1.0e3, 0.0, false,
-       "torque ripple periodic in position: amplitude·sin(2π·q/period + phase)"),
-    p!(RipplePeriod, "position_ripple_period", "position_ripple", "period", "rad", 1.0e-3, 100.0, 1.0, false,
-       "period of the position ripple (gear mesh, cogging)"),
-    p!(RipplePhase, "position_ripple_phase", "position_ripple", "phase", "rad", -10.0, 10.0, 0.0, false,
-       "phase of the position ripple"),
-    p!(CableK, "cable_spring_k", "cable_spring", "k", "N·m/rad", -1.0e4, 1.0e4, 0.0, false,
-       "stiffness of a one-sided cable/harness spring, engaged above `engage`"),
-    p!(CableEngage, "cable_spring_engage", "cable_spring", "engage", "rad", -100.0, 100.0, 0.0, false,
-       "angle where the cable spring engages"),
-    p!(CableWidth, "cable_spring_width", "cable_spring", "width", "rad", 1.0e-4, 10.0, 0.01, false,
-       "width of the quadratic blend into the cable spring's slope"),
-    p!(DryFrictionC, "dry_friction_c", "dry_friction", "c", "N·m", 0.0, 1.0e3, 0.0, false,
-       "extra Coulomb torque c·sign(q̇); with presliding on it joins friction_c as the Dahl state's level"),
-    // Appended last so every CANopen index above keeps its place (0x2000 + table position).
-    p!(PreslidingSigma, "presliding_sigma", "presliding", "sigma", "N·m/rad", 0.0, 1.0e7, 0.0, false,
-       "pre-sliding stiffness σ of a Dahl friction state F that replaces c·sign(q̇): dF/dq = σ·(1 − F/c·sign(dq)), |F| ≤ c = friction_c + dry_friction_c (0 = off)"),
-];
 
 /// A parameter set as received; nothing here is trusted until [`check`] says so.
 #[derive(Clone, Debug, PartialEq)]

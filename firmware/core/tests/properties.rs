@@ -234,6 +234,18 @@ fn table_declares_every_id_in_order_and_defaults_pass() {
     assert!(check(&RawParams::defaults()).is_ok());
 }
 
+#[test]
+fn sections_are_listed_once_each_with_every_key() {
+    let sections: Vec<&str> = joint_core::params::sections().collect();
+    assert_eq!(&sections[..3], ["friction", "weight", "inertia"]);
+    for (i, s) in sections.iter().enumerate() {
+        assert!(!sections[..i].contains(s), "{s} listed twice");
+    }
+    let keyed: usize = sections.iter().map(|s| joint_core::params::section_params(s).count()).sum();
+    assert_eq!(keyed, PARAMS.len(), "every parameter belongs to exactly one listed section");
+    assert!(sections.contains(&"presliding") && sections.contains(&"dry_friction"));
+}
+
 /// An n-axis table (1..=4) with random grids, uniform or not.
 fn random_nd_table() -> impl Strategy<Value = RawTable> {
     (1usize..=4, any::<bool>())
