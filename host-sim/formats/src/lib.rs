@@ -25,3 +25,4 @@ pub mod log;
 pub mod model_file;
 pub mod output;
 pub mod predict;
+pub mod vocab;

@@ -13,6 +13,7 @@
 //! then refined by golden section; the amplitudes are linear and solved exactly each time.
 
 use super::fit::{golden, Gram};
+use joint_formats::vocab::Effect as Vocab;
 
 /// The log columns and derived series one torque-mode diagnosis works on.
 #[derive(Clone, Debug)]
@@ -232,19 +233,25 @@ impl Kind {
         Kind::Presliding,
     ];
 
-    pub fn name(self) -> &'static str {
+    /// The vocabulary entry the kind fits.
+    pub fn effect(self) -> Vocab {
         match self {
-            Kind::Stribeck => "stribeck",
-            Kind::Asymmetric => "asymmetric_friction",
-            Kind::Load => "load_dependent_friction",
-            Kind::Thermal => "thermal_drift",
-            Kind::Ripple => "position_ripple",
-            Kind::Cable => "cable_spring",
-            Kind::Backlash => "backlash",
-            Kind::Delay => "delay",
-            Kind::Dry => "dry_friction",
-            Kind::Presliding => "presliding_hysteresis",
+            Kind::Stribeck => Vocab::Stribeck,
+            Kind::Asymmetric => Vocab::AsymmetricFriction,
+            Kind::Load => Vocab::LoadDependentFriction,
+            Kind::Thermal => Vocab::ThermalDrift,
+            Kind::Ripple => Vocab::PositionRipple,
+            Kind::Cable => Vocab::CableSpring,
+            Kind::Backlash => Vocab::Backlash,
+            Kind::Delay => Vocab::Delay,
+            Kind::Dry => Vocab::DryFriction,
+            Kind::Presliding => Vocab::PreslidingHysteresis,
         }
+    }
+
+    /// The spec §3 name.
+    pub fn name(self) -> &'static str {
+        self.effect().name()
     }
 }
 

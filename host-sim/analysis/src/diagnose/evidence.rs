@@ -7,6 +7,7 @@
 //! less the residual after), so a refit of the model's own terms that comes with the effect is
 //! in it too: the plot shows what the verdict explains, not one term in isolation.
 
+use joint_formats::vocab::Effect as Vocab;
 use serde::Serialize;
 
 /// One evidence plot: binned held-out residual and binned fitted correction over a coordinate.
@@ -109,13 +110,13 @@ pub enum Coord {
 
 impl Coord {
     /// The coordinate for a vocabulary name (`parameters` and friction effects: velocity).
-    pub fn of(effect: &str, has_temp: bool) -> Coord {
+    pub fn of(effect: Vocab, has_temp: bool) -> Coord {
         match effect {
-            "position_ripple" | "cable_spring" | "backlash" | "initial_state" => Coord::Position,
-            "thermal_drift" if has_temp => Coord::Temperature,
-            "thermal_drift" => Coord::Time,
-            "load_dependent_friction" => Coord::Load,
-            "delay" => Coord::TorqueRate,
+            Vocab::PositionRipple | Vocab::CableSpring | Vocab::Backlash | Vocab::InitialState => Coord::Position,
+            Vocab::ThermalDrift if has_temp => Coord::Temperature,
+            Vocab::ThermalDrift => Coord::Time,
+            Vocab::LoadDependentFriction => Coord::Load,
+            Vocab::Delay => Coord::TorqueRate,
             _ => Coord::Velocity,
         }
     }
@@ -194,11 +195,11 @@ mod tests {
 
     #[test]
     fn coordinates_follow_the_vocabulary() {
-        assert_eq!(Coord::of("position_ripple", false), Coord::Position);
-        assert_eq!(Coord::of("thermal_drift", true), Coord::Temperature);
-        assert_eq!(Coord::of("thermal_drift", false), Coord::Time);
-        assert_eq!(Coord::of("stribeck", false), Coord::Velocity);
-        assert_eq!(Coord::of("load_dependent_friction", false), Coord::Load);
+        assert_eq!(Coord::of(Vocab::PositionRipple, false), Coord::Position);
+        assert_eq!(Coord::of(Vocab::ThermalDrift, true), Coord::Temperature);
+        assert_eq!(Coord::of(Vocab::ThermalDrift, false), Coord::Time);
+        assert_eq!(Coord::of(Vocab::Stribeck, false), Coord::Velocity);
+        assert_eq!(Coord::of(Vocab::LoadDependentFriction, false), Coord::Load);
         let r = rate(&[0.0, 1.0, 4.0], &[0.0, 1.0, 2.0]);
         assert_eq!(r, vec![1.0, 2.0, 3.0]);
     }

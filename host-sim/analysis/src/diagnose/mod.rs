@@ -27,6 +27,7 @@ pub mod select;
 pub mod shapes;
 pub mod trajectory;
 
+use joint_formats::vocab::Effect as Vocab;
 use std::collections::BTreeMap;
 
 use joint_core::params::ParamId;
@@ -170,19 +171,20 @@ pub struct Alternative {
 }
 
 /// What would separate effect `a` from effect `b` (either order).
-pub fn separating_test(a: &str, b: &str) -> &'static str {
-    let pair = |x: &str, y: &str| (a == x && b == y) || (a == y && b == x);
-    if pair("asymmetric_friction", "parameters") {
+pub fn separating_test(a: Vocab, b: Vocab) -> &'static str {
+    use Vocab as V;
+    let pair = |x: Vocab, y: Vocab| (a == x && b == y) || (a == y && b == x);
+    if pair(V::AsymmetricFriction, V::Parameters) {
         "a log with the joint at rest after moving each way: while it moves, a direction-dependent friction level is a constant offset"
-    } else if pair("stribeck", "presliding_hysteresis") || pair("stribeck", "dry_friction") {
+    } else if pair(V::Stribeck, V::PreslidingHysteresis) || pair(V::Stribeck, V::DryFriction) {
         "slow constant-velocity plateaus near rest in both directions, and small reversals: the friction curve against speed and after a reversal"
-    } else if pair("cable_spring", "parameters") || pair("cable_spring", "position_ripple") {
+    } else if pair(V::CableSpring, V::Parameters) || pair(V::CableSpring, V::PositionRipple) {
         "static poses across the whole range: a position-dependent torque shows as a curve against q"
-    } else if pair("thermal_drift", "parameters") || pair("thermal_drift", "load_dependent_friction") {
+    } else if pair(V::ThermalDrift, V::Parameters) || pair(V::ThermalDrift, V::LoadDependentFriction) {
         "a log with a logged temperature that changes, or the same motion repeated cold and warm"
-    } else if pair("delay", "parameters") {
+    } else if pair(V::Delay, V::Parameters) {
         "motion with fast torque changes (steps, a chirp to higher frequency): a lag shows against the torque's changes"
-    } else if pair("load_dependent_friction", "parameters") {
+    } else if pair(V::LoadDependentFriction, V::Parameters) {
         "the same speeds under different external loads (or with and without a payload)"
     } else {
         "a longer log, or one that excites both (more speeds, positions and reversals)"
@@ -191,16 +193,16 @@ pub fn separating_test(a: &str, b: &str) -> &'static str {
 
 /// The verdict's company: explanations the held-out data cannot tell from it (alternatives),
 /// and, for `unexplained`, the candidates that came closest.
-fn verdict_company(sel: &Selection, verdict: &str) -> (Vec<Alternative>, Vec<String>) {
+fn verdict_company(sel: &Selection, verdict: Vocab) -> (Vec<Alternative>, Vec<String>) {
     let all: Vec<&Outcome> = std::iter::once(&sel.refit).chain(&sel.candidates).collect();
-    if verdict == "unexplained" {
+    if verdict == Vocab::Unexplained {
         let mut v: Vec<&&Outcome> = all.iter().filter(|o| o.implausible.is_none() && o.gain > 0.0).collect();
         v.sort_by(|a, b| a.scored.mse().total_cmp(&b.scored.mse()));
         return (Vec::new(), v.iter().take(3).map(|o| o.name.to_string()).collect());
     }
     let chosen = match sel.chosen.first() {
         Some(c) => c,
-        None if verdict == "parameters" => &sel.refit,
+        None if verdict == Vocab::Parameters => &sel.refit,
         None => return (Vec::new(), Vec::new()),
     };
     let alts = all
@@ -378,13 +380,13 @@ pub struct NotApplicable {
 }
 
 /// Torque-mode effects the selection skipped for this model.
-fn torque_not_applicable(base: &Base, d: &Data, tried: &[&str]) -> Vec<NotApplicable> {
+fn torque_not_applicable(base: &Base, d: &Data, tried: &[Vocab]) -> Vec<NotApplicable> {
     let mut v = vec![NotApplicable {
-        effect: "initial_state",
+        effect: Vocab::InitialState.name(),
         why: "trajectory mode only (torque mode has no state to integrate)",
     }];
     for k in candidates::Kind::ALL {
-        if tried.contains(&k.name()) {
+        if tried.contains(&k.effect()) {
             continue;
         }
         let why = match k {
@@ -1057,15 +1059,16 @@ fn build_report(
             p_value: o.p,
         })
         .collect();
-    let (vname, vafter) = match sel.chosen.first() {
-        Some(o) => (o.name.to_string(), o.scored.rmse()),
-        None if sel.refit.significant => ("parameters".to_string(), sel.refit.scored.rmse()),
-        None if before > select::UNEXPLAINED * floor => ("unexplained".to_string(), before),
-        None => ("none".to_string(), before),
+    let (verdict_effect, vafter) = match sel.chosen.first() {
+        Some(o) => (o.name, o.scored.rmse()),
+        None if sel.refit.significant => (Vocab::Parameters, sel.refit.scored.rmse()),
+        None if before > select::UNEXPLAINED * floor => (Vocab::Unexplained, before),
+        None => (Vocab::None, before),
     };
+    let vname = verdict_effect.name().to_string();
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
-    let (alternatives, closest) = verdict_company(sel, &vname);
+    let (alternatives, closest) = verdict_company(sel, verdict_effect);
     let verdict = Verdict {
         effect: vname.clone(),
         holdout_rmse_before: before,
@@ -1149,7 +1152,11 @@ fn build_report(
 /// The verdict's evidence plots ([`evidence`]) on the held-out samples (at most 200 000).
 fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[String]) -> Vec<evidence::Evidence> {
     use evidence::Coord;
-    let named: Vec<&String> = names.iter().filter(|n| !matches!(n.as_str(), "none" | "unexplained")).collect();
+    let named: Vec<Vocab> = names
+        .iter()
+        .filter_map(|n| Vocab::from_name(n))
+        .filter(|e| !matches!(e, Vocab::None | Vocab::Unexplained))
+        .collect();
     if named.is_empty() {
         return Vec::new();
     }
@@ -1173,10 +1180,10 @@ fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[
     named
         .iter()
         .filter_map(|name| {
-            let c = Coord::of(name, d.temp.is_some());
+            let (name, c) = (*name, Coord::of(*name, d.temp.is_some()));
             let x: &[f64] = match c {
                 Coord::Velocity => &d.qd,
-                Coord::Position if name.as_str() == "position_ripple" && !phase.is_empty() => &phase,
+                Coord::Position if name == Vocab::PositionRipple && !phase.is_empty() => &phase,
                 Coord::Position => &d.q,
                 Coord::Time => &d.t,
                 Coord::Temperature => d.temp.as_deref().unwrap_or(&d.t),
@@ -1184,10 +1191,10 @@ fn torque_evidence(d: &Data, m0: &Scored, fin: &Scored, split: &Split, names: &[
                 Coord::TorqueRate => &rate,
             };
             let label = match period {
-                Some(p) if name.as_str() == "position_ripple" => format!("q mod P (rad), P = {p:.4} rad"),
+                Some(p) if name == Vocab::PositionRipple => format!("q mod P (rad), P = {p:.4} rad"),
                 _ => c.label("N·m"),
             };
-            evidence::binned(name, &label, x, &before, &after, &idx, 30)
+            evidence::binned(name.name(), &label, x, &before, &after, &idx, 30)
         })
         .collect()
 }

@@ -21,6 +21,7 @@
 //! the inertia is not shrunk, and the margin is 1.02 × floor.
 
 use super::candidates::{search, search_in, Base, Data, Delta, Design, Effect, GridCtx, Kind, ThermSrc};
+use joint_formats::vocab::Effect as Vocab;
 
 /// How the samples were split.
 #[derive(Clone, Debug)]
@@ -556,7 +557,7 @@ pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
 /// One candidate's outcome against its reference.
 #[derive(Clone, Debug)]
 pub struct Outcome {
-    pub name: &'static str,
+    pub name: Vocab,
     pub scored: Scored,
     pub t: f64,
     pub p: f64,
@@ -826,7 +827,7 @@ pub fn select(
     let at_floor = !open(&m0);
     let refit_unphysical = unphysical(&refit_s).or_else(|| cancelling(&refit_s, d));
     let refit = Outcome {
-        name: "parameters",
+        name: Vocab::Parameters,
         // The refit never overrides the floor: what it takes from a residual at the floor is
         // the structure of the q̇/q̈ estimates' errors, absorbed by collinear terms.
         significant: !at_floor && p < alpha_each && gain >= MIN_GAIN && refit_unphysical.is_none(),
@@ -839,7 +840,7 @@ pub fn select(
 
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
-        let name = s.effects.last().map(|e| e.kind().name()).unwrap_or("parameters");
+        let name = s.effects.last().map(|e| e.kind().effect()).unwrap_or(Vocab::Parameters);
         let implausible = implausible(&s, d).or_else(|| unphysical(&s)).or_else(|| cancelling(&s, d));
         let significant =
             (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
@@ -908,8 +909,15 @@ pub fn select(
                         && best_pair.as_ref().map(|(_, bp)| pair.mse() < bp.scored.mse()).unwrap_or(true)
                     {
                         let (t, p, gain) = compare(&a.scored, &pair);
-                        let second =
-                            Outcome { name: kb.name(), scored: pair, t, p, gain, significant: true, implausible: None };
+                        let second = Outcome {
+                            name: kb.effect(),
+                            scored: pair,
+                            t,
+                            p,
+                            gain,
+                            significant: true,
+                            implausible: None,
+                        };
                         let mut first = (*a).clone();
                         first.significant = true;
                         best_pair = Some((first, second));

@@ -21,18 +21,18 @@ use joint_analysis::diagnose::{self, Options};
 use joint_core::params::ParamId;
 use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
+use joint_formats::vocab::Effect;
 
-/// Effect sections of the vocabulary the firmware core compensates by feed-forward.
-pub const COMPENSABLE: [&str; 5] =
-    ["stribeck", "asymmetric_friction", "position_ripple", "cable_spring", "dry_friction"];
+/// Effect sections the firmware core compensates by feed-forward (the vocabulary's terms whose
+/// section the core's parameter table has), with their section names.
+pub fn compensable() -> impl Iterator<Item = Effect> {
+    Effect::terms().filter(|e| e.compensable())
+}
 
-/// Effect sections it cannot, and why (also in docs/closed-loop.md).
-pub const NOT_COMPENSABLE: [(&str, &str); 4] = [
-    ("load_dependent_friction", "the friction grows with the transmitted torque; the joint has no measurement of that load in its control step (the only torque it knows is its own command, and feeding that back is an algebraic loop), so there is no term"),
-    ("thermal_drift", "the friction scale follows the temperature; the control step gets no temperature input, and a time-based guess would be wrong after every pause"),
-    ("backlash", "a dead zone in the transmission is structure, not an additive torque: feed-forward cannot remove it (it needs a backlash inverse or an output-side encoder)"),
-    ("delay", "a sensing/actuation delay is structure, not an additive torque: it can only be reduced (faster loop, less filtering) or lowered in gain (a smaller fraction), not compensated by a model term"),
-];
+/// Effect terms it cannot, and why (also in docs/closed-loop.md).
+pub fn not_compensable() -> impl Iterator<Item = (Effect, &'static str)> {
+    Effect::terms().filter_map(|e| e.why_not_compensable().map(|w| (e, w)))
+}
 
 /// Figures of one set of trials.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -93,19 +93,19 @@ pub struct Outcome {
 pub fn plant_effects(p: &PlantFile) -> Vec<String> {
     let e = &p.effects;
     let mut v = Vec::new();
-    for (name, on) in [
-        ("stribeck", e.stribeck.is_some()),
-        ("asymmetric_friction", e.asymmetric_friction.is_some()),
-        ("load_dependent_friction", e.load_dependent_friction.is_some()),
-        ("thermal_drift", e.thermal_drift.is_some()),
-        ("position_ripple", e.position_ripple.is_some()),
-        ("cable_spring", e.cable_spring.is_some()),
-        ("backlash", e.backlash.is_some()),
-        ("delay", e.delay.is_some()),
-        ("dry_friction", e.dry_friction.is_some()),
+    for (effect, on) in [
+        (Effect::Stribeck, e.stribeck.is_some()),
+        (Effect::AsymmetricFriction, e.asymmetric_friction.is_some()),
+        (Effect::LoadDependentFriction, e.load_dependent_friction.is_some()),
+        (Effect::ThermalDrift, e.thermal_drift.is_some()),
+        (Effect::PositionRipple, e.position_ripple.is_some()),
+        (Effect::CableSpring, e.cable_spring.is_some()),
+        (Effect::Backlash, e.backlash.is_some()),
+        (Effect::Delay, e.delay.is_some()),
+        (Effect::DryFriction, e.dry_friction.is_some()),
     ] {
         if on {
-            v.push(name.to_string());
+            v.push(effect.name().to_string());
         }
     }
     v
@@ -118,12 +118,16 @@ pub fn pushable_model(text: &str, file: &str) -> Result<(ModelFile, Vec<String>,
     let mut table: toml::Table =
         toml::from_str(text).map_err(|e| LoopError::Config(format!("{file}: the emitted model is not TOML: {e}")))?;
     let mut dropped = Vec::new();
-    for (name, _) in NOT_COMPENSABLE {
-        if table.remove(name).is_some() {
-            dropped.push(name.to_string());
+    for (effect, _) in not_compensable() {
+        let Some(section) = effect.section() else { continue };
+        if table.remove(section).is_some() {
+            dropped.push(effect.name().to_string());
         }
     }
-    let pushed: Vec<String> = COMPENSABLE.iter().filter(|n| table.contains_key(**n)).map(|n| n.to_string()).collect();
+    let pushed: Vec<String> = compensable()
+        .filter(|e| e.section().is_some_and(|s| table.contains_key(s)))
+        .map(|e| e.name().to_string())
+        .collect();
     let clean = toml::to_string(&table).map_err(|e| LoopError::Config(format!("{file}: {e}")))?;
     let mf = ModelFile::parse(&clean, file)?;
     Ok((mf, pushed, dropped))

@@ -23,6 +23,7 @@
 use super::fits::Fitted;
 use super::terms::Layout;
 use crate::diagnose::select::{compare, Scored, ALPHA, AT_FLOOR, MIN_GAIN, UNEXPLAINED};
+use joint_formats::vocab::Effect as Vocab;
 
 /// χ² with 2 degrees of freedom at p = 0.001: a fitted start further than this (in squared
 /// standard errors) from the estimate is not the estimated start.
@@ -31,7 +32,7 @@ pub const START_CHI2: f64 = 13.8155;
 /// One effect family's outcome (its best variant) against its references.
 #[derive(Clone, Debug)]
 pub struct Outcome {
-    pub name: &'static str,
+    pub name: Vocab,
     /// index into the fits
     pub fit: usize,
     pub t: f64,
@@ -59,7 +60,7 @@ pub struct Judged {
     pub own: Vec<Outcome>,
     /// the verdict's chain: effects kept, in order (indices into the fits)
     pub chosen: Vec<Outcome>,
-    pub verdict: &'static str,
+    pub verdict: Vocab,
 }
 
 impl Judged {
@@ -137,7 +138,7 @@ pub fn judge(
 
     let it = compare(&r0.scored, &s.scored);
     let initial = Outcome {
-        name: "initial_state",
+        name: Vocab::InitialState,
         fit: 1,
         t: it.0,
         p: it.1,
@@ -157,7 +158,7 @@ pub fn judge(
     };
     let pt = compare(&s.scored, &p.scored);
     let params = Outcome {
-        name: "parameters",
+        name: Vocab::Parameters,
         fit: 2,
         t: pt.0,
         p: pt.1,
@@ -172,7 +173,7 @@ pub fn judge(
         let t0 = compare(&f.scored, &e.scored);
         let last = e.effects.len() - 1;
         let implausible = lay.implausible(e.effects[last], e.base(lay), e.effect_values(lay, last));
-        let name = e.effects[last].name();
+        let name = e.effects[last].effect();
         let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each);
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
@@ -197,17 +198,17 @@ pub fn judge(
     let first = parsimonious(lay, fits, &effects, alpha_each);
     let chosen: Vec<Outcome> = first.into_iter().collect();
     let verdict = if at_floor {
-        "none"
+        Vocab::None
     } else if let Some(c) = chosen.first() {
         c.name
     } else if params.significant {
-        "parameters"
+        Vocab::Parameters
     } else if initial.significant {
-        "initial_state"
+        Vocab::InitialState
     } else if f.scored.rmse() > UNEXPLAINED * floor && above_floor(f.scored.mse(), f.scored.n, floor, floor_dof) {
-        "unexplained"
+        Vocab::Unexplained
     } else {
-        "none"
+        Vocab::None
     };
     Judged { alpha_each, floor, floor_dof, f_is_s, start_chi2, initial, params, effects, own, chosen, verdict }
 }
@@ -249,7 +250,7 @@ pub fn second(lay: &Layout, fits: &[Fitted], k: usize, first: usize, alpha: f64)
         .implausible(e.effects[last], e.base(lay), e.effect_values(lay, last))
         .or_else(|| lay.implausible(e.effects[0], e.base(lay), e.effect_values(lay, 0)));
     Outcome {
-        name: e.effects[last].name(),
+        name: e.effects[last].effect(),
         fit: k,
         t: t.0,
         p: t.1,
@@ -261,9 +262,9 @@ pub fn second(lay: &Layout, fits: &[Fitted], k: usize, first: usize, alpha: f64)
 
 /// Explanations the held-out data cannot tell from the verdict (they beat F too, and the
 /// verdict does not beat them), and for `unexplained` the candidates that came closest.
-pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<&'static str>, Vec<&'static str>) {
+pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<Vocab>, Vec<Vocab>) {
     let all: Vec<&Outcome> = [&j.params, &j.initial].into_iter().chain(&j.effects).collect();
-    if j.verdict == "unexplained" {
+    if j.verdict == Vocab::Unexplained {
         let mut v: Vec<&&Outcome> =
             all.iter().filter(|o| o.implausible.is_none() && fits[o.fit].scored.mse() < f.mse()).collect();
         v.sort_by(|a, b| fits[a.fit].scored.mse().total_cmp(&fits[b.fit].scored.mse()));
@@ -271,20 +272,20 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<&'static str>, V
     }
     let chosen = match (j.chosen.first(), j.verdict) {
         (Some(c), _) => c,
-        (None, "parameters") => &j.params,
-        (None, "initial_state") => &j.initial,
+        (None, Vocab::Parameters) => &j.params,
+        (None, Vocab::InitialState) => &j.initial,
         _ => return (Vec::new(), Vec::new()),
     };
     // An alternative is an explanation of its own: a significant effect, a significant refit or
     // start, or, against new values of the model's terms, an effect on the file's own terms that
     // beats the file's model (an effect fitted on top of the refit that adds nothing is the
     // refit itself, not an alternative to it).
-    let own_alts: Vec<&Outcome> = if j.verdict == "parameters" {
+    let own_alts: Vec<&Outcome> = if j.verdict == Vocab::Parameters {
         j.own.iter().filter(|o| o.implausible.is_none() && sig(compare(f, &fits[o.fit].scored), j.alpha_each)).collect()
     } else {
         Vec::new()
     };
-    let mut alts: Vec<&'static str> = Vec::new();
+    let mut alts: Vec<Vocab> = Vec::new();
     for o in all.iter().copied().filter(|o| o.significant).chain(own_alts) {
         let t = compare(&fits[o.fit].scored, &fits[chosen.fit].scored);
         if o.name != chosen.name && !sig(t, j.alpha_each) && !alts.contains(&o.name) {

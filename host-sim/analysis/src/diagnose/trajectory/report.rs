@@ -1,6 +1,7 @@
 //! The trajectory-mode report (spec §3), the model `--emit-model` writes, and the plot data,
 //! from the fits and the judgement.
 
+use joint_formats::vocab::Effect as Vocab;
 use std::collections::BTreeMap;
 
 use joint_formats::log::JointLog;
@@ -38,8 +39,8 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
     let f = j.f(r0, s);
     let final_fit: &Fitted = match (j.chosen.last(), j.verdict) {
         (Some(o), _) => &fits[o.fit],
-        (None, "parameters") => &fits[2],
-        (None, "initial_state") => &fits[1],
+        (None, Vocab::Parameters) => &fits[2],
+        (None, Vocab::InitialState) => &fits[1],
         _ => f,
     };
     let before = f.scored.rmse();
@@ -53,7 +54,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         .iter()
         .enumerate()
         .map(|(k, o)| Step {
-            effect: o.name.into(),
+            effect: o.name.name().into(),
             params: effect_params(ctx, &fits[o.fit], k, j),
             holdout_rmse_after: fits[o.fit].scored.rmse(),
             shrink: crate::diagnose::shrink(before, fits[o.fit].scored.rmse()),
@@ -74,15 +75,15 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         },
         alternatives: alts
             .into_iter()
-            .map(|a| Alternative { effect: a.into(), test: separating_test(j.verdict, a) })
+            .map(|a| Alternative { effect: a.name().into(), test: separating_test(j.verdict, a) })
             .collect(),
-        closest: closest.into_iter().map(String::from).collect(),
+        closest: closest.into_iter().map(|e| e.name().to_string()).collect(),
     };
     let r0v: Vec<f64> = ctx.q.iter().zip(&f.sim).map(|(a, b)| a - b).collect();
     let ra: Vec<f64> = ctx.q.iter().zip(&final_fit.sim).map(|(a, b)| a - b).collect();
     let (total, regimes) = regimes_out(ctx.regimes, &r0v);
     let n = ctx.q.len();
-    let refit_used = matches!(j.verdict, "parameters") || !j.chosen.is_empty();
+    let refit_used = j.verdict == Vocab::Parameters || !j.chosen.is_empty();
     let refit_base = if refit_used { final_fit.base(ctx.lay) } else { &ctx.lay.beta0 };
     let mut warnings = crate::diagnose::refit_warnings(&effects);
     if let Some(d) = j.floor_dof {
@@ -147,14 +148,14 @@ fn effect_out(ctx: &Ctx, fits: &[Fitted], j: &Judged, o: &Outcome, reference: &S
     let before = reference.rmse();
     let k = fit.effects.len().saturating_sub(1);
     EffectOut {
-        effect: o.name.into(),
+        effect: o.name.name().into(),
         holdout_rmse_before: before,
         holdout_rmse_after: fit.scored.rmse(),
         shrink: crate::diagnose::shrink(before, fit.scored.rmse()),
         significant: o.significant,
         params: effect_params(ctx, fit, k, j),
         reference: match o.name {
-            "parameters" | "initial_state" => "model",
+            Vocab::Parameters | Vocab::InitialState => "model",
             _ => "parameters",
         },
         t_stat: o.t.clamp(-1e9, 1e9),
@@ -328,7 +329,7 @@ fn not_applicable(ctx: &Ctx) -> Vec<NotApplicable> {
 /// progressive one, a dead zone off-centre) is written as comments.
 fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
     let mut mf = ctx.model.clone();
-    let refit_used = j.verdict == "parameters" || !j.chosen.is_empty();
+    let refit_used = j.verdict == Vocab::Parameters || !j.chosen.is_empty();
     if refit_used {
         for (k, v) in refit_values(ctx.model, ctx.lay, final_fit.base(ctx.lay)) {
             if let Some((sec, key)) = k.split_once('.') {
@@ -352,7 +353,7 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
     let mut out = String::from("# written by `jointctl diagnose --emit-model` (trajectory mode)\n");
     out.push_str(&mf.to_toml_string());
     out.push_str(&sections);
-    if j.verdict == "initial_state" {
+    if j.verdict == Vocab::InitialState {
         out.push_str(&format!(
             "\n# initial_state: the run starts at q = {:?} rad, qd = {:?} rad/s (not a model section)\n",
             final_fit.theta[0], final_fit.theta[1]

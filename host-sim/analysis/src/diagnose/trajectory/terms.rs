@@ -18,6 +18,7 @@
 
 use joint_core::params::ParamId;
 use joint_formats::model_file::ModelFile;
+use joint_formats::vocab::Effect as Vocab;
 
 use super::sim::{Cable, Law};
 use crate::diagnose::candidates::{base_from_model, Col};
@@ -55,18 +56,23 @@ impl Kind {
         Kind::Delay,
     ];
 
-    /// The spec §3 name (variants of one effect share it).
-    pub fn name(self) -> &'static str {
+    /// The vocabulary entry (variants of one effect share it).
+    pub fn effect(self) -> Vocab {
         match self {
-            Kind::Stribeck => "stribeck",
-            Kind::Asymmetric => "asymmetric_friction",
-            Kind::Ripple | Kind::Ripple2 => "position_ripple",
-            Kind::CableAbove | Kind::CableBelow | Kind::CableCubic | Kind::CableBump => "cable_spring",
-            Kind::Backlash => "backlash",
-            Kind::Dry => "dry_friction",
-            Kind::Presliding => "presliding_hysteresis",
-            Kind::Delay => "delay",
+            Kind::Stribeck => Vocab::Stribeck,
+            Kind::Asymmetric => Vocab::AsymmetricFriction,
+            Kind::Ripple | Kind::Ripple2 => Vocab::PositionRipple,
+            Kind::CableAbove | Kind::CableBelow | Kind::CableCubic | Kind::CableBump => Vocab::CableSpring,
+            Kind::Backlash => Vocab::Backlash,
+            Kind::Dry => Vocab::DryFriction,
+            Kind::Presliding => Vocab::PreslidingHysteresis,
+            Kind::Delay => Vocab::Delay,
         }
+    }
+
+    /// The spec §3 name.
+    pub fn name(self) -> &'static str {
+        self.effect().name()
     }
 
     /// How many values the effect adds to the model (what parsimony counts).
