@@ -2,8 +2,9 @@
 //!
 //! Which keys exist is not written down here: every scalar key is a [`ParamDesc`] of the core's
 //! [`PARAMS`] table (`section`, `key`), so a parameter added to the core is a TOML key at once.
-//! The file is parsed with serde, unknown sections are refused by `deny_unknown_fields`, unknown
-//! keys inside a section by the lookup in `PARAMS`; both errors name the key and its line.
+//! The file is parsed with serde; its sections are the table's sections too (an unknown one is
+//! refused with the list of known ones), unknown keys inside a section are refused by the lookup
+//! in `PARAMS`; both errors name the key and its line.
 //! Every section is optional; a key left out takes the table default (0 for every model term,
 //! so a missing section is a term the model does not have).
 //!
@@ -73,72 +74,66 @@ pub(crate) struct GravitySeriesToml {
     pub table_residual: Option<Spanned<bool>>,
 }
 
-/// Declares a serde struct holding the model sections plus extra fields (the plant file adds its
-/// effect sections), so the model part is declared once for both files.
-#[macro_export]
-macro_rules! model_toml_struct {
-    ($(#[$meta:meta])* $vis:vis struct $name:ident { $($extra:tt)* }) => {
-        $(#[$meta])*
-        #[derive(Clone, Debug, serde::Deserialize)]
-        #[serde(deny_unknown_fields)]
-        $vis struct $name {
-            #[serde(default)]
-            pub name: Option<String>,
-            #[serde(default)]
-            pub friction: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub weight: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub inertia: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub offset: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub spring: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub gravity_table: Option<$crate::model_file::GravityTableToml>,
-            #[serde(default)]
-            pub compensation: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub controller: Option<$crate::model_file::Section>,
-            #[serde(default)]
-            pub presliding: Option<$crate::model_file::Section>,
-            $($extra)*
-        }
-
-        impl $name {
-            /// The scalar sections by TOML name, for the `PARAMS` lookup.
-            pub(crate) fn scalar_sections(&self) -> [(&'static str, Option<&$crate::model_file::Section>); 8] {
-                [
-                    ("friction", self.friction.as_ref()),
-                    ("weight", self.weight.as_ref()),
-                    ("inertia", self.inertia.as_ref()),
-                    ("offset", self.offset.as_ref()),
-                    ("spring", self.spring.as_ref()),
-                    ("compensation", self.compensation.as_ref()),
-                    ("controller", self.controller.as_ref()),
-                    ("presliding", self.presliding.as_ref()),
-                ]
-            }
-        }
-    };
+/// The model file as written: every section of the core's parameter table (by its name there,
+/// so a term added to the table is a section here at once), the gravity table and series, and
+/// the name. Sections that `owned` claims (a plant file's effects and sensors) are skipped for
+/// their owner to read; anything else is refused, naming the sections a file may have.
+pub(crate) struct ModelToml {
+    pub name: Option<String>,
+    pub sections: Vec<(&'static str, Section)>,
+    pub gravity_table: Option<GravityTableToml>,
+    pub gravity_series: Option<GravitySeriesToml>,
 }
 
-model_toml_struct! {
-    /// The model file: the common sections plus the effect terms the core can compensate.
-    /// (A plant file parses these same sections as its effects instead: see `plant.rs`.)
-    pub(crate) struct ModelToml {
-        #[serde(default)]
-        pub stribeck: Option<Section>,
-        #[serde(default)]
-        pub asymmetric_friction: Option<Section>,
-        #[serde(default)]
-        pub position_ripple: Option<Section>,
-        #[serde(default)]
-        pub cable_spring: Option<Section>,
-        #[serde(default)]
-        pub dry_friction: Option<Section>,
-        #[serde(default)]
-        pub gravity_series: Option<GravitySeriesToml>,
+struct ModelSeed<'a> {
+    owned: &'a dyn Fn(&str) -> bool,
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for ModelSeed<'_> {
+    type Value = ModelToml;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<ModelToml, D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for ModelSeed<'_> {
+    type Value = ModelToml;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a model file (sections of scalar keys)")
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<ModelToml, A::Error> {
+        use serde::de::Error as _;
+        let mut m = ModelToml { name: None, sections: Vec::new(), gravity_table: None, gravity_series: None };
+        while let Some(key) = map.next_key::<String>()? {
+            match key.as_str() {
+                "name" => m.name = Some(map.next_value()?),
+                "gravity_table" => m.gravity_table = Some(map.next_value()?),
+                "gravity_series" => m.gravity_series = Some(map.next_value()?),
+                k if (self.owned)(k) => {
+                    map.next_value::<serde::de::IgnoredAny>()?;
+                }
+                k => match params::sections().find(|s| *s == k) {
+                    Some(section) => m.sections.push((section, map.next_value::<Section>()?)),
+                    None => {
+                        let known: Vec<&str> = params::sections().collect();
+                        return Err(A::Error::custom(format!(
+                            "unknown section `{k}` (a model file has: name, {}, gravity_table, gravity_series)",
+                            known.join(", ")
+                        )));
+                    }
+                },
+            }
+        }
+        Ok(m)
+    }
+}
+
+impl ModelToml {
+    fn parse(text: &str, owned: &dyn Fn(&str) -> bool) -> Result<ModelToml, toml::de::Error> {
+        use serde::de::DeserializeSeed as _;
+        ModelSeed { owned }.deserialize(toml::Deserializer::parse(text)?)
     }
 }
 
@@ -228,20 +223,20 @@ impl ModelFile {
 
     /// Parses model TOML text; `file` is only used in messages.
     pub fn parse(text: &str, file: &str) -> Result<ModelFile, ModelError> {
-        let toml: ModelToml =
-            toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
+        Self::parse_except(text, file, &|_| false)
+    }
+
+    /// Parses the model part of a file that has sections of its own (a plant file's effects):
+    /// those `owned` claims are left to the caller, every other one is the model's or an error.
+    pub fn parse_except(text: &str, file: &str, owned: &dyn Fn(&str) -> bool) -> Result<ModelFile, ModelError> {
+        let toml = ModelToml::parse(text, owned)
+            .map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
         Self::from_toml(&toml, text, file)
     }
 
     pub(crate) fn from_toml(toml: &ModelToml, text: &str, file: &str) -> Result<ModelFile, ModelError> {
-        let mut sections = toml.scalar_sections().to_vec();
-        sections.extend([
-            ("stribeck", toml.stribeck.as_ref()),
-            ("asymmetric_friction", toml.asymmetric_friction.as_ref()),
-            ("position_ripple", toml.position_ripple.as_ref()),
-            ("cable_spring", toml.cable_spring.as_ref()),
-            ("dry_friction", toml.dry_friction.as_ref()),
-        ]);
+        let sections: Vec<(&'static str, Option<&Section>)> =
+            toml.sections.iter().map(|(s, v)| (*s, Some(v))).collect();
         let mut mf = Self::from_parts(toml.name.clone(), &sections, toml.gravity_table.as_ref(), text, file)?;
         if let Some(g) = &toml.gravity_series {
             mf.series_line = Some(line_of(text, g.angles.span().start));

@@ -41,7 +41,6 @@ use serde::Deserialize;
 use crate::effects::{self, Effects};
 use joint_core::params::ParamId;
 use joint_formats::model_file::{GravityTableToml, ModelError, ModelFile, Section};
-use joint_formats::model_toml_struct;
 
 /// Sensor models; every value is a standard deviation (white Gaussian) unless said otherwise.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
@@ -88,34 +87,51 @@ pub struct OperatorCfg {
     pub damping: f64,
 }
 
-model_toml_struct! {
-    struct PlantToml {
-        #[serde(default)]
-        pub stribeck: Option<effects::Stribeck>,
-        #[serde(default)]
-        pub asymmetric_friction: Option<effects::AsymmetricFriction>,
-        #[serde(default)]
-        pub load_dependent_friction: Option<effects::LoadDependentFriction>,
-        #[serde(default)]
-        pub thermal_drift: Option<effects::ThermalDrift>,
-        #[serde(default)]
-        pub position_ripple: Option<effects::PositionRipple>,
-        #[serde(default)]
-        pub cable_spring: Option<effects::CableSpring>,
-        #[serde(default)]
-        pub backlash: Option<effects::Backlash>,
-        #[serde(default)]
-        pub delay: Option<effects::Delay>,
-        #[serde(default)]
-        pub dry_friction: Option<effects::DryFriction>,
-        #[serde(default)]
-        pub sensors: Option<Sensors>,
-        #[serde(default)]
-        pub joint_range: Option<JointRange>,
-        #[serde(default)]
-        pub operator: Option<OperatorCfg>,
-    }
+/// The plant's own sections (its effects, sensors, range, operator); the model sections of the
+/// same file are read by [`ModelFile::parse_except`], which leaves these to this struct.
+#[derive(Clone, Debug, Default, serde::Deserialize)]
+struct PlantToml {
+    #[serde(default)]
+    stribeck: Option<effects::Stribeck>,
+    #[serde(default)]
+    asymmetric_friction: Option<effects::AsymmetricFriction>,
+    #[serde(default)]
+    load_dependent_friction: Option<effects::LoadDependentFriction>,
+    #[serde(default)]
+    thermal_drift: Option<effects::ThermalDrift>,
+    #[serde(default)]
+    position_ripple: Option<effects::PositionRipple>,
+    #[serde(default)]
+    cable_spring: Option<effects::CableSpring>,
+    #[serde(default)]
+    backlash: Option<effects::Backlash>,
+    #[serde(default)]
+    delay: Option<effects::Delay>,
+    #[serde(default)]
+    dry_friction: Option<effects::DryFriction>,
+    #[serde(default)]
+    sensors: Option<Sensors>,
+    #[serde(default)]
+    joint_range: Option<JointRange>,
+    #[serde(default)]
+    operator: Option<OperatorCfg>,
 }
+
+/// The sections [`PlantToml`] reads (the rest of a plant file is its model).
+const PLANT_SECTIONS: [&str; 12] = [
+    "stribeck",
+    "asymmetric_friction",
+    "load_dependent_friction",
+    "thermal_drift",
+    "position_ripple",
+    "cable_spring",
+    "backlash",
+    "delay",
+    "dry_friction",
+    "sensors",
+    "joint_range",
+    "operator",
+];
 
 /// A parsed plant file.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,9 +152,17 @@ impl PlantFile {
     }
 
     pub fn parse(text: &str, file: &str) -> Result<PlantFile, ModelError> {
+        let model = ModelFile::parse_except(text, file, &|s| PLANT_SECTIONS.contains(&s))?;
         let t: PlantToml =
             toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
-        let model = ModelFile::from_parts(t.name.clone(), &t.scalar_sections(), t.gravity_table.as_ref(), text, file)?;
+        if model.series.is_some() {
+            return Err(ModelError::Toml {
+                file: file.to_string(),
+                msg:
+                    "[gravity_series] is a model term the plant does not simulate (give the truth as a [gravity_table])"
+                        .into(),
+            });
+        }
         // The model part must be a valid parameter set too (ranges, table shape).
         model.param_set()?;
         let effects = Effects {
