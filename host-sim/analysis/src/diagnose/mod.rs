@@ -463,16 +463,6 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
     Ok(d)
 }
 
-pub(crate) fn median_dt(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).step_by((t.len() / 20_000).max(1)).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return 1e-3;
-    }
-    let k = d.len() / 2;
-    let (_, m, _) = d.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    *m
-}
-
 /// Robust white-noise level of a residual from its second differences (smooth parts cancel,
 /// sparse jumps are ignored by the median).
 pub fn noise_floor(r: &[f64]) -> f64 {
@@ -502,7 +492,7 @@ fn torque_mode(
             eprintln!("[diagnose] {what}: {:.3} s", clock.elapsed().as_secs_f64());
         }
     };
-    let dt = median_dt(&log.t);
+    let dt = crate::prep::median_step(&log.t);
     let (qd, qdd) = (prep.qd().to_vec(), prep.qdd().to_vec());
     let pred0 = joint_formats::predict::predicted(log, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;

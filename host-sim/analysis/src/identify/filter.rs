@@ -51,18 +51,6 @@ impl Biquad {
     }
 }
 
-/// Median sample period of a time column (robust to jitter and dropped samples).
-pub fn median_dt(t: &[f64]) -> f64 {
-    if t.len() < 2 {
-        return 1.0;
-    }
-    // A strided sample of the differences is enough for a median and keeps 1 M rows cheap.
-    let stride = (t.len() / 20_000).max(1);
-    let mut d: Vec<f64> = t.windows(2).step_by(stride).map(|w| w[1] - w[0]).collect();
-    d.sort_by(f64::total_cmp);
-    d.get(d.len() / 2).copied().unwrap_or(1.0)
-}
-
 /// Zero-phase low-pass of `x` (Butterworth, second order each way) at `fc` Hz for sample rate `fs`.
 pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(x.len());

@@ -138,7 +138,7 @@ fn free_release(prep: &Prepared, seg: &std::ops::Range<usize>, model: &ModelFile
     let lay = Layout::new(model, min_of(q), max_of(q), 1.0, false);
     let moving: Vec<bool> = seg.clone().map(|i| !prep.rest[i] && !prep.ambiguous[i] && !prep.sign_unknown[i]).collect();
     let half = prep.report.qd.half_window_s.max(prep.report.qdd.half_window_s);
-    let edge = (half / super::median_dt(&prep.log.t[seg.clone()])).ceil() as usize;
+    let edge = (half / crate::prep::median_step(&prep.log.t[seg.clone()])).ceil() as usize;
     release::find(
         &lay,
         q,
@@ -204,7 +204,7 @@ impl<'a> Window<'a> {
         let sim = sim::run(&law, t, w.u(), (th0[0], th0[1]), w.n)
             .ok_or_else(|| DiagError::Input("the model diverges when integrated from the log's first sample".into()))?;
         let moving_until = settled_from(q, &sim);
-        let dt = super::median_dt(t);
+        let dt = crate::prep::median_step(t);
         let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
         let keep = moving_until.saturating_add(margin);
         if moving_until >= 100 && keep < w.n && (w.n - keep) as f64 >= 0.3 * w.n as f64 {
@@ -222,7 +222,7 @@ impl<'a> Window<'a> {
         let train_q: Vec<f64> = sp.train.iter().map(|&i| q[i]).collect();
         let train_v: Vec<f64> = sp.train.iter().map(|&i| qd[i].abs()).collect();
         let qdd = &self.prep.qdd()[self.seg.clone()][..n];
-        let dt = super::median_dt(t);
+        let dt = crate::prep::median_step(t);
         let regimes = Regimes::build(t, q, qd, qdd, None, dt);
         let v_typ = percentile(&train_v, 0.95);
         let driven = u.is_some_and(|u| u.iter().any(|x| *x != 0.0));
@@ -343,7 +343,7 @@ fn theta0(lay: &Layout, prior: &Prior) -> Vec<f64> {
 fn local_samples(lay: &Layout, t: &[f64], first: usize) -> usize {
     let law = lay.law(&theta0(lay, &Prior { q: 0.0, v: 0.0, sd_q: 1.0, sd_v: 1.0 }), &[]);
     let omega = (lay.torque / (0.5 * lay.span()) / law.j.max(1e-12)).sqrt().max(1e-3);
-    let dt = super::median_dt(t);
+    let dt = crate::prep::median_step(t);
     ((0.125 * std::f64::consts::TAU / omega / dt).round() as usize).clamp(4, first.max(4))
 }
 

@@ -293,7 +293,7 @@ fn regimes_out(regimes: &Regimes, r0: &[f64]) -> (f64, Vec<RegimeOut>) {
 
 /// MATLAB-`resid`-style evidence on the held-out part: before and after.
 fn resid(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> crate::diagnose::Resid {
-    let dt = crate::diagnose::median_dt(ctx.t);
+    let dt = crate::prep::median_step(ctx.t);
     let lag = ((0.1 / dt).round() as usize).clamp(10, 100);
     let held =
         |x: &[f64]| -> Vec<f64> { x.iter().zip(&ctx.split.held).filter(|(_, h)| **h).map(|(v, _)| *v).collect() };
