@@ -163,6 +163,8 @@ pub struct ExtraFx {
     pub ripple_amplitude: Fx,
     pub ripple_k: Gain,
     pub ripple_phase: Fx,
+    pub ripple_amplitude_2: Fx,
+    pub ripple_phase_2: Fx,
     pub cable_k: Fx,
     pub cable_engage: Fx,
     pub cable_width: Fx,
@@ -181,6 +183,8 @@ impl ExtraFx {
             ripple_amplitude: fx(e.ripple_amplitude),
             ripple_k: Gain::new(e.ripple_k),
             ripple_phase: fx(e.ripple_phase),
+            ripple_amplitude_2: fx(e.ripple_amplitude_2),
+            ripple_phase_2: fx(e.ripple_phase_2),
             cable_k: fx(e.cable_k),
             cable_engage: fx(e.cable_engage),
             cable_width: fx(e.cable_width),
@@ -189,7 +193,9 @@ impl ExtraFx {
         }
     }
 
-    /// Sum of the terms at (q, q̇), `sgn` the smoothed sign of q̇ ([`Extra::torque`]).
+    /// Sum of the terms at (q, q̇), `sgn` the smoothed sign of q̇ ([`Extra::torque`]). Out of
+    /// line like its f32 twin: inlined, its registers cost the step without effect terms.
+    #[inline(never)]
     pub(crate) fn torque_w(&self, q: Fx, qd: Fx, sgn: Fx) -> Wide {
         if !self.any {
             return 0;
@@ -199,7 +205,11 @@ impl ExtraFx {
         let e = exp_neg_q26(r * r);
         let stribeck = (mul(self.stribeck_level, sgn) * e) >> 26;
         let asym = mul(self.asym_delta, sgn.saturating_abs());
-        let ripple = mul(self.ripple_amplitude, sin_wide(self.ripple_k.mul_wide(q.to_bits()) + w(self.ripple_phase)));
+        let theta = self.ripple_k.mul_wide(q.to_bits());
+        let mut ripple = mul(self.ripple_amplitude, sin_wide(theta + w(self.ripple_phase)));
+        if self.ripple_amplitude_2 != Fx::ZERO {
+            ripple += mul(self.ripple_amplitude_2, sin_wide(2 * theta + w(self.ripple_phase_2)));
+        }
         let x = w(q) - w(self.cable_engage);
         let cable = if x <= 0 {
             0

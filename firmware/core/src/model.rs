@@ -171,7 +171,7 @@ impl Terms {
 /// with the same formulas as host-sim's plant (`host-sim/sim/src/effects.rs`):
 /// - Stribeck: `level·exp(−(q̇/speed)²)·sgn`;
 /// - asymmetric friction: `delta·|sgn|` (Coulomb c + delta forward, c − delta backward);
-/// - position ripple: `amplitude·sin(2π·q/period + phase)`;
+/// - position ripple: `amplitude·sin(2π·q/period + phase) + amplitude_2·sin(4π·q/period + phase_2)`;
 /// - cable spring: 0 below `engage`, `k·x²/(2·width)` in the blend, `k·(x − width/2)` above,
 ///   `x = q − engage`;
 /// - dry friction: `c·sgn`.
@@ -190,6 +190,9 @@ pub struct Extra {
     /// 2π/period
     pub ripple_k: f32,
     pub ripple_phase: f32,
+    /// the ripple's second harmonic (period/2)
+    pub ripple_amplitude_2: f32,
+    pub ripple_phase_2: f32,
     pub cable_k: f32,
     pub cable_engage: f32,
     pub cable_width: f32,
@@ -206,7 +209,10 @@ impl Extra {
         let r = qd * self.stribeck_inv_speed;
         let stribeck = self.stribeck_level * math::exp(-(r * r)) * sgn;
         let asym = self.asym_delta * math::abs(sgn);
-        let ripple = self.ripple_amplitude * math::sin(self.ripple_k * q + self.ripple_phase);
+        let mut ripple = self.ripple_amplitude * math::sin(self.ripple_k * q + self.ripple_phase);
+        if self.ripple_amplitude_2 != 0.0 {
+            ripple += self.ripple_amplitude_2 * math::sin(2.0 * self.ripple_k * q + self.ripple_phase_2);
+        }
         let x = q - self.cable_engage;
         let cable = if x <= 0.0 {
             0.0

@@ -151,6 +151,10 @@ param_table! {
     // Appended last so every CANopen index above keeps its place (0x2000 + table position).
     PreslidingSigma = 37: "presliding_sigma", "presliding", "sigma", "N·m/rad", 0.0, 1.0e7, 0.0, false,
        "pre-sliding stiffness σ of a Dahl friction state F that replaces c·sign(q̇): dF/dq = σ·(1 − F/c·sign(dq)), |F| ≤ c = friction_c + dry_friction_c (0 = off)";
+    RippleAmplitude2 = 38: "position_ripple_amplitude_2", "position_ripple", "amplitude_2", "N·m", -1.0e3, 1.0e3, 0.0, false,
+       "second harmonic of the position ripple: amplitude_2·sin(4π·q/period + phase_2) (a wave generator's or a tooth's half-period)";
+    RipplePhase2 = 39: "position_ripple_phase_2", "position_ripple", "phase_2", "rad", -10.0, 10.0, 0.0, false,
+       "phase of the ripple's second harmonic";
 }
 
 impl ParamId {
@@ -424,6 +428,7 @@ fn terms_of(raw: &RawParams) -> Terms {
             any: g(ParamId::StribeckLevel) != 0.0
                 || g(ParamId::AsymmetricDelta) != 0.0
                 || g(ParamId::RippleAmplitude) != 0.0
+                || g(ParamId::RippleAmplitude2) != 0.0
                 || g(ParamId::CableK) != 0.0
                 || dry_c != 0.0,
             stribeck_level: g(ParamId::StribeckLevel),
@@ -432,6 +437,8 @@ fn terms_of(raw: &RawParams) -> Terms {
             ripple_amplitude: g(ParamId::RippleAmplitude),
             ripple_k: 2.0 * core::f32::consts::PI / g(ParamId::RipplePeriod),
             ripple_phase: g(ParamId::RipplePhase),
+            ripple_amplitude_2: g(ParamId::RippleAmplitude2),
+            ripple_phase_2: g(ParamId::RipplePhase2),
             cable_k: g(ParamId::CableK),
             cable_engage: g(ParamId::CableEngage),
             cable_width: g(ParamId::CableWidth),

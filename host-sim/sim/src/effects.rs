@@ -12,7 +12,7 @@
 //! | `[asymmetric_friction]` | `delta` N·m | Coulomb level `c+delta` for q̇>0 and `c−delta` for q̇<0, i.e. `+delta·|sgn(q̇)|` |
 //! | `[load_dependent_friction]` | `mu` (1) | `mu·|τ_ext|·sgn(q̇)`: the external load the joint transmits (what its load cell logs as `tau`) |
 //! | `[thermal_drift]` | `coefficient` 1/°C, `t_ambient` °C, `rise` °C, `time_constant` s, `t_ref` °C, `log_temp` (bool, default true) | the plant's own friction `a·q̇|q̇| + b·q̇ + c·sgn(q̇)` is multiplied by `1 + coefficient·(T − t_ref)` with `T(t) = t_ambient + rise·(1 − e^(−t/time_constant))`; the log gets a `temp` column unless `log_temp = false` |
-//! | `[position_ripple]` | `amplitude` N·m, `period` rad, `phase` rad (default 0) | `amplitude·sin(2π·q/period + phase)` |
+//! | `[position_ripple]` | `amplitude` N·m, `period` rad, `phase` rad (default 0), `amplitude_2` N·m and `phase_2` rad (default 0) | `amplitude·sin(2π·q/period + phase) + amplitude_2·sin(4π·q/period + phase_2)` |
 //! | `[cable_spring]` | `k` N·m/rad, `engage` rad, `width` rad (default 0.01) | with `x = q − engage`: 0 for x ≤ 0, `k·x²/(2·width)` for 0 < x < width, `k·(x − width/2)` above: exactly zero below `engage`, slope exactly `k` above `engage + width`, C¹ in between |
 //! | `[backlash]` | `width` rad (total), `output_inertia_share` (default 0.1) | a dead zone of total width `width`: with a spring in the plant (`[spring] k ≠ 0`, elastic joint) the spring force becomes `k·dz(q − q0)` (the damper `b·q̇` stays); without a spring the transmission is split in two masses, see [`crate::plant`] |
 //! | `[delay]` | `seconds` s | sensors (q, qd, qdd, tau, others) are seen and logged `seconds` after the state they measure; the controller sees the same late sensors; u is logged when it is applied |
@@ -64,6 +64,11 @@ pub struct PositionRipple {
     pub period: f64,
     #[serde(default)]
     pub phase: f64,
+    /// second harmonic (period/2)
+    #[serde(default)]
+    pub amplitude_2: f64,
+    #[serde(default)]
+    pub phase_2: f64,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -159,6 +164,8 @@ impl Effects {
             need("position_ripple", "amplitude", e.amplitude, true, "must be finite")?;
             need("position_ripple", "period", e.period, e.period > 0.0, "must be > 0 rad")?;
             need("position_ripple", "phase", e.phase, true, "must be finite")?;
+            need("position_ripple", "amplitude_2", e.amplitude_2, true, "must be finite")?;
+            need("position_ripple", "phase_2", e.phase_2, true, "must be finite")?;
         }
         if let Some(e) = &self.cable_spring {
             need("cable_spring", "k", e.k, e.k >= 0.0, "must be ≥ 0")?;
@@ -218,7 +225,8 @@ impl Effects {
             tau += e.mu * load.abs() * sgn;
         }
         if let Some(e) = &self.position_ripple {
-            tau += e.amplitude * (std::f64::consts::TAU * q / e.period + e.phase).sin();
+            let x = std::f64::consts::TAU * q / e.period;
+            tau += e.amplitude * (x + e.phase).sin() + e.amplitude_2 * (2.0 * x + e.phase_2).sin();
         }
         if let Some(e) = &self.cable_spring {
             tau += cable_spring(e, q);

@@ -20,6 +20,8 @@ delta = 0.4
 amplitude = 0.3
 period = 0.1
 phase = 0.5
+amplitude_2 = 0.12
+phase_2 = -0.7
 
 [cable_spring]
 k = 6.0
@@ -37,7 +39,13 @@ fn core_effect_terms_match_the_plant() {
     let effects = Effects {
         stribeck: Some(Stribeck { level: 1.1, speed: 0.03 }),
         asymmetric_friction: Some(AsymmetricFriction { delta: 0.4 }),
-        position_ripple: Some(PositionRipple { amplitude: 0.3, period: 0.1, phase: 0.5 }),
+        position_ripple: Some(PositionRipple {
+            amplitude: 0.3,
+            period: 0.1,
+            phase: 0.5,
+            amplitude_2: 0.12,
+            phase_2: -0.7,
+        }),
         cable_spring: Some(CableSpring { k: 6.0, engage: 1.2, width: 0.02 }),
         dry_friction: Some(DryFriction { c: 0.25 }),
         ..Effects::default()

@@ -1121,6 +1121,11 @@ pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
         let (ra, ph) = (v(P::RippleAmplitude), v(P::RipplePhase));
         push(Col::RipSin(v(P::RipplePeriod)), ra * ph.cos());
         push(Col::RipCos(v(P::RipplePeriod)), ra * ph.sin());
+        if has(P::RippleAmplitude2) {
+            let (ra2, ph2) = (v(P::RippleAmplitude2), v(P::RipplePhase2));
+            push(Col::RipSin(v(P::RipplePeriod) / 2.0), ra2 * ph2.cos());
+            push(Col::RipCos(v(P::RipplePeriod) / 2.0), ra2 * ph2.sin());
+        }
     }
     if has(P::CableK) {
         push(Col::Cable { engage: v(P::CableEngage), width: v(P::CableWidth) }, v(P::CableK));

@@ -876,6 +876,11 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
             put("position_ripple", "amplitude", bs.hypot(bc));
             put("position_ripple", "phase", bc.atan2(bs));
         }
+        let half = Col::RipSin(per / 2.0);
+        if let (Some(bs), Some(bc)) = (coef(s, half), coef(s, Col::RipCos(per / 2.0))) {
+            put("position_ripple", "amplitude_2", bs.hypot(bc));
+            put("position_ripple", "phase_2", bc.atan2(bs));
+        }
     }
     if v(ParamId::CableK) != 0.0 {
         let c = Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) };
@@ -1311,12 +1316,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
             let _ =
                 writeln!(o, "amplitude = {:?}\nperiod = {:?}\nphase = {:?}", g("amplitude"), g("period"), g("phase"));
             if harmonics >= 2 {
-                let _ = writeln!(
-                    o,
-                    "# second harmonic (period/2), not a section key: amplitude_2 = {:?}, phase_2 = {:?}",
-                    g("amplitude_2"),
-                    g("phase_2")
-                );
+                let _ = writeln!(o, "amplitude_2 = {:?}\nphase_2 = {:?}", g("amplitude_2"), g("phase_2"));
             }
             if second > 0.0 {
                 let _ = writeln!(

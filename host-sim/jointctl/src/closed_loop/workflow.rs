@@ -192,6 +192,8 @@ pub fn true_effect_model(plant: &PlantFile, model: &ModelFile) -> Option<ModelFi
         set(ParamId::RippleAmplitude, s.amplitude);
         set(ParamId::RipplePeriod, s.period);
         set(ParamId::RipplePhase, s.phase);
+        set(ParamId::RippleAmplitude2, s.amplitude_2);
+        set(ParamId::RipplePhase2, s.phase_2);
     }
     if let Some(s) = &e.cable_spring {
         set(ParamId::CableK, s.k);

@@ -310,7 +310,10 @@ fn resid(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> crate::diagnose::Resid {
 
 fn not_applicable(ctx: &Ctx) -> Vec<NotApplicable> {
     let mut v = vec![
-        NotApplicable { effect: Vocab::LoadDependentFriction.name(), why: "trajectory mode has no measured transmitted torque" },
+        NotApplicable {
+            effect: Vocab::LoadDependentFriction.name(),
+            why: "trajectory mode has no measured transmitted torque",
+        },
         NotApplicable {
             effect: Vocab::ThermalDrift.name(),
             why: "a free response of seconds has no temperature course: a slow change of friction is a damping value",
