@@ -18,7 +18,8 @@ trap 'rm -rf "$LOG_DIR"' EXIT
 status=0
 run() { # CORE TARGET MACHINE
     local core=$1 target=$2 machine=$3 st
-    cargo build --profile fw -p firmware-qemu --bin qemu-bench --target "$target" >&2 || return 2
+    cargo build --profile fw --manifest-path firmware/qemu/Cargo.toml --bin qemu-bench --target "$target" \
+        --target-dir "$TARGET_DIR" >&2 || return 2
     echo "== $core"
     timeout "${QEMU_TIMEOUT:-120}" qemu-system-arm -M "$machine" -nographic \
         -semihosting-config enable=on,target=native -icount shift=7 \

@@ -8,7 +8,7 @@
 # and its SysTick counts (QEMU models one the real nRF51 lacks), but its 16 KiB of RAM do not
 # hold these images (the parity and bench images lock up on a HardFault there; the node alone
 # is ~9 KiB and needs 17-20 KiB of stack).
-#   1. builds the QEMU images (firmware-qemu, profile fw);
+#   1. builds the QEMU images (firmware-qemu, its own workspace, profile fw);
 #   2. qemu-core-checks: on-target facts about the core, exit status counts;
 #   3. qemu-parity: the scripted session's every output, compared bit for bit with the
 #      same session computed natively (tests/tests/qemu_parity.rs reads this run's log);
@@ -43,7 +43,8 @@ trap 'rm -rf "$LOG_DIR"' EXIT
 
 command -v qemu-system-arm >/dev/null || { echo "qemu-test: qemu-system-arm not installed (apt-get install qemu-system-arm)" >&2; exit 2; }
 
-cargo build --profile fw -p firmware-qemu --target "$TARGET" || { echo "qemu-test: build failed" >&2; exit 2; }
+# the images are a workspace of their own (firmware/qemu/Cargo.toml), built into this target folder
+cargo build --profile fw --manifest-path firmware/qemu/Cargo.toml --target "$TARGET" --target-dir "$TARGET_DIR" || { echo "qemu-test: build failed" >&2; exit 2; }
 
 qemu() { # ELF -> runs it, stdout to $LOG_DIR/NAME.out, returns QEMU's exit status
     local elf=$1 name

@@ -9,8 +9,9 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 echo "== format (cargo fmt --check; rustfmt.toml)"
 cargo fmt --all -- --check
-# The G0B1 image is a workspace of its own: --all above does not reach it.
+# The G0B1 and the QEMU images are workspaces of their own: --all above does not reach them.
 cargo fmt --manifest-path firmware/board-g0b1/Cargo.toml -- --check
+cargo fmt --manifest-path firmware/qemu/Cargo.toml -- --check
 echo "== host crates keep their dependency rules (cargo tree)"
 bash scripts/check-deps.sh --self-test
 bash scripts/check-deps.sh

@@ -45,7 +45,9 @@ fn build_image(bin: &str) -> PathBuf {
     let status = Command::new(cargo)
         .current_dir(&root)
         .env("CARGO_TARGET_DIR", &target_dir)
-        .args(["build", "--profile", "fw", "-p", "firmware-qemu", "--bin", bin, "--target", TARGET])
+        // the images are a workspace of their own (firmware/qemu/Cargo.toml)
+        .args(["build", "--profile", "fw", "--manifest-path", "firmware/qemu/Cargo.toml", "--bin", bin])
+        .args(["--target", TARGET])
         .status()
         .expect("running cargo to build the QEMU parity image");
     assert!(

@@ -2,12 +2,12 @@
 //!
 //! These images run the real `joint_core` code on an emulated Cortex-M4F and talk to the
 //! host only through semihosting: text on stdout, an exact exit status, nothing else. The
-//! pieces here are what every image needs: a minimal runtime (vector table, FPU enable,
-//! .data/.bss init: see [`rt`]), a panic handler that exits with status 1 instead of
-//! spinning on `udf` like panic-probe does, and the SysTick counter the benchmark reads.
+//! pieces here are what every image needs besides cortex-m-rt (which starts them as it starts
+//! the boards): fault handlers and a panic handler that exit through semihosting instead of
+//! spinning on `udf` like panic-probe does ([`rt`]), and the SysTick counter the benchmark reads.
 //! [`canopen_session`] is the scripted CANopen session of the `qemu-canopen` image; it is
 //! plain `joint_core` code and also builds on the host (the parity test includes the same
-//! file). Everything else is empty on the host so that `cargo check --workspace` stays green.
+//! file). Everything else is empty on the host, so a host `cargo check` of this workspace stays green.
 #![cfg_attr(target_os = "none", no_std)]
 
 #[cfg(target_os = "none")]
@@ -82,7 +82,8 @@ pub const EXIT_FAULT: i32 = 3;
 #[macro_export]
 macro_rules! entry {
     ($main:path) => {
-        #[no_mangle]
+        // cortex-m-rt's reset handler calls `main` (what its #[entry] attribute exports)
+        #[export_name = "main"]
         pub extern "C" fn __qemu_entry() -> ! {
             let f: fn() -> i32 = $main;
             let code = f();
