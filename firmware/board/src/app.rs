@@ -27,7 +27,7 @@ use firmware::storage::{BoardStorage, EraseOrder, Job};
 use joint_core::canopen::{Node, NodeConfig};
 use joint_core::params::{check, ParamId, ParamSet, RawParams};
 use joint_core::safety::Faults;
-use joint_core::store::{Flash as _, SaveProgress, Store};
+use joint_core::store::{NorFlash as _, SaveProgress, Store};
 use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
@@ -143,9 +143,9 @@ pub fn boot(flash: Flash<'static, embassy_stm32::flash::Blocking>) -> (Option<St
         <crate::hal::Step as joint_core::canopen::ControlStep>::ARITHMETIC.name(),
         NODE_ID
     );
-    let flash = ParamFlash::new(flash);
-    let (base, len) = flash.region();
-    info!("parameter region {=u32:#x}, {=u32} bytes", base, len);
+    let flash = crate::board::param_flash(flash);
+    let (base, len) = flash.window();
+    info!("parameter region {=u32:#x}, {=u32} bytes", crate::board::FLASH_BASE + base, len);
     let mut store = Store::new(flash).ok();
     let (boot, fault) = boot_params(store.as_mut());
     // The node latches `fault` (the storage's load fault) itself, and again after every

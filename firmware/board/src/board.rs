@@ -11,19 +11,21 @@
 //!   x = u_motor / `full_scale_nm`. This is open-loop voltage proportional to the torque
 //!   command: no current loop, no commutation. A BLDC motor needs a FOC current loop in
 //!   its place (not part of this firmware yet). Phase W stays off.
-//! - [`ParamFlash`]: the last flash pages (memory.x's PARAMS region) through embassy's
-//!   blocking flash driver, with bounds checks, for the core's power-loss-safe store.
+//! - [`ParamFlash`]: the last flash pages (memory.x's PARAMS region): the core's `Region` window
+//!   over embassy's blocking flash driver (`embedded-storage` `NorFlash`), for the core's
+//!   power-loss-safe store.
 //!
 //! Pin choices follow ST's UM2516 (B-G431B-ESC1 user manual); check them against the
 //! board revision's schematic before driving a motor.
 
 use crate::hal::{EncoderTimer as TIM4, PwmTimer as TIM1};
-use embassy_stm32::flash::{Blocking, Error as FlashError, Flash};
+use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::timer::complementary_pwm::ComplementaryPwm;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::timer::Channel;
 use firmware::io::{Encoder, EncoderError, QuadratureUnwrap, TorqueOutput};
 use joint_core::math;
+use joint_core::store::NorFlash;
 
 /// Quadrature encoder on TIM4.
 pub struct QeiEncoder {
@@ -112,59 +114,19 @@ extern "C" {
 }
 
 /// Start of the flash in the address map; embassy's flash driver takes offsets from here.
-const FLASH_BASE: u32 = 0x0800_0000;
-/// G431 page size (memory.x's `__param_page_size`).
-const PAGE: usize = crate::hal::PARAM_PAGE;
+pub const FLASH_BASE: u32 = 0x0800_0000;
 
-/// The parameter pages, addressed from 0.
-pub struct ParamFlash {
-    flash: Flash<'static, Blocking>,
-    base: u32,
-    len: u32,
-}
+/// The parameter pages (memory.x's PARAMS region) of the chip's flash: the core's generic window
+/// ([`joint_core::store::Region`]) over embassy's blocking driver, which implements
+/// `embedded-storage`'s `NorFlash` as every HAL's flash does. No board adapter of its own.
+pub type ParamFlash = joint_core::store::Region<Flash<'static, Blocking>>;
 
-impl ParamFlash {
-    pub fn new(flash: Flash<'static, Blocking>) -> Self {
-        // Only the addresses of the linker symbols are taken, never their contents.
-        let (start, end) = (&raw const __param_start as u32, &raw const __param_end as u32);
-        ParamFlash { flash, base: start.wrapping_sub(FLASH_BASE), len: end.saturating_sub(start) }
-    }
+// The driver's erase unit is the page memory.x's `__param_page_size` and the board's `hal` give.
+const _: () = assert!(<Flash<'static, Blocking> as NorFlash>::ERASE_SIZE == crate::hal::PARAM_PAGE);
 
-    pub fn region(&self) -> (u32, u32) {
-        (FLASH_BASE + self.base, self.len)
-    }
-
-    fn span(&self, offset: u32, len: usize) -> Result<u32, FlashError> {
-        let end = offset.checked_add(len as u32).ok_or(FlashError::Size)?;
-        if end > self.len {
-            return Err(FlashError::Size);
-        }
-        Ok(self.base + offset)
-    }
-}
-
-impl joint_core::store::Flash for ParamFlash {
-    type Error = FlashError;
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = PAGE;
-
-    fn capacity(&self) -> usize {
-        self.len as usize
-    }
-
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let at = self.span(offset, bytes.len())?;
-        self.flash.blocking_read(at, bytes)
-    }
-
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        let a = self.span(from, 0)?;
-        let b = self.span(to, 0)?;
-        self.flash.blocking_erase(a, b)
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let at = self.span(offset, bytes.len())?;
-        self.flash.blocking_write(at, bytes)
-    }
+/// The parameter window of `flash`, from memory.x's symbols.
+pub fn param_flash(flash: Flash<'static, Blocking>) -> ParamFlash {
+    // Only the addresses of the linker symbols are taken, never their contents.
+    let (start, end) = (&raw const __param_start as u32, &raw const __param_end as u32);
+    joint_core::store::Region::new(flash, start.wrapping_sub(FLASH_BASE), end.saturating_sub(start))
 }

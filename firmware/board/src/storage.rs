@@ -285,33 +285,8 @@ mod tests {
         assert_eq!(pages(e).len(), 4);
     }
 
-    /// A RAM NOR flash like the G431's parameter pages (2 KiB pages, 8-byte programming).
-    struct RamFlash(Vec<u8>);
-
-    impl joint_core::store::Flash for RamFlash {
-        type Error = ();
-        const WRITE_SIZE: usize = 8;
-        const ERASE_SIZE: usize = 2048;
-        fn capacity(&self) -> usize {
-            self.0.len()
-        }
-        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), ()> {
-            let o = offset as usize;
-            bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(())?);
-            Ok(())
-        }
-        fn erase(&mut self, from: u32, to: u32) -> Result<(), ()> {
-            self.0.get_mut(from as usize..to as usize).ok_or(())?.fill(0xFF);
-            Ok(())
-        }
-        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), ()> {
-            let o = offset as usize;
-            for (d, s) in self.0.get_mut(o..o + bytes.len()).ok_or(())?.iter_mut().zip(bytes) {
-                *d &= *s;
-            }
-            Ok(())
-        }
-    }
+    // The shared NOR-flash double (the core's `mock-flash` feature).
+    use joint_core::store::mock::MemFlash;
 
     /// Restore defaults as the params task does it (scan, erase in [`EraseOrder`], one page
     /// at a time), with the power cut at every page and inside pages: the next boot finds the
@@ -321,12 +296,12 @@ mod tests {
         use joint_core::store::Store;
         let old = joint_core::params::check(&set(0.4)).unwrap();
         let new = joint_core::params::check(&set(0.8)).unwrap();
-        let mut store = Store::new(RamFlash(vec![0xFF; 8192])).unwrap();
+        let mut store = Store::new(MemFlash::blank(8192)).unwrap();
         store.save_blocking(&old).unwrap();
         store.save_blocking(&new).unwrap();
         let states = store.scan().unwrap();
         let slot_len = store.used_len() / 2;
-        let image = store.into_flash().0;
+        let image = store.into_flash().mem;
 
         let mut order = EraseOrder::new(states, slot_len, 2048);
         let pages: Vec<(u32, u32)> = core::iter::from_fn(|| order.next_page()).collect();
@@ -339,7 +314,7 @@ mod tests {
                 }
                 let (a, _) = pages[cut];
                 mem[a as usize..a as usize + partial].fill(0xFF);
-                let mut st = Store::new(RamFlash(mem)).unwrap();
+                let mut st = Store::new(MemFlash::from_mem(mem)).unwrap();
                 match st.load() {
                     Ok(l) => {
                         assert_eq!(
@@ -361,7 +336,7 @@ mod tests {
         for &(a, b) in &pages {
             mem[a as usize..b as usize].fill(0xFF);
         }
-        let mut st = Store::new(RamFlash(mem)).unwrap();
+        let mut st = Store::new(MemFlash::from_mem(mem)).unwrap();
         assert!(matches!(st.load(), Err(joint_core::store::LoadError::Blank)));
     }
 }

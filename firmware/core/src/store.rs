@@ -1,7 +1,7 @@
 //! Power-loss-safe parameter store: two flash slots holding CRC'd records, sans-IO.
 //!
-//! The firmware's parameter task is the only owner of the flash; it hands a [`Flash`] (an
-//! adapter over the chip's flash, modelled on `embedded-storage`'s `NorFlash`) to a [`Store`],
+//! The firmware's parameter task is the only owner of the flash; it hands its HAL's
+//! `embedded-storage` [`NorFlash`] (a [`Region`] of the parameter pages) to a [`Store`],
 //! calls [`Store::load`] at boot and drives a save with [`Store::begin_save`] and one
 //! [`Store::poll`] per tick, each poll doing exactly one flash operation.
 //!
@@ -154,22 +154,101 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 // ---------------------------------------------------------------------------------------
 // Flash abstraction
 
-/// The flash region the store owns, addressed from 0. Semantics of `embedded-storage`'s
-/// `NorFlash`: erased bytes read `0xFF`; `erase(from, to)` takes page-aligned bounds; `write`
-/// takes `WRITE_SIZE`-aligned offset and length and may only program erased bytes; `read` has
-/// byte granularity. On the board this is a thin adapter over `embassy_stm32::flash::Flash`
-/// (blocking) that adds the region's base address.
-pub trait Flash {
-    type Error;
-    /// Program granularity in bytes; must divide 8 (the G4 programs 8-byte double-words).
-    const WRITE_SIZE: usize;
-    /// Erase granularity (page size) in bytes; a multiple of 8.
-    const ERASE_SIZE: usize;
-    /// Size of the region in bytes.
-    fn capacity(&self) -> usize;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error>;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error>;
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error>;
+use embedded_storage::nor_flash::ErrorType;
+pub use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash};
+
+/// What the store takes: any `embedded-storage` [`NorFlash`] (every HAL's flash driver
+/// implements it): erased bytes read `0xFF`; `erase(from, to)` takes page-aligned bounds;
+/// `write` takes `WRITE_SIZE`-aligned offset and length and may only program erased bytes;
+/// reads are of any byte (`READ_SIZE` 1). The store owns the whole flash it is given, addressed
+/// from 0; a chip's driver covers the whole chip, so the firmware hands it a [`Region`] of its
+/// parameter pages.
+pub trait Flash: NorFlash {}
+impl<F: NorFlash> Flash for F {}
+
+#[cfg(feature = "mock-flash")]
+#[path = "store_mock.rs"]
+pub mod mock;
+
+/// A window `[base, base + len)` of a [`NorFlash`], itself a `NorFlash` addressed from 0: the
+/// parameter pages of a chip's flash (memory.x's region) with no board adapter. An access
+/// outside the window is refused with [`RegionError::OutOfBounds`] and touches nothing.
+pub struct Region<F> {
+    flash: F,
+    base: u32,
+    len: u32,
+}
+
+impl<F: NorFlash> Region<F> {
+    /// The window of `flash` at `base`, `len` bytes (clamped to the flash's capacity).
+    pub fn new(flash: F, base: u32, len: u32) -> Self {
+        let cap = u32::try_from(flash.capacity()).unwrap_or(u32::MAX);
+        let len = len.min(cap.saturating_sub(base));
+        Region { flash, base, len }
+    }
+
+    /// Where the window sits in the flash: (base, len).
+    pub fn window(&self) -> (u32, u32) {
+        (self.base, self.len)
+    }
+
+    pub fn into_inner(self) -> F {
+        self.flash
+    }
+
+    fn span(&self, offset: u32, len: usize) -> Result<u32, RegionError<F::Error>> {
+        let len = u32::try_from(len).map_err(|_| RegionError::OutOfBounds)?;
+        match offset.checked_add(len) {
+            Some(end) if end <= self.len => Ok(self.base + offset),
+            _ => Err(RegionError::OutOfBounds),
+        }
+    }
+}
+
+/// A [`Region`]'s error: outside the window, or the flash's own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RegionError<E> {
+    OutOfBounds,
+    Flash(E),
+}
+
+impl<E: NorFlashError> NorFlashError for RegionError<E> {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            RegionError::OutOfBounds => NorFlashErrorKind::OutOfBounds,
+            RegionError::Flash(e) => e.kind(),
+        }
+    }
+}
+
+impl<F: NorFlash> ErrorType for Region<F> {
+    type Error = RegionError<F::Error>;
+}
+
+impl<F: NorFlash> ReadNorFlash for Region<F> {
+    const READ_SIZE: usize = F::READ_SIZE;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        let at = self.span(offset, bytes.len())?;
+        self.flash.read(at, bytes).map_err(RegionError::Flash)
+    }
+    fn capacity(&self) -> usize {
+        self.len as usize
+    }
+}
+
+impl<F: NorFlash> NorFlash for Region<F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let a = self.span(from, 0)?;
+        let b = self.span(to, 0)?;
+        self.flash.erase(a, b).map_err(RegionError::Flash)
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        let at = self.span(offset, bytes.len())?;
+        self.flash.write(at, bytes).map_err(RegionError::Flash)
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -541,7 +620,8 @@ impl<F: Flash> Store<F> {
         let es = F::ERASE_SIZE;
         // `%` rather than `is_multiple_of` (Rust 1.87): the workspace declares 1.85.
         #[allow(clippy::manual_is_multiple_of)]
-        let bad = ws == 0 || UNIT % ws != 0 || es == 0 || es % UNIT != 0;
+        // Records are read at any byte (READ_SIZE 1, as every MCU's flash reads).
+        let bad = F::READ_SIZE != 1 || ws == 0 || UNIT % ws != 0 || es == 0 || es % UNIT != 0;
         if bad {
             return Err(GeometryError::Granularity { write_size: ws as u32, erase_size: es as u32 });
         }

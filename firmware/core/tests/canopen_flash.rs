@@ -9,45 +9,20 @@ use joint_core::canopen::storage::FlashStorage;
 use joint_core::canopen::CanFrame;
 use joint_core::params::ParamId;
 use joint_core::safety::Faults;
-use joint_core::store::{Flash, Store};
+use joint_core::store::Store;
 
 const PAGE: usize = 2048;
 
-struct RamFlash(Vec<u8>);
+// The shared NOR-flash double (the core's `mock-flash` feature).
+use joint_core::store::mock::MemFlash;
 
-impl Flash for RamFlash {
-    type Error = ();
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = PAGE;
-    fn capacity(&self) -> usize {
-        self.0.len()
-    }
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), ()> {
-        let o = offset as usize;
-        bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(())?);
-        Ok(())
-    }
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), ()> {
-        self.0.get_mut(from as usize..to as usize).ok_or(())?.fill(0xFF);
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), ()> {
-        let dst = self.0.get_mut(offset as usize..offset as usize + bytes.len()).ok_or(())?;
-        // NOR flash: programming only clears bits
-        for (d, s) in dst.iter_mut().zip(bytes) {
-            *d &= *s;
-        }
-        Ok(())
-    }
-}
-
-fn boot(flash: RamFlash) -> Node<FlashStorage<RamFlash>> {
+fn boot(flash: MemFlash) -> Node<FlashStorage<MemFlash>> {
     let mut n = Node::new(NodeConfig::new(5), FlashStorage::new(Store::new(flash).unwrap()), 0);
     n.process(0, None, &mut |_| {});
     n
 }
 
-fn sdo(n: &mut Node<FlashStorage<RamFlash>>, d: [u8; 8]) -> [u8; 8] {
+fn sdo(n: &mut Node<FlashStorage<MemFlash>>, d: [u8; 8]) -> [u8; 8] {
     let mut r = None;
     n.process(0, Some(&CanFrame::new(0x605, &d).unwrap()), &mut |f: CanFrame| {
         if f.id() == 0x585 {
@@ -57,13 +32,13 @@ fn sdo(n: &mut Node<FlashStorage<RamFlash>>, d: [u8; 8]) -> [u8; 8] {
     r.unwrap()
 }
 
-fn power_cycle(n: Node<FlashStorage<RamFlash>>) -> Node<FlashStorage<RamFlash>> {
+fn power_cycle(n: Node<FlashStorage<MemFlash>>) -> Node<FlashStorage<MemFlash>> {
     boot(n.into_storage().into_flash().unwrap())
 }
 
 #[test]
 fn saved_set_survives_a_power_cycle_and_load_restores_defaults() {
-    let mut n = boot(RamFlash(vec![0xFF; 4 * PAGE]));
+    let mut n = boot(MemFlash::blank(4 * PAGE));
     assert!(n.safety().faults().is_empty(), "a blank store is not a fault");
     let v = 3.25f32.to_le_bytes();
     assert_eq!(sdo(&mut n, [0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]])[0], 0x60); // friction_c
@@ -84,14 +59,14 @@ fn saved_set_survives_a_power_cycle_and_load_restores_defaults() {
 
 #[test]
 fn a_damaged_store_boots_on_defaults_with_a_fault() {
-    let mut n = boot(RamFlash(vec![0xFF; 4 * PAGE]));
+    let mut n = boot(MemFlash::blank(4 * PAGE));
     let v = 3.25f32.to_le_bytes();
     sdo(&mut n, [0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]);
     sdo(&mut n, [0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]);
     sdo(&mut n, [0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']);
     let mut flash = n.into_storage().into_flash().unwrap();
     // flip a payload bit of the only record
-    flash.0[100] ^= 0x01;
+    flash.mem[100] ^= 0x01;
     let n = boot(flash);
     assert_eq!(n.params().get(ParamId::FrictionC), 0.0);
     assert!(n.safety().faults().contains(Faults::PARAMS_CORRUPT), "{:?}", n.safety().faults());

@@ -10,7 +10,7 @@ use joint_core::canopen::storage::FlashStorage;
 use joint_core::control::gravity;
 use joint_core::params::{check, ParamError, ParamId, RawParams};
 use joint_core::series::{self, RawSeries, SeriesError, TERMS_MAX, TERM_BYTES};
-use joint_core::store::{Flash, Store, RECORD_LEN};
+use joint_core::store::{Store, RECORD_LEN};
 use joint_core::table::fuse;
 
 fn series_2dof() -> RawSeries {
@@ -137,36 +137,12 @@ fn series_objects_stage_and_commit_whole() {
 
 const PAGE: usize = 2048;
 
-struct RamFlash(Vec<u8>);
-
-impl Flash for RamFlash {
-    type Error = ();
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = PAGE;
-    fn capacity(&self) -> usize {
-        self.0.len()
-    }
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), ()> {
-        let o = offset as usize;
-        bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(())?);
-        Ok(())
-    }
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), ()> {
-        self.0.get_mut(from as usize..to as usize).ok_or(())?.fill(0xFF);
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), ()> {
-        let dst = self.0.get_mut(offset as usize..offset as usize + bytes.len()).ok_or(())?;
-        for (d, s) in dst.iter_mut().zip(bytes) {
-            *d &= *s;
-        }
-        Ok(())
-    }
-}
+// The shared NOR-flash double (the core's `mock-flash` feature).
+use joint_core::store::mock::MemFlash;
 
 #[test]
 fn store_round_trips_the_series_and_the_residual_flag() {
-    let mut s = Store::new(RamFlash(vec![0xFF; 4 * PAGE])).unwrap();
+    let mut s = Store::new(MemFlash::blank(4 * PAGE)).unwrap();
     let mut raw = residual_set(true);
     for k in 3..TERMS_MAX {
         raw.series.amplitude[k] = k as f32 * 0.5;
@@ -177,15 +153,14 @@ fn store_round_trips_the_series_and_the_residual_flag() {
     let set = check(&raw).unwrap();
     s.save_blocking(&set).unwrap();
     let mem = s.into_flash();
-    let len = u32::from_le_bytes(mem.0[12..16].try_into().unwrap()) as usize;
+    let len = u32::from_le_bytes(mem.mem[12..16].try_into().unwrap()) as usize;
     assert!(24 + len > RECORD_LEN, "the record carries the model block");
     let mut s = Store::new(mem).unwrap();
     let l = s.load().unwrap();
     assert_eq!(l.params, set, "bit for bit, series and residual flag included");
 
     // Through the node: save, power cycle, the series is back.
-    let mut n =
-        Node::new(NodeConfig::new(3), FlashStorage::new(Store::new(RamFlash(vec![0xFF; 4 * PAGE])).unwrap()), 0);
+    let mut n = Node::new(NodeConfig::new(3), FlashStorage::new(Store::new(MemFlash::blank(4 * PAGE)).unwrap()), 0);
     n.process(0, None, &mut |_| {});
     let good = series_2dof();
     n.write(od::SERIES_COUNT, 0, &[good.n_terms]).unwrap();
@@ -199,12 +174,12 @@ fn store_round_trips_the_series_and_the_residual_flag() {
 
 #[test]
 fn a_set_without_series_is_stored_as_before() {
-    let mut s = Store::new(RamFlash(vec![0xFF; 4 * PAGE])).unwrap();
+    let mut s = Store::new(MemFlash::blank(4 * PAGE)).unwrap();
     let mut raw = residual_set(false);
     raw.series = RawSeries::EMPTY;
     s.save_blocking(&check(&raw).unwrap()).unwrap();
     let mem = s.into_flash();
-    let len = u32::from_le_bytes(mem.0[12..16].try_into().unwrap()) as usize;
+    let len = u32::from_le_bytes(mem.mem[12..16].try_into().unwrap()) as usize;
     assert_eq!(24 + len, RECORD_LEN, "no model block");
-    assert_eq!(&mem.0[24 + 4..24 + 8], &[0, 0, 0, 0], "the word that marks the block reads 0");
+    assert_eq!(&mem.mem[24 + 4..24 + 8], &[0, 0, 0, 0], "the word that marks the block reads 0");
 }

@@ -5,8 +5,8 @@
 use joint_core::params::{check, ParamId, ParamSet, RawParams, PARAMS, PARAM_COUNT};
 use joint_core::safety::Faults;
 use joint_core::store::{
-    crc32, name_id, Flash, GeometryError, LayoutError, LoadError, SaveError, SaveProgress, SlotState, Store,
-    FORMAT_VERSION, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN,
+    crc32, name_id, GeometryError, LayoutError, LoadError, SaveError, SaveProgress, SlotState, Store, FORMAT_VERSION,
+    HEADER_LEN, PAYLOAD_LEN, RECORD_LEN,
 };
 use joint_core::table::{AXES_MAX, AXIS_POINTS_MAX, CELLS_MAX};
 use proptest::prelude::*;
@@ -16,120 +16,12 @@ const REGION: usize = 4 * PAGE; // what memory.x reserves on the G431
 /// One record slot: half the region.
 const SLOT: usize = REGION / 2;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum MockError {
-    PowerCut,
-    Misaligned,
-    NotErased,
-    OutOfBounds,
-}
+// The shared NOR-flash double (power cuts, scrambled pages): the core's `mock-flash` feature.
+use joint_core::store::mock::{MemFlash as MockFlash, MemFlashError as MockError};
 
-/// A NOR flash like the G431's: 2 KiB pages, 8-byte programming of erased double-words only.
-/// `budget` bytes may still be erased or programmed; when it runs out the power is cut: the
-/// operation stops mid-way and every later call fails until the "reboot" (a new mock over the
-/// same bytes). With `scramble`, the rest of a page whose erase was cut holds garbage instead
-/// of its old contents (cells in an undefined state).
-#[derive(Clone)]
-struct MockFlash {
-    mem: Vec<u8>,
-    budget: Option<u64>,
-    dead: bool,
-    scramble: bool,
-    used: u64,
-}
-
-impl MockFlash {
-    fn blank() -> Self {
-        Self::from_mem(vec![0xFF; REGION])
-    }
-    fn from_mem(mem: Vec<u8>) -> Self {
-        MockFlash { mem, budget: None, dead: false, scramble: false, used: 0 }
-    }
-    fn with_cut(mut self, budget: u64, scramble: bool) -> Self {
-        self.budget = Some(budget);
-        self.scramble = scramble;
-        self
-    }
-    /// Consume one byte of budget; false = the power is gone.
-    fn tick(&mut self) -> bool {
-        if let Some(b) = self.budget.as_mut() {
-            if *b == 0 {
-                self.dead = true;
-                return false;
-            }
-            *b -= 1;
-        }
-        self.used += 1;
-        true
-    }
-}
-
-impl Flash for MockFlash {
-    type Error = MockError;
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = PAGE;
-    fn capacity(&self) -> usize {
-        self.mem.len()
-    }
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), MockError> {
-        if self.dead {
-            return Err(MockError::PowerCut);
-        }
-        let o = offset as usize;
-        let src = self.mem.get(o..o + bytes.len()).ok_or(MockError::OutOfBounds)?;
-        bytes.copy_from_slice(src);
-        Ok(())
-    }
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), MockError> {
-        if self.dead {
-            return Err(MockError::PowerCut);
-        }
-        let (f, t) = (from as usize, to as usize);
-        if f % PAGE != 0 || t % PAGE != 0 || f > t {
-            return Err(MockError::Misaligned);
-        }
-        if t > self.mem.len() {
-            return Err(MockError::OutOfBounds);
-        }
-        for i in f..t {
-            if !self.tick() {
-                if self.scramble {
-                    let page_end = (i / PAGE + 1) * PAGE;
-                    let mut x = (i as u32).wrapping_mul(2_654_435_761) | 1;
-                    for b in &mut self.mem[i..page_end] {
-                        x ^= x << 13;
-                        x ^= x >> 17;
-                        x ^= x << 5;
-                        *b = x as u8;
-                    }
-                }
-                return Err(MockError::PowerCut);
-            }
-            self.mem[i] = 0xFF;
-        }
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), MockError> {
-        if self.dead {
-            return Err(MockError::PowerCut);
-        }
-        let o = offset as usize;
-        if o % 8 != 0 || bytes.len() % 8 != 0 {
-            return Err(MockError::Misaligned);
-        }
-        let dst = self.mem.get(o..o + bytes.len()).ok_or(MockError::OutOfBounds)?;
-        // STM32G4: programming a double-word that is not erased is an error (PROGERR).
-        if dst.iter().any(|&b| b != 0xFF) {
-            return Err(MockError::NotErased);
-        }
-        for (k, &b) in bytes.iter().enumerate() {
-            if !self.tick() {
-                return Err(MockError::PowerCut);
-            }
-            self.mem[o + k] &= b;
-        }
-        Ok(())
-    }
+/// A blank region of the G431's size.
+fn blank() -> MockFlash {
+    MockFlash::blank(REGION)
 }
 
 /// A valid set that differs with `seed`: scalars moved inside their ranges and a 2-D gravity
@@ -186,7 +78,7 @@ fn store(flash: MockFlash) -> Store<MockFlash> {
 
 /// Flash after saving `sets` in order (no cuts).
 fn flash_with(sets: &[ParamSet]) -> MockFlash {
-    let mut s = store(MockFlash::blank());
+    let mut s = store(blank());
     for set in sets {
         s.save_blocking(set).expect("save");
     }
@@ -291,7 +183,7 @@ fn geometry() {
     let expected = 24 + 8 + 8 * joint_core::params::PARAM_COUNT + table;
     assert_eq!(HEADER_LEN + PAYLOAD_LEN, expected);
     assert_eq!(RECORD_LEN, expected);
-    let s = store(MockFlash::blank());
+    let s = store(blank());
     assert_eq!(s.used_len() as usize, REGION);
     assert_eq!(s.ops_per_save() as usize, expected.div_ceil(PAGE) + expected / 8);
     assert_eq!(
@@ -313,11 +205,11 @@ fn parameter_names_have_distinct_ids() {
 
 #[test]
 fn blank_region_loads_nothing_and_is_not_a_fault() {
-    let mut s = store(MockFlash::blank());
+    let mut s = store(blank());
     let e = s.load().unwrap_err();
     assert_eq!(e, LoadError::Blank);
     assert_eq!(e.fault(), Faults::NONE);
-    let (set, f) = store(MockFlash::blank()).load_or_defaults();
+    let (set, f) = store(blank()).load_or_defaults();
     assert_eq!(set, ParamSet::defaults());
     assert_eq!(f, Faults::NONE);
 }
@@ -325,7 +217,7 @@ fn blank_region_loads_nothing_and_is_not_a_fault() {
 #[test]
 fn round_trip_alternates_slots_and_survives_reboot() {
     let sets = [sample(1), sample(2), sample(3), full_table_set()];
-    let mut s = store(MockFlash::blank());
+    let mut s = store(blank());
     for (k, set) in sets.iter().enumerate() {
         let (slot, seq) = s.save_blocking(set).expect("save");
         assert_eq!((slot as usize, seq), (k % 2, k as u32 + 1));
@@ -778,7 +670,7 @@ proptest! {
     /// Any valid set comes back exactly, from either slot.
     #[test]
     fn any_valid_set_round_trips(a in arb_set(), b in arb_set()) {
-        let mut s = store(MockFlash::blank());
+        let mut s = store(blank());
         s.save_blocking(&a).unwrap();
         let mem = s.into_flash().mem;
         prop_assert_eq!(&boot(&mem).unwrap().params, &a);
@@ -793,7 +685,7 @@ proptest! {
     fn random_cut_sequences_keep_the_last_completed_set(
         cuts in proptest::collection::vec((0u64..7000, any::<bool>()), 1..12)
     ) {
-        let mut mem = MockFlash::blank().mem;
+        let mut mem = blank().mem;
         let mut committed: Option<ParamSet> = None;
         for (k, (cut, scramble)) in cuts.into_iter().enumerate() {
             let new = sample(k as u32 + 10);
@@ -809,4 +701,34 @@ proptest! {
             }
         }
     }
+}
+
+/// The generic window the boards hand the store: offsets from the window's start, nothing
+/// outside it read, erased or programmed, and a store over it finds what it saved.
+#[test]
+fn a_region_is_a_window_of_a_larger_flash() {
+    use joint_core::store::{NorFlash, ReadNorFlash, Region, RegionError};
+    // a 16-page "chip" whose last four pages hold the parameters, as memory.x has them
+    let mut chip = MockFlash::blank(16 * PAGE);
+    chip.mem[..12 * PAGE].fill(0x5A); // "code"
+    let mut r = Region::new(chip, 12 * PAGE as u32, REGION as u32);
+    assert_eq!(r.capacity(), REGION);
+    assert_eq!(r.window(), (12 * PAGE as u32, REGION as u32));
+    let mut b = [0u8; 8];
+    assert_eq!(r.read(REGION as u32 - 4, &mut b), Err(RegionError::OutOfBounds));
+    assert_eq!(r.erase(0, REGION as u32 + PAGE as u32), Err(RegionError::OutOfBounds));
+    assert_eq!(r.write(REGION as u32, &[0; 8]), Err(RegionError::OutOfBounds));
+    r.write(8, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    let chip = r.into_inner();
+    assert_eq!(&chip.mem[12 * PAGE + 8..12 * PAGE + 16], &[1, 2, 3, 4, 5, 6, 7, 8]);
+    assert!(chip.mem[..12 * PAGE].iter().all(|&x| x == 0x5A), "outside the window untouched");
+    // the store over the window
+    let mut chip = chip;
+    chip.mem[12 * PAGE..].fill(0xFF);
+    let mut s = Store::new(Region::new(chip, 12 * PAGE as u32, REGION as u32)).unwrap();
+    s.save_blocking(&sample(3)).unwrap();
+    let chip = s.into_flash().into_inner();
+    assert!(chip.mem[..12 * PAGE].iter().all(|&x| x == 0x5A));
+    let mut s = Store::new(Region::new(MockFlash::from_mem(chip.mem), 12 * PAGE as u32, REGION as u32)).unwrap();
+    assert_eq!(s.load().unwrap().params.raw(), sample(3).raw());
 }
