@@ -186,6 +186,11 @@ pub struct NodeConfig {
     /// [`Node::new`] sets it (and the identity) from the node's step type, so it cannot lie;
     /// a host sets it to describe a board (the EDS).
     pub arithmetic: Arithmetic,
+    /// The bus is CAN FD (nominal and data bit rate, BRS): TPDO3 (the whole state in REAL32,
+    /// 32 bytes, [`od::TPDO_FD`]) is valid and the classic TPDO1/2 start invalid; PDOs longer
+    /// than 8 bytes go out as FD frames with bit-rate switch. SDO, NMT, heartbeat and EMCY
+    /// stay 8-byte CiA 301 frames (SDO replies in the format of the request).
+    pub fd: bool,
 }
 
 /// Identity of this project's joint node. The vendor id is 0 ("unassigned" in CiA's list):
@@ -205,7 +210,15 @@ impl NodeConfig {
             device_name: "joint-node",
             software_version: env!("CARGO_PKG_VERSION"),
             arithmetic: Arithmetic::F32,
+            fd: false,
         }
+    }
+
+    /// The same node on a CAN FD bus (see [`NodeConfig::fd`]).
+    pub const fn with_fd(self, fd: bool) -> NodeConfig {
+        let mut c = self;
+        c.fd = fd;
+        c
     }
 
     /// The same node with its control step in `a`: a Q16.16 node has its own product code
@@ -510,9 +523,12 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
         self.rpdo_cob = [u32::from(RPDO1_BASE + id), COB_INVALID, COB_INVALID, COB_INVALID];
+        let fd = self.cfg.fd;
         for (n, t) in self.tpdo.iter_mut().enumerate() {
+            // an FD node sends the whole state in TPDO3, a classic one in TPDO1/2
+            let off = if (n as u8 == od::TPDO_FD) == fd { 0 } else { COB_INVALID };
             *t = Tpdo {
-                cob_id: u32::from(TPDO1_BASE + 0x100 * n as u16 + id),
+                cob_id: u32::from(TPDO1_BASE + 0x100 * n as u16 + id) | off,
                 transmission: 0xFE,
                 inhibit: 0,
                 event_ms: DEFAULT_TPDO_MS,
@@ -674,7 +690,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         if id == sdo::RX_BASE + me {
             if let Some(resp) = self.sdo_request(now_us, d) {
-                tx(frame(sdo::TX_BASE + me, resp, 8));
+                // classic SDO in FD frames too (no CiA 1301 USDO): the reply takes the
+                // request's format
+                let r = frame(sdo::TX_BASE + me, resp, 8);
+                tx(if f.is_fd() { r.into_fd(f.brs()) } else { r });
             }
             return;
         }
@@ -813,8 +832,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             t.syncs = 0;
             t.last_us = Some(now_us);
             let cob = (t.cob_id & 0x7FF) as u16;
-            let (data, len) = self.tpdo_payload(n);
-            tx(frame(cob, data, len));
+            tx(self.tpdo_frame(n, cob));
         }
     }
 
@@ -831,8 +849,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 return;
             }
         }
-        let (data, len) = self.tpdo_payload(n);
-        tx(frame((t.cob_id & 0x7FF) as u16, data, len));
+        tx(self.tpdo_frame(n, (t.cob_id & 0x7FF) as u16));
         if let Some(t) = self.tpdo.get_mut(n as usize) {
             let period = u64::from(t.event_ms) * 1000;
             t.next_us = t.next_us.saturating_add(period).max(now_us.saturating_add(1));
@@ -840,9 +857,18 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
     }
 
-    /// The current payload of TPDO `n` (0-based), from its mapping.
+    /// The current payload of TPDO `n` (0-based) as far as a classic frame holds it: its first
+    /// 8 bytes and its length, at most 8 ([`Node::tpdo_frame`] has the whole of an FD TPDO).
     pub fn tpdo_payload(&self, n: u8) -> ([u8; 8], u8) {
-        let mut data = [0u8; 8];
+        let f = self.tpdo_frame(n, 0);
+        (*f.raw_data(), f.len().min(8) as u8)
+    }
+
+    /// TPDO `n` (0-based) as it goes out with COB-ID `cob`: a classic frame if its mapping
+    /// holds ≤ 8 bytes, else an FD frame with bit-rate switch (only an FD node validates such
+    /// a TPDO).
+    pub fn tpdo_frame(&self, n: u8, cob: u16) -> CanFrame {
+        let mut data = [0u8; crate::canopen::frame::FD_MAX_LEN];
         let mut off = 0usize;
         for m in od::tpdo_mapping(n) {
             let bytes = (m & 0xFF) as usize / 8;
@@ -857,7 +883,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }
             off += bytes;
         }
-        (data, off.min(8) as u8)
+        let d = data.get(..off).unwrap_or(&data);
+        if off <= 8 { CanFrame::new(cob, d) } else { CanFrame::new_fd(cob, d, true) }.unwrap_or_default()
     }
 
     fn emcy(&mut self, code: u16, mfr: [u8; 5], tx: &mut impl FnMut(CanFrame)) {
@@ -1149,6 +1176,22 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                     _ => put_u16((self.safety.gain() * 1000.0 + 0.5) as u16),
                 }
             }
+            Key::JointStateF32(s) => {
+                let st = &self.state;
+                let f = match s {
+                    od::JF_Q => st.q,
+                    od::JF_QD => st.qd,
+                    od::JF_QDD => st.qdd,
+                    od::JF_TAU => st.tau_cmd,
+                    od::JF_TAU_MEAS => st.tau_measured,
+                    od::JF_U_MOTOR => st.tau_cmd * self.active.current().inv_ratio_m1(),
+                    od::JF_TEMP => st.temperature,
+                    od::JF_MODE => return Ok(put_u8(u8::from(self.mode() == Mode::Assist))),
+                    od::JF_GAIN => self.safety.gain(),
+                    _ => self.assist_cmd,
+                };
+                put_u32(f.to_bits())
+            }
             Key::AssistCmd => put_i16(to_i16(self.assist_cmd, pdo::TAU_LSB)),
             Key::OtherAngle(s) => {
                 put_i16(to_i16(self.others.get((s as usize).wrapping_sub(1)).copied().unwrap_or(0.0), pdo::Q_LSB))
@@ -1294,6 +1337,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }
             Key::TpdoCobId(n) => {
                 let v = check_cob(u)?;
+                // a classic frame holds 8 bytes: a longer TPDO exists only on an FD bus
+                let bytes: u32 = od::tpdo_mapping(n).iter().map(|m| (m & 0xFF) / 8).sum();
+                if v & COB_INVALID == 0 && bytes > 8 && !self.cfg.fd {
+                    return Err(Abort::MapLength);
+                }
                 if let Some(t) = self.tpdo.get_mut(n as usize) {
                     t.cob_id = v;
                 }

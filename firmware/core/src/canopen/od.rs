@@ -14,8 +14,9 @@
 //!   records (f32 amplitude, f32 phase, 4 × i8 multipliers; see [`crate::series`]);
 //! - `0x2200` commit (write 1: check the staged set and swap it in whole; write 0: discard the
 //!   staged changes), `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active;
-//! - `0x2300` joint state (PDO-mappable scaled integers), `0x2310` host command, `0x2311` the
-//!   other joints' angles (inputs of a multi-joint gravity table).
+//! - `0x2300` joint state (PDO-mappable scaled integers), `0x2301` the same state in REAL32 (the
+//!   CAN FD TPDO3: a master needs no scale), `0x2310` host command, `0x2311` the other joints'
+//!   angles (inputs of a multi-joint gravity table).
 
 use super::sdo::Abort;
 use crate::params::{ParamId, PARAMS, PARAM_COUNT};
@@ -144,6 +145,8 @@ pub enum Key {
     CommitCrc,
     /// sub-index of 0x2300
     JointState(u8),
+    /// sub-index of 0x2301
+    JointStateF32(u8),
     AssistCmd,
     /// 1..=3
     OtherAngle(u8),
@@ -214,6 +217,8 @@ pub const PARAMS_CRC: u16 = 0x2204;
 /// it commits, so another master's writes in between can never go live with it)
 pub const COMMIT_CRC: u16 = 0x2205;
 pub const JOINT_STATE: u16 = 0x2300;
+/// the joint state in REAL32 (SI units), mapped into the CAN FD TPDO3
+pub const JOINT_STATE_F32: u16 = 0x2301;
 pub const HOST_COMMAND: u16 = 0x2310;
 pub const OTHER_ANGLES: u16 = 0x2311;
 
@@ -222,8 +227,15 @@ const _: () = assert!(PARAM_COUNT <= (TABLE_SHAPE - PARAM_BASE) as usize);
 
 /// Number of RPDOs: 1 = host command, 2..=4 = other joints' angles.
 pub const RPDO_COUNT: u8 = 4;
-/// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain.
-pub const TPDO_COUNT: u8 = 2;
+/// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain (classic CAN,
+/// 8 bytes each); 3 = the whole state in REAL32, 32 bytes (CAN FD only: [`TPDO_FD`]).
+pub const TPDO_COUNT: u8 = 3;
+/// The 0-based number of the CAN FD TPDO (TPDO3, COB-ID 0x380 + node): valid by default on a
+/// node configured for FD (whose classic TPDO1/2 start invalid), invalid on a classic node,
+/// which refuses to validate it (its 32 bytes exceed a classic frame: abort 0x06040042).
+pub const TPDO_FD: u8 = 2;
+/// Most mapping entries a PDO holds here (CiA 301 allows up to 64; 16 REAL32 fill an FD frame).
+pub const MAP_MAX: usize = 16;
 
 /// "save" in little-endian ASCII, the CiA 301 signature for 0x1010.
 pub const SAVE_SIGNATURE: u32 = 0x6576_6173;
@@ -240,6 +252,23 @@ pub const JS_TAU_MEAS: u8 = 6;
 pub const JS_TEMP: u8 = 7;
 pub const JS_GAIN: u8 = 8;
 
+/// Sub-indices of 0x2301 (joint state, REAL32; q … temperature in the SI units of 0x2300).
+pub const JF_Q: u8 = 1;
+pub const JF_QD: u8 = 2;
+pub const JF_QDD: u8 = 3;
+pub const JF_TAU: u8 = 4;
+pub const JF_TAU_MEAS: u8 = 5;
+/// torque command at the motor, N·m (τ / gear ratio)
+pub const JF_U_MOTOR: u8 = 6;
+pub const JF_TEMP: u8 = 7;
+/// U8: 0 torque off, 1 assist (operational)
+pub const JF_MODE: u8 = 8;
+/// safety output gain, 0..=1
+pub const JF_GAIN: u8 = 9;
+/// the host's assist command as the node holds it, N·m
+pub const JF_ASSIST: u8 = 10;
+const JOINT_STATE_F32_NAMES: [&str; 10] =
+    ["q", "qd", "qdd", "tau_cmd", "tau_measured", "u_motor", "temperature", "mode", "gain", "assist_cmd"];
 const JOINT_STATE_NAMES: [&str; 8] =
     ["q", "qd", "tau_cmd", "faults", "qdd", "tau_measured", "temperature", "gain_permille"];
 const SHAPE_NAMES: [&str; 11] = [
@@ -256,13 +285,30 @@ const SHAPE_NAMES: [&str; 11] = [
     "residual",
 ];
 const IDENTITY_NAMES: [&str; 4] = ["vendor_id", "product_code", "revision_number", "serial_number"];
-const MAP_NAMES: [&str; 4] = ["mapped_object_1", "mapped_object_2", "mapped_object_3", "mapped_object_4"];
+const MAP_NAMES: [&str; MAP_MAX] = [
+    "mapped_object_1",
+    "mapped_object_2",
+    "mapped_object_3",
+    "mapped_object_4",
+    "mapped_object_5",
+    "mapped_object_6",
+    "mapped_object_7",
+    "mapped_object_8",
+    "mapped_object_9",
+    "mapped_object_10",
+    "mapped_object_11",
+    "mapped_object_12",
+    "mapped_object_13",
+    "mapped_object_14",
+    "mapped_object_15",
+    "mapped_object_16",
+];
 const OTHER_NAMES: [&str; 3] = ["other_angle_1", "other_angle_2", "other_angle_3"];
 const RPDO_NAMES: [&str; 4] =
     ["rpdo1_communication", "rpdo2_communication", "rpdo3_communication", "rpdo4_communication"];
 const RPDO_MAP_NAMES: [&str; 4] = ["rpdo1_mapping", "rpdo2_mapping", "rpdo3_mapping", "rpdo4_mapping"];
-const TPDO_NAMES: [&str; 2] = ["tpdo1_communication", "tpdo2_communication"];
-const TPDO_MAP_NAMES: [&str; 2] = ["tpdo1_mapping", "tpdo2_mapping"];
+const TPDO_NAMES: [&str; 3] = ["tpdo1_communication", "tpdo2_communication", "tpdo3_communication"];
+const TPDO_MAP_NAMES: [&str; 3] = ["tpdo1_mapping", "tpdo2_mapping", "tpdo3_mapping"];
 
 /// Mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based). Static: the joint
 /// state needs no remapping, and a fixed layout keeps every master's decoding the EDS's.
@@ -279,9 +325,25 @@ pub fn tpdo_mapping(n: u8) -> &'static [u32] {
         map_entry(JOINT_STATE, JS_TEMP, 16),
         map_entry(JOINT_STATE, JS_GAIN, 16),
     ];
+    // CAN FD: the whole state in one 32-byte frame (7 × REAL32, faults, mode, error register).
+    // Not 64 bytes: at 1/5 Mbit/s a 64-byte frame takes ≥ 140 µs, so six joints at 1 kHz
+    // would load the bus ≥ 84 %; 32 bytes take ≈ 90 µs (docs/canopen.md, bus budget).
+    const T3: [u32; 10] = [
+        map_entry(JOINT_STATE_F32, JF_Q, 32),
+        map_entry(JOINT_STATE_F32, JF_QD, 32),
+        map_entry(JOINT_STATE_F32, JF_QDD, 32),
+        map_entry(JOINT_STATE_F32, JF_TAU, 32),
+        map_entry(JOINT_STATE_F32, JF_TAU_MEAS, 32),
+        map_entry(JOINT_STATE_F32, JF_U_MOTOR, 32),
+        map_entry(JOINT_STATE_F32, JF_TEMP, 32),
+        map_entry(JOINT_STATE, JS_FAULTS, 16),
+        map_entry(JOINT_STATE_F32, JF_MODE, 8),
+        map_entry(ERROR_REGISTER, 0, 8),
+    ];
     match n {
         0 => &T1,
         1 => &T2,
+        2 => &T3,
         _ => &[],
     }
 }
@@ -325,7 +387,7 @@ pub fn indices() -> impl Iterator<Item = u16> {
         IDENTITY,
         ERROR_BEHAVIOUR,
     ];
-    const HIGH: [u16; 15] = [
+    const HIGH: [u16; 16] = [
         TABLE_SHAPE,
         TABLE_GRID,
         TABLE_TORQUE,
@@ -339,6 +401,7 @@ pub fn indices() -> impl Iterator<Item = u16> {
         PARAMS_CRC,
         COMMIT_CRC,
         JOINT_STATE,
+        JOINT_STATE_F32,
         HOST_COMMAND,
         OTHER_ANGLES,
     ];
@@ -367,7 +430,9 @@ const SUBS_2: &[u8] = &[0, 1, 2];
 const SUBS_3: &[u8] = &[0, 1, 2, 3];
 const SUBS_4: &[u8] = &[0, 1, 2, 3, 4];
 const SUBS_8: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8];
+const SUBS_10: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
 const SUBS_11: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
+const SUBS_16: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16];
 const TPDO_COMM_SUBS: &[u8] = &[0, 1, 2, 3, 5];
 
 /// The object at `index`, if the dictionary has it.
@@ -393,7 +458,7 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
             let n = (i - RPDO_MAP) as u8;
-            let subs = SUBS_4.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
+            let subs = SUBS_16.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
             o(RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
@@ -401,7 +466,7 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
             let n = (i - TPDO_MAP) as u8;
-            let subs = SUBS_4.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
+            let subs = SUBS_16.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
             o(TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
@@ -421,6 +486,7 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         PARAMS_CRC => o("params_crc", Record, SUBS_2),
         COMMIT_CRC => o("params_commit_crc", Var, SUB0),
         JOINT_STATE => o("joint_state", Record, SUBS_8),
+        JOINT_STATE_F32 => o("joint_state_real32", Record, SUBS_10),
         HOST_COMMAND => o("host_command", Record, SUBS_1),
         OTHER_ANGLES => o("other_joint_angles", Array, SUBS_3),
         _ => None,
@@ -531,6 +597,11 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
             let name = JOINT_STATE_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             let dtype = if sub == JS_FAULTS || sub == JS_GAIN { Unsigned16 } else { Integer16 };
             SubInfo { pdo: true, ..mk(name, dtype, Ro, Key::JointState(sub)) }
+        }
+        JOINT_STATE_F32 => {
+            let name = JOINT_STATE_F32_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
+            let dtype = if sub == JF_MODE { Unsigned8 } else { Real32 };
+            SubInfo { pdo: true, ..mk(name, dtype, Ro, Key::JointStateF32(sub)) }
         }
         HOST_COMMAND => SubInfo { pdo: true, ..mk("assist_cmd", Integer16, Rw, Key::AssistCmd) },
         OTHER_ANGLES => {

@@ -27,6 +27,8 @@ pub enum Abort {
     TooLong,
     /// 0x06070013 data type does not match, length of service parameter too low
     TooShort,
+    /// 0x06040042 the number and length of the objects to be mapped would exceed the PDO length
+    MapLength,
     /// 0x06090011 sub-index does not exist
     NoSubIndex,
     /// 0x06090030 invalid value for parameter (download only)
@@ -55,6 +57,7 @@ impl Abort {
             Abort::TypeLength => 0x0607_0010,
             Abort::TooLong => 0x0607_0012,
             Abort::TooShort => 0x0607_0013,
+            Abort::MapLength => 0x0604_0042,
             Abort::NoSubIndex => 0x0609_0011,
             Abort::InvalidValue => 0x0609_0030,
             Abort::TooHigh => 0x0609_0031,
@@ -67,7 +70,7 @@ impl Abort {
 
     /// The abort for a code, if it is one of ours.
     pub fn from_code(code: u32) -> Option<Abort> {
-        const ALL: [Abort; 16] = [
+        const ALL: [Abort; 17] = [
             Abort::Toggle,
             Abort::Timeout,
             Abort::Command,
@@ -77,6 +80,7 @@ impl Abort {
             Abort::TypeLength,
             Abort::TooLong,
             Abort::TooShort,
+            Abort::MapLength,
             Abort::NoSubIndex,
             Abort::InvalidValue,
             Abort::TooHigh,
@@ -100,6 +104,7 @@ impl Abort {
             Abort::TypeLength => "data type does not match, length of service parameter does not match",
             Abort::TooLong => "data type does not match, length of service parameter too high",
             Abort::TooShort => "data type does not match, length of service parameter too low",
+            Abort::MapLength => "the number and length of the objects to be mapped would exceed the PDO length",
             Abort::NoSubIndex => "sub-index does not exist",
             Abort::InvalidValue => "invalid value for parameter",
             Abort::TooHigh => "value of parameter written too high",
