@@ -160,3 +160,36 @@ fn sdo_in_an_fd_frame_is_answered_in_an_fd_frame_of_8_bytes() {
     n.process(201_000, Some(&req), &mut |f| out.push(f));
     assert!(!out.iter().find(|f| f.id() == 0x585).unwrap().is_fd());
 }
+
+#[test]
+fn fd_nodes_take_their_command_from_their_slot_of_the_shared_frame() {
+    // joint 3: two 16-bit slots before its own (one UNSIGNED32 dummy), COB-ID 0x200
+    let mut n = started(NodeConfig::new(3).with_fd(true));
+    let mut b = [0u8; 4];
+    n.read(0x1400, 1, &mut b).unwrap();
+    assert_eq!(u32::from_le_bytes(b), 0x200);
+    n.read(0x1600, 0, &mut b).unwrap();
+    assert_eq!(b[0], 2);
+    n.read(0x1600, 1, &mut b).unwrap();
+    assert_eq!(u32::from_le_bytes(b), 0x0007_0020, "UNSIGNED32 dummy");
+    n.read(0x1600, 2, &mut b).unwrap();
+    assert_eq!(u32::from_le_bytes(b), 0x2310_0110);
+    n.read(0x1600, 3, &mut b).unwrap();
+    assert_eq!(u32::from_le_bytes(b), 0, "past sub 0: no entry");
+    // six joints' commands: joint k gets k × 0.01 N·m; joint 3 reads bytes 4..6
+    let cmd: Vec<u8> = (1..=6i16).flat_map(|k| k.to_le_bytes()).collect();
+    let shared = CanFrame::new_fd(0x200, &cmd, true).unwrap();
+    n.process(5000, Some(&shared), &mut |_| {});
+    assert!((n.assist_cmd() - 0.03).abs() < 1e-6, "{}", n.assist_cmd());
+    // a shared frame too short for our slot is not processed (EMCY 0x8210), the command stays
+    let mut out = Vec::new();
+    n.process(6000, Some(&CanFrame::new(0x200, &[9, 9, 9, 9]).unwrap()), &mut |f| out.push(f));
+    assert!((n.assist_cmd() - 0.03).abs() < 1e-6);
+    assert!(out.iter().any(|f| f.id() == 0x83 && f.data()[..2] == [0x10, 0x82]));
+    // a classic node keeps its own RPDO1 (0x200 + id, one entry)
+    let c = started(NodeConfig::new(3));
+    c.read(0x1400, 1, &mut b).unwrap();
+    assert_eq!(u32::from_le_bytes(b), 0x203);
+    c.read(0x1600, 0, &mut b).unwrap();
+    assert_eq!(b[0], 1);
+}

@@ -31,6 +31,8 @@ fn default_value<C: ControlStep>(node: &Node<MemoryStorage, C>, s: &SubInfo) -> 
         DataType::Real32 => format!("{}", f32::from_le_bytes(b4)),
         DataType::Integer16 => format!("{}", u as u16 as i16),
         DataType::Integer32 => format!("{}", u as i32),
+        // an FD node's RPDO1 listens to the host's shared command frame, whatever its id
+        _ if s.index == od::RPDO_COMM && s.sub == 1 && u == u32::from(od::SHARED_CMD_COB) => format!("0x{u:X}"),
         _ if s.node_relative && u & 0x8000_0000 == 0 => format!("$NODEID+0x{:X}", u - u32::from(REF_ID)),
         _ => format!("0x{u:X}"),
     }
@@ -198,7 +200,8 @@ fn generate_with<C: ControlStep>(fd: bool) -> String {
     out.push('\n');
     let _ = writeln!(out, "[DummyUsage]");
     for d in 1..=7 {
-        let _ = writeln!(out, "Dummy000{d}=0");
+        // an FD node's RPDO1 maps UNSIGNED16/32 dummies before its slot of the shared frame
+        let _ = writeln!(out, "Dummy000{d}={}", u8::from(fd && (d == 6 || d == 7)));
     }
     out.push('\n');
     // Units and documentation of the parameter objects (EDS has no unit field).

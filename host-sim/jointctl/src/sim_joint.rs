@@ -112,7 +112,12 @@ pub struct JointSim {
 
 impl JointSim {
     pub fn new(node_id: u8, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
-        let node = Node::new(NodeConfig::new(node_id), storage, now_us);
+        Self::with_config(NodeConfig::new(node_id), plant, storage, now_us)
+    }
+
+    /// A joint whose node has `cfg` (a CAN FD node: `NodeConfig::new(id).with_fd(true)`).
+    pub fn with_config(cfg: NodeConfig, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
+        let node = Node::new(cfg, storage, now_us);
         let plant = plant.map(|pf| {
             let limit = f64::from(node.params().get(ParamId::TorqueLimit));
             (Plant::new(pf, 1.0e-3 / f64::from(PLANT_SUBSTEPS), limit.max(1.0)), State::default())

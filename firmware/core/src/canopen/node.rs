@@ -522,7 +522,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let id = u16::from(self.cfg.node_id);
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
-        self.rpdo_cob = [u32::from(RPDO1_BASE + id), COB_INVALID, COB_INVALID, COB_INVALID];
+        // an FD node with a slot takes its command from the host's shared command frame
+        let rpdo1 =
+            if self.cfg.fd && id <= u16::from(od::SHARED_CMD_IDS) { od::SHARED_CMD_COB } else { RPDO1_BASE + id };
+        self.rpdo_cob = [u32::from(rpdo1), COB_INVALID, COB_INVALID, COB_INVALID];
         let fd = self.cfg.fd;
         for (n, t) in self.tpdo.iter_mut().enumerate() {
             // an FD node sends the whole state in TPDO3, a classic one in TPDO1/2
@@ -707,19 +710,39 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
     }
 
+    /// The mapping of RPDO `n` in force: the dictionary's, except RPDO1 of an FD node, which
+    /// takes its slot of the host's shared command frame ([`od::shared_cmd_mapping`]).
+    fn rpdo_map(&self, n: u8) -> ([u32; od::MAP_MAX], usize) {
+        let mut m = [0u32; od::MAP_MAX];
+        if n == 0 && self.cfg.fd {
+            if let Some(k) = od::shared_cmd_mapping(self.cfg.node_id, &mut m) {
+                return (m, k);
+            }
+        }
+        let fixed = od::rpdo_mapping(n);
+        for (dst, src) in m.iter_mut().zip(fixed) {
+            *dst = *src;
+        }
+        (m, fixed.len().min(od::MAP_MAX))
+    }
+
     fn rpdo(&mut self, n: u8, d: &[u8], tx: &mut impl FnMut(CanFrame)) {
-        let need: usize = od::rpdo_mapping(n).iter().map(|m| (m & 0xFF) as usize / 8).sum();
+        let (map, count) = self.rpdo_map(n);
+        let map = map.get(..count).unwrap_or(&[]);
+        let need: usize = map.iter().map(|m| (m & 0xFF) as usize / 8).sum();
         if d.len() < need {
             // CiA 301: a PDO shorter than its mapping is not processed; EMCY 0x8210.
             self.emcy(EMCY_PDO_LENGTH, [n, d.len() as u8, 0, 0, 0], tx);
             return;
         }
         let mut off = 0usize;
-        for m in od::rpdo_mapping(n) {
+        for m in map {
             let bytes = (m & 0xFF) as usize / 8;
             let index = (m >> 16) as u16;
             let sub = ((m >> 8) & 0xFF) as u8;
-            if let (Some(chunk), Ok(info)) = (d.get(off..off + bytes), od::sub_info(index, sub)) {
+            // dummy entries (data-type indices) only skip their bytes
+            if let (Some(chunk), Ok(info), true) = (d.get(off..off + bytes), od::sub_info(index, sub), index >= 0x1000)
+            {
                 // Mapped objects are plain RW integers: the write cannot be refused.
                 let _ = self.write_value(&info, chunk, false);
             }
@@ -1137,7 +1160,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }),
             Key::RpdoCobId(n) => put_u32(self.rpdo_cob.get(n as usize).copied().unwrap_or(COB_INVALID)),
             Key::RpdoType(_) => put_u8(0xFE),
-            Key::RpdoMap(n, s) => put_u32(od::rpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+            Key::RpdoMap(n, s) => {
+                let (m, k) = self.rpdo_map(n);
+                put_u32(if usize::from(s) <= k { m.get((s as usize).wrapping_sub(1)).copied().unwrap_or(0) } else { 0 })
+            }
+            Key::RpdoMapCount(n) => put_u8(self.rpdo_map(n).1 as u8),
             Key::TpdoCobId(n) => put_u32(self.tpdo.get(n as usize).map_or(COB_INVALID, |t| t.cob_id)),
             Key::TpdoType(n) => put_u8(self.tpdo.get(n as usize).map_or(0xFE, |t| t.transmission)),
             Key::TpdoInhibit(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.inhibit)),

@@ -116,6 +116,8 @@ pub enum Key {
     RpdoType(u8),
     /// (pdo, sub 1..)
     RpdoMap(u8, u8),
+    /// sub 0 of an RPDO mapping: the number of entries in force
+    RpdoMapCount(u8),
     TpdoCobId(u8),
     TpdoType(u8),
     TpdoInhibit(u8),
@@ -348,6 +350,35 @@ pub fn tpdo_mapping(n: u8) -> &'static [u32] {
     }
 }
 
+/// CiA 301 dummy mapping entries: the data types UNSIGNED16 (0x0006) and UNSIGNED32 (0x0007)
+/// as mapped objects skip that many bits of a received PDO.
+pub const DUMMY_U16: u32 = map_entry(0x0006, 0, 16);
+pub const DUMMY_U32: u32 = map_entry(0x0007, 0, 32);
+
+/// COB-ID of the host's shared command frame on a CAN FD bus: one FD frame with every
+/// joint's 16-bit assist command, joint `id` at bytes `2(id − 1)..2id` (ids 1..=[`SHARED_CMD_IDS`]).
+/// 0x200 is RPDO1's base with node id 0, which no node has.
+pub const SHARED_CMD_COB: u16 = 0x200;
+/// Node ids with a slot in the shared command frame (64 bytes / 2).
+pub const SHARED_CMD_IDS: u8 = 32;
+
+/// RPDO1's mapping on an FD node with id `node_id`: dummies up to its slot in the shared
+/// command frame, then the assist command (`None` when the id has no slot). Written into
+/// `out`, the number of entries returned.
+pub fn shared_cmd_mapping(node_id: u8, out: &mut [u32; MAP_MAX]) -> Option<usize> {
+    if !(1..=SHARED_CMD_IDS).contains(&node_id) {
+        return None;
+    }
+    let skip = usize::from(node_id - 1); // 16-bit slots before ours
+    let mut k = 0;
+    for e in core::iter::repeat_n(DUMMY_U32, skip / 2).chain(core::iter::repeat_n(DUMMY_U16, skip % 2)) {
+        *out.get_mut(k)? = e;
+        k += 1;
+    }
+    *out.get_mut(k)? = map_entry(HOST_COMMAND, 1, 16);
+    Some(k + 1)
+}
+
 /// Mapping of RPDO `n` (0-based): RPDO1 carries the host's assist command; RPDO2..4 each take
 /// the first 16 bits of a frame — point their COB-ID at another joint's TPDO1 (0x180 + id)
 /// and its `q` lands in the matching `others` slot. Extra bytes of a longer frame are ignored
@@ -457,8 +488,11 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
             o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
+            // every node's RPDO1 of an FD node may hold dummy entries before its value (its
+            // slot in the host's shared command frame): the entries the node has are listed,
+            // sub 0 says how many count
             let n = (i - RPDO_MAP) as u8;
-            let subs = SUBS_16.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
+            let subs = if n == 0 { SUBS_16 } else { SUBS_16.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0) };
             o(RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
@@ -517,6 +551,9 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
     if index == ERROR_HISTORY && sub == 0 {
         // not the highest sub-index but the number of errors recorded; writing 0 clears them
         return Ok(mk("number_of_errors", Unsigned8, Rw, Key::ErrorHistoryCount));
+    }
+    if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&index) && sub == 0 {
+        return Ok(mk("number_of_mapped_objects", Unsigned8, Ro, Key::RpdoMapCount((index - RPDO_MAP) as u8)));
     }
     if sub == 0 && obj.kind != ObjectKind::Var {
         return Ok(mk("highest_sub_index", Unsigned8, Const, Key::Count(highest)));
