@@ -421,6 +421,63 @@ def test_sync_triggered_tpdo_and_the_error_history(rig):
     assert node.sdo[0x1003][0].raw == 0
 
 
+def test_tpdo_remapped_through_the_pdo_api_and_kept_by_store(rig):
+    """python-canopen's own PDO configuration (read, clear, add_variable, save: the CiA 301
+    disable / sub 0 = 0 / entries / sub 0 = n / enable sequence by SDO), the remapped TPDO
+    received and decoded, the mapping stored with 0x1010 and back after an NMT reset node.
+    Runs last on this rig: it leaves the defaults restored (0x1011) for a clean teardown."""
+    network, node, _ = rig
+    preop(node)
+    node.tpdo.read()
+    tp = node.tpdo[1]
+    tp.clear()
+    tp.add_variable("joint_state_real32", "q")
+    tp.add_variable("joint_state", "faults")
+    tp.add_variable(0x1001)
+    tp.enabled = True
+    tp.save()
+    assert [node.sdo[0x1A00][k].raw for k in range(4)] == [3, 0x23010120, 0x23000410, 0x10010008]
+    node.nmt.state = "OPERATIONAL"
+    assert tp.wait_for_reception(timeout=1.0) is not None
+    assert tp.wait_for_reception(timeout=1.0) is not None
+    q = tp["joint_state_real32.q"].raw
+    assert isinstance(q, float) and abs(q) < 1.0, q  # REAL32 in rad: no scale
+    assert tp["joint_state.faults"].raw == 0
+    assert len(tp.data) == 7
+    preop(node)
+    # refused steps name their reason and change nothing
+    node.sdo[0x1800][1].raw = 0x80000185
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][1].raw = 0x23010120
+    assert abort_code(e) == 0x06010000  # entries are locked while sub 0 is not 0
+    node.sdo[0x1A00][0].raw = 0
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][1].raw = 0x20000020  # a parameter object is not mappable
+    assert abort_code(e) == 0x06040041
+    node.sdo[0x1A00][3].raw = 0x23010220  # q̇: 4 + 2 + 4 = 10 bytes
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][0].raw = 3
+    assert abort_code(e) == 0x06040042
+    node.sdo[0x1A00][3].raw = 0x10010008
+    node.sdo[0x1A00][0].raw = 3
+    node.sdo[0x1800][1].raw = 0x185
+    # stored with the parameters, back after a reset of the node
+    node.store()
+    node.nmt.state = "RESET"
+    node.nmt.wait_for_bootup(timeout=2)
+    time.sleep(0.2)
+    node.sdo["clear_faults"].raw = 1
+    node.tpdo.read()
+    assert [v.name for v in node.tpdo[1]] == ["joint_state_real32.q", "joint_state.faults", "error_register"]
+    # 0x1011: the defaults after the next reset
+    node.restore()
+    node.nmt.state = "RESET"
+    node.nmt.wait_for_bootup(timeout=2)
+    time.sleep(0.2)
+    node.sdo["clear_faults"].raw = 1
+    assert node.sdo[0x1A00][0].raw == 4 and node.sdo[0x1A00][1].raw == 0x23000110
+
+
 # ---- CAN FD ------------------------------------------------------------------------------
 # python-can's slcan interface speaks the CANable 2.0 FD extension (`b`/`d` lines, DLC 0..F),
 # so the FD joint is reached the same way: `jointctl sim --fd` on one end of a pty pair,

@@ -32,6 +32,7 @@
 use super::frame::CanFrame;
 use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
+use super::pdo_map::{PdoMaps, PDO_MAPS_BYTES};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
 use crate::fixed::{Arithmetic, ControllerFx};
@@ -257,6 +258,16 @@ pub trait ParamStorage {
     /// Persist the committed set. `Ok` means accepted: a firmware flash task may finish the
     /// write later and raise [`Faults::STORE_WRITE`] should it fail.
     fn save(&mut self, set: &ParamSet) -> Result<(), StorageError>;
+    /// Keep the PDO mappings (0x1010 saves them with the parameters; [`PdoMaps::to_bytes`]).
+    /// A storage that does not keep them says [`StorageError::Unsupported`]: the parameters
+    /// are saved all the same and the mappings return to their defaults at reset.
+    fn save_pdo(&mut self, _maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        Err(StorageError::Unsupported)
+    }
+    /// The stored PDO mappings, if any (read at every reset of communication).
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        None
+    }
     /// The stored set, read at boot and on NMT reset-node; `None` when nothing is stored.
     fn load(&mut self) -> Option<RawParams>;
     /// The fault the last [`ParamStorage::load`] found (a damaged or unreadable store), raised
@@ -289,6 +300,8 @@ impl ParamStorage for NoStorage {
 pub struct MemoryStorage {
     pub stored: Option<RawParams>,
     pub saves: u32,
+    /// the PDO mappings saved with the set
+    pub pdo: Option<[u8; PDO_MAPS_BYTES]>,
 }
 
 impl ParamStorage for MemoryStorage {
@@ -300,8 +313,16 @@ impl ParamStorage for MemoryStorage {
     fn load(&mut self) -> Option<RawParams> {
         self.stored.clone()
     }
+    fn save_pdo(&mut self, maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        self.pdo = Some(*maps);
+        Ok(())
+    }
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        self.pdo
+    }
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         self.stored = None;
+        self.pdo = None;
         Ok(())
     }
 }
@@ -389,6 +410,8 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     host_id: u8,
     rpdo_cob: [u32; od::RPDO_COUNT as usize],
     tpdo: [Tpdo; od::TPDO_COUNT as usize],
+    /// the PDO mappings in force (0x1600.., 0x1A00..)
+    maps: PdoMaps,
     assist_cmd: f32,
     others: [f32; 3],
     state: JointState,
@@ -471,6 +494,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
             rpdo_cob: [0; od::RPDO_COUNT as usize],
+            maps: PdoMaps::defaults(cfg.node_id, cfg.fd),
             tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None, syncs: 0 };
                 od::TPDO_COUNT as usize],
             error_history: [0; od::ERROR_HISTORY_LEN],
@@ -540,6 +564,12 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 syncs: 0,
             };
         }
+        // the stored mappings (0x1010), else the dictionary's
+        self.maps = self
+            .storage
+            .load_pdo()
+            .and_then(|b| PdoMaps::from_bytes(&b))
+            .unwrap_or(PdoMaps::defaults(self.cfg.node_id, fd));
         self.sync_cob = DEFAULT_SYNC_COB;
         self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
@@ -710,25 +740,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
     }
 
-    /// The mapping of RPDO `n` in force: the dictionary's, except RPDO1 of an FD node, which
-    /// takes its slot of the host's shared command frame ([`od::shared_cmd_mapping`]).
-    fn rpdo_map(&self, n: u8) -> ([u32; od::MAP_MAX], usize) {
-        let mut m = [0u32; od::MAP_MAX];
-        if n == 0 && self.cfg.fd {
-            if let Some(k) = od::shared_cmd_mapping(self.cfg.node_id, &mut m) {
-                return (m, k);
-            }
-        }
-        let fixed = od::rpdo_mapping(n);
-        for (dst, src) in m.iter_mut().zip(fixed) {
-            *dst = *src;
-        }
-        (m, fixed.len().min(od::MAP_MAX))
-    }
-
     fn rpdo(&mut self, n: u8, d: &[u8], tx: &mut impl FnMut(CanFrame)) {
-        let (map, count) = self.rpdo_map(n);
-        let map = map.get(..count).unwrap_or(&[]);
+        let mut copy = [0u32; od::MAP_MAX];
+        let src = self.maps.get(false, n);
+        for (c, s) in copy.iter_mut().zip(src) {
+            *c = *s;
+        }
+        let map = copy.get(..src.len()).unwrap_or(&[]);
         let need: usize = map.iter().map(|m| (m & 0xFF) as usize / 8).sum();
         if d.len() < need {
             // CiA 301: a PDO shorter than its mapping is not processed; EMCY 0x8210.
@@ -893,7 +911,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     pub fn tpdo_frame(&self, n: u8, cob: u16) -> CanFrame {
         let mut data = [0u8; crate::canopen::frame::FD_MAX_LEN];
         let mut off = 0usize;
-        for m in od::tpdo_mapping(n) {
+        for m in self.maps.get(true, n) {
             let bytes = (m & 0xFF) as usize / 8;
             let index = (m >> 16) as u16;
             let sub = ((m >> 8) & 0xFF) as u8;
@@ -1160,16 +1178,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }),
             Key::RpdoCobId(n) => put_u32(self.rpdo_cob.get(n as usize).copied().unwrap_or(COB_INVALID)),
             Key::RpdoType(_) => put_u8(0xFE),
-            Key::RpdoMap(n, s) => {
-                let (m, k) = self.rpdo_map(n);
-                put_u32(if usize::from(s) <= k { m.get((s as usize).wrapping_sub(1)).copied().unwrap_or(0) } else { 0 })
-            }
-            Key::RpdoMapCount(n) => put_u8(self.rpdo_map(n).1 as u8),
+            Key::RpdoMap(n, s) => put_u32(self.maps.read(false, n, s)),
+            Key::MapCount(tx, n) => put_u8(self.maps.read(tx, n, 0) as u8),
             Key::TpdoCobId(n) => put_u32(self.tpdo.get(n as usize).map_or(COB_INVALID, |t| t.cob_id)),
             Key::TpdoType(n) => put_u8(self.tpdo.get(n as usize).map_or(0xFE, |t| t.transmission)),
             Key::TpdoInhibit(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.inhibit)),
             Key::TpdoEvent(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.event_ms)),
-            Key::TpdoMap(n, s) => put_u32(od::tpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+            Key::TpdoMap(n, s) => put_u32(self.maps.read(true, n, s)),
             Key::Param(p) => put_u32(self.staged.get(p).to_bits()),
             Key::TableShape(s) => put_u8(match s {
                 1 => t.n_axes,
@@ -1255,6 +1270,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             | Key::TpdoEvent(_)
             | Key::SyncCobId
             | Key::ErrorBehaviour => self.write_comm(info.key, u),
+            Key::MapCount(..) | Key::RpdoMap(..) | Key::TpdoMap(..) => self.write_map(info.key, u),
             Key::ErrorHistoryCount => {
                 // CiA 301: only 0 may be written, and it clears the history
                 if u != 0 {
@@ -1322,7 +1338,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 return Err(Abort::CannotStore);
             }
             let set = self.active.current();
-            let r = self.storage.save(set);
+            let mut r = self.storage.save(set);
+            if r.is_ok() {
+                let mut b = [0u8; PDO_MAPS_BYTES];
+                self.maps.to_bytes(&mut b);
+                // a storage without room for them keeps the parameters only
+                r = self.storage.save_pdo(&b).or_else(|e| if e == StorageError::Unsupported { Ok(()) } else { Err(e) });
+            }
             if r == Err(StorageError::Failed) {
                 self.safety.raise(Faults::STORE_WRITE);
             }
@@ -1335,6 +1357,20 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         // does what is staged (staging the defaults let the next commit, anyone's, apply them).
         self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
         Ok(())
+    }
+
+    /// A write to a PDO mapping (see [`super::pdo_map`]): only while the PDO is invalid.
+    fn write_map(&mut self, key: Key, u: u32) -> Result<(), Abort> {
+        let (tx, n, sub) = match key {
+            Key::MapCount(tx, n) => (tx, n, 0),
+            Key::RpdoMap(n, s) => (false, n, s),
+            Key::TpdoMap(n, s) => (true, n, s),
+            _ => return Err(Abort::ReadOnly),
+        };
+        let cob = if tx { self.tpdo.get(n as usize).map(|t| t.cob_id) } else { self.rpdo_cob.get(n as usize).copied() };
+        let valid = cob.is_some_and(|c| c & COB_INVALID == 0);
+        let max = if self.cfg.fd { crate::canopen::frame::FD_MAX_LEN } else { 8 };
+        self.maps.write(tx, n, sub, u, valid, max)
     }
 
     /// Heartbeat consumer/producer and the PDO communication parameters.
@@ -1365,8 +1401,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             Key::TpdoCobId(n) => {
                 let v = check_cob(u)?;
                 // a classic frame holds 8 bytes: a longer TPDO exists only on an FD bus
-                let bytes: u32 = od::tpdo_mapping(n).iter().map(|m| (m & 0xFF) / 8).sum();
-                if v & COB_INVALID == 0 && bytes > 8 && !self.cfg.fd {
+                if v & COB_INVALID == 0 && self.maps.bytes(true, n) > 8 && !self.cfg.fd {
                     return Err(Abort::MapLength);
                 }
                 if let Some(t) = self.tpdo.get_mut(n as usize) {

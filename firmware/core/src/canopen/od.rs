@@ -116,8 +116,8 @@ pub enum Key {
     RpdoType(u8),
     /// (pdo, sub 1..)
     RpdoMap(u8, u8),
-    /// sub 0 of an RPDO mapping: the number of entries in force
-    RpdoMapCount(u8),
+    /// sub 0 of a PDO mapping (tx, pdo): the number of entries in force, written to change it
+    MapCount(bool, u8),
     TpdoCobId(u8),
     TpdoType(u8),
     TpdoInhibit(u8),
@@ -312,9 +312,14 @@ const RPDO_MAP_NAMES: [&str; 4] = ["rpdo1_mapping", "rpdo2_mapping", "rpdo3_mapp
 const TPDO_NAMES: [&str; 3] = ["tpdo1_communication", "tpdo2_communication", "tpdo3_communication"];
 const TPDO_MAP_NAMES: [&str; 3] = ["tpdo1_mapping", "tpdo2_mapping", "tpdo3_mapping"];
 
-/// Mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based). Static: the joint
-/// state needs no remapping, and a fixed layout keeps every master's decoding the EDS's.
+/// Default mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based); a master
+/// may remap (0x1A00.., [`super::pdo_map`]).
 pub fn tpdo_mapping(n: u8) -> &'static [u32] {
+    TPDO_DEFAULTS.get(n as usize).copied().unwrap_or(&[])
+}
+
+/// The default TPDO mappings, TPDO1 first.
+pub const TPDO_DEFAULTS: [&[u32]; TPDO_COUNT as usize] = {
     const T1: [u32; 4] = [
         map_entry(JOINT_STATE, JS_Q, 16),
         map_entry(JOINT_STATE, JS_QD, 16),
@@ -342,13 +347,8 @@ pub fn tpdo_mapping(n: u8) -> &'static [u32] {
         map_entry(JOINT_STATE_F32, JF_MODE, 8),
         map_entry(ERROR_REGISTER, 0, 8),
     ];
-    match n {
-        0 => &T1,
-        1 => &T2,
-        2 => &T3,
-        _ => &[],
-    }
-}
+    [&T1, &T2, &T3]
+};
 
 /// CiA 301 dummy mapping entries: the data types UNSIGNED16 (0x0006) and UNSIGNED32 (0x0007)
 /// as mapped objects skip that many bits of a received PDO.
@@ -359,20 +359,27 @@ pub const DUMMY_U32: u32 = map_entry(0x0007, 0, 32);
 /// joint's 16-bit assist command, joint `id` at bytes `2(id − 1)..2id` (ids 1..=[`SHARED_CMD_IDS`]).
 /// 0x200 is RPDO1's base with node id 0, which no node has.
 pub const SHARED_CMD_COB: u16 = 0x200;
-/// Node ids with a slot in the shared command frame (64 bytes / 2).
-pub const SHARED_CMD_IDS: u8 = 32;
+/// Node ids with a slot in the shared command frame: 1..=31 (id 32's slot, bytes 62..64,
+/// would need 17 mapping entries: 15 UNSIGNED32 and one UNSIGNED16 dummy, then its value).
+pub const SHARED_CMD_IDS: u8 = 31;
 
 /// RPDO1's mapping on an FD node with id `node_id`: dummies up to its slot in the shared
 /// command frame, then the assist command (`None` when the id has no slot). Written into
 /// `out`, the number of entries returned.
+#[inline(never)]
 pub fn shared_cmd_mapping(node_id: u8, out: &mut [u32; MAP_MAX]) -> Option<usize> {
     if !(1..=SHARED_CMD_IDS).contains(&node_id) {
         return None;
     }
     let skip = usize::from(node_id - 1); // 16-bit slots before ours
+                                         // a loop bounded by the id, not by MAP_MAX: unrolled 16 times it cost 0.9 KiB of flash
     let mut k = 0;
-    for e in core::iter::repeat_n(DUMMY_U32, skip / 2).chain(core::iter::repeat_n(DUMMY_U16, skip % 2)) {
-        *out.get_mut(k)? = e;
+    while k < skip / 2 {
+        *out.get_mut(k)? = DUMMY_U32;
+        k += 1;
+    }
+    if skip % 2 == 1 {
+        *out.get_mut(k)? = DUMMY_U16;
         k += 1;
     }
     *out.get_mut(k)? = map_entry(HOST_COMMAND, 1, 16);
@@ -384,18 +391,17 @@ pub fn shared_cmd_mapping(node_id: u8, out: &mut [u32; MAP_MAX]) -> Option<usize
 /// and its `q` lands in the matching `others` slot. Extra bytes of a longer frame are ignored
 /// (CiA 301 allows a received PDO longer than its mapping).
 pub fn rpdo_mapping(n: u8) -> &'static [u32] {
+    RPDO_DEFAULTS.get(n as usize).copied().unwrap_or(&[])
+}
+
+/// The default RPDO mappings, RPDO1 first.
+pub const RPDO_DEFAULTS: [&[u32]; RPDO_COUNT as usize] = {
     const R1: [u32; 1] = [map_entry(HOST_COMMAND, 1, 16)];
     const R2: [u32; 1] = [map_entry(OTHER_ANGLES, 1, 16)];
     const R3: [u32; 1] = [map_entry(OTHER_ANGLES, 2, 16)];
     const R4: [u32; 1] = [map_entry(OTHER_ANGLES, 3, 16)];
-    match n {
-        0 => &R1,
-        1 => &R2,
-        2 => &R3,
-        3 => &R4,
-        _ => &[],
-    }
-}
+    [&R1, &R2, &R3, &R4]
+};
 
 const fn map_entry(index: u16, sub: u8, bits: u8) -> u32 {
     ((index as u32) << 16) | ((sub as u32) << 8) | bits as u32
@@ -488,20 +494,14 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
             o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
-            // every node's RPDO1 of an FD node may hold dummy entries before its value (its
-            // slot in the host's shared command frame): the entries the node has are listed,
-            // sub 0 says how many count
-            let n = (i - RPDO_MAP) as u8;
-            let subs = if n == 0 { SUBS_16 } else { SUBS_16.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0) };
-            o(RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
+            // writable mappings: every entry a PDO may hold is listed, sub 0 says how many count
+            o(RPDO_MAP_NAMES.get((i - RPDO_MAP) as usize).copied().unwrap_or(""), Record, SUBS_16)
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
             o(TPDO_NAMES.get((i - TPDO_COMM) as usize).copied().unwrap_or(""), Record, TPDO_COMM_SUBS)
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
-            let n = (i - TPDO_MAP) as u8;
-            let subs = SUBS_16.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
-            o(TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
+            o(TPDO_MAP_NAMES.get((i - TPDO_MAP) as usize).copied().unwrap_or(""), Record, SUBS_16)
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let d = PARAMS.get((i - PARAM_BASE) as usize)?;
@@ -552,8 +552,13 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         // not the highest sub-index but the number of errors recorded; writing 0 clears them
         return Ok(mk("number_of_errors", Unsigned8, Rw, Key::ErrorHistoryCount));
     }
-    if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&index) && sub == 0 {
-        return Ok(mk("number_of_mapped_objects", Unsigned8, Ro, Key::RpdoMapCount((index - RPDO_MAP) as u8)));
+    if sub == 0 {
+        if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&index) {
+            return Ok(mk("number_of_mapped_objects", Unsigned8, Rw, Key::MapCount(false, (index - RPDO_MAP) as u8)));
+        }
+        if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&index) {
+            return Ok(mk("number_of_mapped_objects", Unsigned8, Rw, Key::MapCount(true, (index - TPDO_MAP) as u8)));
+        }
     }
     if sub == 0 && obj.kind != ObjectKind::Var {
         return Ok(mk("highest_sub_index", Unsigned8, Const, Key::Count(highest)));
@@ -588,7 +593,7 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
             let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
-            mk(name, Unsigned32, Ro, Key::RpdoMap(idx_in(RPDO_MAP), sub))
+            mk(name, Unsigned32, Rw, Key::RpdoMap(idx_in(RPDO_MAP), sub))
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
             let n = idx_in(TPDO_COMM);
@@ -601,7 +606,7 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
             let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
-            mk(name, Unsigned32, Ro, Key::TpdoMap(idx_in(TPDO_MAP), sub))
+            mk(name, Unsigned32, Rw, Key::TpdoMap(idx_in(TPDO_MAP), sub))
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let id = ParamId::from_index((i - PARAM_BASE) as usize).ok_or(Abort::NoObject)?;

@@ -101,7 +101,7 @@ pub fn load(joints: u32, rate: f64, bitrate: u32, data_bitrate: Option<u32>) -> 
     }
     frame(0x77F, 1, false, 10.0);
     if data_bitrate.is_some() && joints > 0 {
-        frame(0x200, 2 * joints.min(32) as usize, true, rate);
+        frame(0x200, 2 * joints.min(31) as usize, true, rate);
     }
     (worst / 1e9, typical / 1e9)
 }
@@ -171,7 +171,7 @@ pub fn measure(joints: u32, period_ms: u16, bitrate: u32, data_bitrate: Option<u
         }
         if fd {
             // one FD frame with every joint's command (0.16 N·m assist), joint j at 2(j − 1)
-            let cmd: Vec<u8> = (0..joints.min(32)).flat_map(|_| [0x10, 0x00]).collect();
+            let cmd: Vec<u8> = (0..joints.min(31)).flat_map(|_| [0x10, 0x00]).collect();
             let f = CanFrame::new_fd(od::SHARED_CMD_COB, &cmd, true).ok_or_else(|| anyhow::anyhow!("shared frame"))?;
             bus.send(&f)?;
         } else {

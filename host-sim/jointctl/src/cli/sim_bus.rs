@@ -49,9 +49,10 @@ pub struct SimArgs {
     /// slcan adapter is opened with its data bit rate (`Yn`; frames `b`/`d`)
     #[arg(long)]
     pub fd: bool,
-    /// Data-phase bit rate with --fd, bit/s (slcan: 1, 2, 4, 5 or 8 Mbit/s)
-    #[arg(long, value_name = "BIT/S", default_value_t = 5_000_000, requires = "fd")]
-    pub data_bitrate: u32,
+    /// Data-phase bit rate with --fd, bit/s (10000..=8000000; slcan adapters take 1, 2, 4, 5
+    /// or 8 Mbit/s; default 5000000)
+    #[arg(long, value_name = "BIT/S", value_parser = num::bitrate(num::CAN_FD_DATA_BITRATE))]
+    pub data_bitrate: Option<u32>,
 }
 
 pub fn run(a: &SimArgs) -> anyhow::Result<()> {
@@ -77,7 +78,11 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     }
     plan.check()?;
     let plant = a.plant.as_ref().map(|p| PlantFile::read_file(p)).transpose()?;
-    let mut bus = if a.fd { joint_can::open_fd(&a.bus, a.data_bitrate)? } else { joint_can::open(&a.bus)? };
+    if a.data_bitrate.is_some() && !a.fd {
+        anyhow::bail!("--data-bitrate is the CAN FD data phase: give --fd too");
+    }
+    let mut bus =
+        if a.fd { joint_can::open_fd(&a.bus, a.data_bitrate.unwrap_or(5_000_000))? } else { joint_can::open(&a.bus)? };
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
