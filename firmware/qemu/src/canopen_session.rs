@@ -154,46 +154,51 @@ fn abort_code(frame: &CanFrame) -> Option<u32> {
     Some(u32::from_le_bytes(c))
 }
 
+/// One frame the node sent, into the summary and out as a line.
+fn record<E: FnMut(&Line)>(
+    s: &mut Summary,
+    emit: &mut E,
+    step: u32,
+    what: &'static str,
+    expected_abort: Option<u32>,
+    fr: &CanFrame,
+) {
+    s.frames += 1;
+    if let Some(code) = abort_code(fr) {
+        s.aborts += 1;
+        if Some(code) == expected_abort {
+            s.expected_aborts_seen += 1;
+        }
+    }
+    if fr.id() == 0x80 + u16::from(NODE_ID) {
+        s.emcy += 1;
+    }
+    if fr.id() == 0x180 + u16::from(NODE_ID) || fr.id() == 0x280 + u16::from(NODE_ID) {
+        s.tpdo += 1;
+    }
+    if fr.is_fd() {
+        s.fd_frames += 1;
+        if fr.id() == 0x380 + u16::from(NODE_ID) {
+            s.fd_tpdo += 1;
+        }
+        if fr.id() == 0x580 + u16::from(NODE_ID) {
+            s.fd_sdo_replies += 1;
+        }
+    }
+    s.lines += 1;
+    emit(&Line::Tx { step, what, frame: *fr });
+}
+
 struct Run<'a, E: FnMut(&Line), C: ControlStep> {
     node: Node<MemoryStorage, C>,
     emit: &'a mut E,
     s: Summary,
     step: u32,
-    expected_abort: Option<u32>,
 }
 
 impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     fn now(&self) -> u64 {
         u64::from(self.step) * PERIOD_US
-    }
-
-    fn out(&mut self, what: &'static str, frames: &[CanFrame]) {
-        for fr in frames {
-            self.s.frames += 1;
-            if let Some(code) = abort_code(fr) {
-                self.s.aborts += 1;
-                if Some(code) == self.expected_abort {
-                    self.s.expected_aborts_seen += 1;
-                }
-            }
-            if fr.id() == 0x80 + u16::from(NODE_ID) {
-                self.s.emcy += 1;
-            }
-            if fr.id() == 0x180 + u16::from(NODE_ID) || fr.id() == 0x280 + u16::from(NODE_ID) {
-                self.s.tpdo += 1;
-            }
-            if fr.is_fd() {
-                self.s.fd_frames += 1;
-                if fr.id() == 0x380 + u16::from(NODE_ID) {
-                    self.s.fd_tpdo += 1;
-                }
-                if fr.id() == 0x580 + u16::from(NODE_ID) {
-                    self.s.fd_sdo_replies += 1;
-                }
-            }
-            self.s.lines += 1;
-            (self.emit)(&Line::Tx { step: self.step, what, frame: *fr });
-        }
     }
 
     /// One received frame, with what the node sends in answer.
@@ -202,32 +207,21 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     }
 
     fn rx_opt(&mut self, what: &'static str, frame: Option<CanFrame>, expect_abort: Option<u32>) {
-        let mut buf = [CanFrame::default(); 16];
-        let mut n = 0usize;
         let now = self.now();
-        self.node.process(now, frame.as_ref(), &mut |o| {
-            if let Some(slot) = buf.get_mut(n) {
-                *slot = o;
-                n += 1;
-            }
-        });
-        self.expected_abort = expect_abort;
-        self.out(what, buf.get(..n).unwrap_or(&[]));
-        self.expected_abort = None;
+        let step = self.step;
+        // each frame is recorded as the node sends it: no buffer of 68-byte frames on the stack
+        let Run { node, emit, s, .. } = self;
+        node.process(now, frame.as_ref(), &mut |o| record(s, &mut **emit, step, what, expect_abort, &o));
     }
 
     /// The board's 1 ms tick: timers, then the control step.
     fn tick(&mut self) {
-        let mut buf = [CanFrame::default(); 16];
-        let mut n = 0usize;
         let now = self.now();
-        self.node.poll(now, &mut |o| {
-            if let Some(slot) = buf.get_mut(n) {
-                *slot = o;
-                n += 1;
-            }
-        });
-        self.out("poll", buf.get(..n).unwrap_or(&[]));
+        let step = self.step;
+        {
+            let Run { node, emit, s, .. } = self;
+            node.poll(now, &mut |o| record(s, &mut **emit, step, "poll", None, &o));
+        }
         // A joint swinging ±0.6 rad at 0.5 Hz, with its exact derivatives.
         let t = self.step as f32 * (PERIOD_US as f32 * 1.0e-6);
         let w = 2.0 * core::f32::consts::PI * 0.5;
@@ -353,7 +347,6 @@ pub fn run_fd_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
         emit,
         s: Summary::default(),
         step: 0,
-        expected_abort: None,
     };
     r.rx_opt("boot", None, None);
     for step in 0..STEPS_FD {
@@ -376,7 +369,6 @@ pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
         emit,
         s: Summary::default(),
         step: 0,
-        expected_abort: None,
     };
     // The first process call sends the boot-up message.
     r.rx_opt("boot", None, None);

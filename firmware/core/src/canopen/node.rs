@@ -494,7 +494,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
             rpdo_cob: [0; od::RPDO_COUNT as usize],
-            maps: PdoMaps::defaults(cfg.node_id, cfg.fd),
+            maps: PdoMaps::EMPTY,
             tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None, syncs: 0 };
                 od::TPDO_COUNT as usize],
             error_history: [0; od::ERROR_HISTORY_LEN],
@@ -565,11 +565,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             };
         }
         // the stored mappings (0x1010), else the dictionary's
-        self.maps = self
-            .storage
-            .load_pdo()
-            .and_then(|b| PdoMaps::from_bytes(&b))
-            .unwrap_or(PdoMaps::defaults(self.cfg.node_id, fd));
+        self.maps.reset(self.cfg.node_id, fd);
+        self.load_stored_maps();
         self.sync_cob = DEFAULT_SYNC_COB;
         self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
@@ -1340,10 +1337,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             let set = self.active.current();
             let mut r = self.storage.save(set);
             if r.is_ok() {
-                let mut b = [0u8; PDO_MAPS_BYTES];
-                self.maps.to_bytes(&mut b);
-                // a storage without room for them keeps the parameters only
-                r = self.storage.save_pdo(&b).or_else(|e| if e == StorageError::Unsupported { Ok(()) } else { Err(e) });
+                r = self.save_maps();
             }
             if r == Err(StorageError::Failed) {
                 self.safety.raise(Faults::STORE_WRITE);
@@ -1357,6 +1351,24 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         // does what is staged (staging the defaults let the next commit, anyone's, apply them).
         self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
         Ok(())
+    }
+
+    /// The stored PDO mappings, if the storage has some this firmware accepts. Out of line:
+    /// the 455-byte image lives on the stack only during this call.
+    #[inline(never)]
+    fn load_stored_maps(&mut self) {
+        if let Some(b) = self.storage.load_pdo() {
+            self.maps.load(&b);
+        }
+    }
+
+    /// The PDO mappings to the storage with the parameters (0x1010); a storage without room
+    /// for them keeps the parameters only.
+    #[inline(never)]
+    fn save_maps(&mut self) -> Result<(), StorageError> {
+        let mut b = [0u8; PDO_MAPS_BYTES];
+        self.maps.to_bytes(&mut b);
+        self.storage.save_pdo(&b).or_else(|e| if e == StorageError::Unsupported { Ok(()) } else { Err(e) })
     }
 
     /// A write to a PDO mapping (see [`super::pdo_map`]): only while the PDO is invalid.

@@ -39,17 +39,27 @@ pub fn is_dummy(e: u32) -> bool {
 impl PdoMaps {
     /// The dictionary's defaults for a node with `node_id` (RPDO1 of an FD node: its slot of
     /// the shared command frame, [`od::shared_cmd_mapping`]).
-    #[inline(never)]
     pub fn defaults(node_id: u8, fd: bool) -> PdoMaps {
-        let mut m = DEFAULTS;
+        let mut m = EMPTY;
+        m.reset(node_id, fd);
+        m
+    }
+
+    /// No entries anywhere (a node's mappings before its first reset of communication).
+    pub const EMPTY: PdoMaps = EMPTY;
+
+    /// Back to [`PdoMaps::defaults`], in place (the node lives in a static: a temporary
+    /// copy would cost the stack its 460 bytes).
+    #[inline(never)]
+    pub fn reset(&mut self, node_id: u8, fd: bool) {
+        self.clone_from(&DEFAULTS);
         if fd {
-            if let (Some(e), Some(c)) = (m.entries.first_mut(), m.count.first_mut()) {
+            if let (Some(e), Some(c)) = (self.entries.first_mut(), self.count.first_mut()) {
                 if let Some(k) = od::shared_cmd_mapping(node_id, e) {
                     *c = k as u8;
                 }
             }
         }
-        m
     }
 
     /// The entries in force of a PDO.
@@ -119,38 +129,48 @@ impl PdoMaps {
         }
     }
 
-    /// The mapping from [`PdoMaps::to_bytes`]; `None` if an entry would not be accepted now
-    /// (a firmware whose dictionary changed keeps its defaults rather than map the unknown)
-    /// or a PDO would exceed 64 bytes. (A mapping longer than 8 bytes is kept on a classic
-    /// node as its defaults are: such a TPDO cannot be validated there.)
-    pub fn from_bytes(b: &[u8; PDO_MAPS_BYTES]) -> Option<PdoMaps> {
-        let mut m = PdoMaps { entries: [[0; MAP_MAX]; N], count: [0; N] };
-        let mut chunks = b.chunks_exact(1 + 4 * MAP_MAX);
-        for i in 0..N {
-            let c = chunks.next()?;
-            let (&k, rest) = c.split_first()?;
+    /// Take a mapping stored by [`PdoMaps::to_bytes`], in place; `false` (and nothing
+    /// changed) if an entry would not be accepted now (a firmware whose dictionary changed
+    /// keeps its defaults rather than map the unknown) or a PDO would exceed 64 bytes. (A
+    /// mapping longer than 8 bytes is kept on a classic node as its defaults are: such a TPDO
+    /// cannot be validated there.)
+    #[inline(never)]
+    pub fn load(&mut self, b: &[u8; PDO_MAPS_BYTES]) -> bool {
+        const STRIDE: usize = 1 + 4 * MAP_MAX;
+        let entry = |c: &[u8], k: usize| -> u32 {
+            let mut w = [0u8; 4];
+            for (d, s) in w.iter_mut().zip(c.iter().skip(1 + 4 * k)) {
+                *d = *s;
+            }
+            u32::from_le_bytes(w)
+        };
+        // check everything first: a stored image is taken whole or not at all
+        for (i, c) in b.chunks_exact(STRIDE).enumerate() {
+            let k = usize::from(c.first().copied().unwrap_or(0));
             let tx = i >= usize::from(RPDO_COUNT);
-            let entries = m.entries.get_mut(i)?;
-            for (d, w) in entries.iter_mut().zip(rest.chunks_exact(4)) {
-                *d = u32::from_le_bytes(w.try_into().ok()?);
+            let bits: usize = (0..k).map(|j| entry_bits(entry(c, j))).sum();
+            if k > MAP_MAX || bits > 512 || (0..k).any(|j| check_entry(tx, entry(c, j)).is_err()) {
+                return false;
             }
-            let live = entries.get(..usize::from(k))?;
-            let bits: usize = live.iter().map(|&e| entry_bits(e)).sum();
-            if bits > 512 || live.iter().any(|&e| check_entry(tx, e).is_err()) {
-                return None;
-            }
-            *m.count.get_mut(i)? = k;
         }
-        Some(m)
+        for ((c, e), n) in b.chunks_exact(STRIDE).zip(self.entries.iter_mut()).zip(self.count.iter_mut()) {
+            *n = c.first().copied().unwrap_or(0);
+            for (j, d) in e.iter_mut().enumerate() {
+                *d = entry(c, j);
+            }
+        }
+        true
     }
 }
+
+const EMPTY: PdoMaps = PdoMaps { entries: [[0; MAP_MAX]; N], count: [0; N] };
 
 /// The dictionary's mappings, built at compile time (one copy in flash): copying them costs
 /// less flash than code that assembles them.
 // Indexing in a const: an index out of range fails the build, never the firmware.
 #[allow(clippy::indexing_slicing)]
 static DEFAULTS: PdoMaps = {
-    let mut m = PdoMaps { entries: [[0; MAP_MAX]; N], count: [0; N] };
+    let mut m = EMPTY;
     let mut i = 0;
     while i < N {
         let fixed: &[u32] =
