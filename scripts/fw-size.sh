@@ -2,6 +2,7 @@
 # Builds a board image (profile fw) and prints its flash and static RAM use against its budget.
 #   fw-size.sh [g431]  the STM32G431 image: flash <= 64 KiB, static RAM <= 16 KiB (stretch
 #                      48 KiB / 12 KiB), half the G431CB's 128 KiB / 32 KiB.
+#   fw-size.sh g431-fd the same image built for CAN FD (feature fd: 1/5 Mbit/s, BRS), same budget.
 #   fw-size.sh g0b1    the STM32G0B1 image (Q16.16 step; `g0b1-f32` the soft-float one):
 #                      flash <= 120 KiB so it fits the smallest G0B1 (xB: 128 KiB, minus the
 #                      8 KiB parameter pages) and not only the NUCLEO's 512 KiB part; static
@@ -22,11 +23,13 @@ G0B1=(--manifest-path firmware/board-g0b1/Cargo.toml)
 case "${1:-g431}" in
     g431) TARGET=thumbv7em-none-eabihf PKG=firmware CRATE=(-p firmware) FEATURES=()
           MAP=memory.x FLASH_BUDGET=$((64 * 1024)) FLASH_STRETCH=$((48 * 1024)) ;;
+    g431-fd) TARGET=thumbv7em-none-eabihf PKG=firmware CRATE=(-p firmware) FEATURES=(--features fd)
+          MAP=memory.x FLASH_BUDGET=$((64 * 1024)) FLASH_STRETCH=$((48 * 1024)) ;;
     g0b1) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 CRATE=("${G0B1[@]}") FEATURES=()
           MAP=firmware/board-g0b1/memory.x FLASH_BUDGET=$((120 * 1024)) FLASH_STRETCH=$((96 * 1024)) ;;
     g0b1-f32) TARGET=thumbv6m-none-eabi PKG=firmware-g0b1 CRATE=("${G0B1[@]}") FEATURES=(--no-default-features)
           MAP=firmware/board-g0b1/memory.x FLASH_BUDGET=$((120 * 1024)) FLASH_STRETCH=$((96 * 1024)) ;;
-    *) echo "usage: fw-size.sh [g431|g0b1|g0b1-f32]" >&2; exit 2 ;;
+    *) echo "usage: fw-size.sh [g431|g431-fd|g0b1|g0b1-f32]" >&2; exit 2 ;;
 esac
 echo "fw-size: $PKG ${FEATURES[*]} ($TARGET, map $MAP)"
 TARGET_DIR=${CARGO_TARGET_DIR:-target}

@@ -419,3 +419,173 @@ def test_sync_triggered_tpdo_and_the_error_history(rig):
     assert node.sdo["controller_accel_cutoff"].raw == old
     node.sdo[0x1003][0].raw = 0
     assert node.sdo[0x1003][0].raw == 0
+
+
+def test_tpdo_remapped_through_the_pdo_api_and_kept_by_store(rig):
+    """python-canopen's own PDO configuration (read, clear, add_variable, save: the CiA 301
+    disable / sub 0 = 0 / entries / sub 0 = n / enable sequence by SDO), the remapped TPDO
+    received and decoded, the mapping stored with 0x1010 and back after an NMT reset node.
+    Runs last on this rig: it leaves the defaults restored (0x1011) for a clean teardown."""
+    network, node, _ = rig
+    preop(node)
+    node.tpdo.read()
+    tp = node.tpdo[1]
+    tp.clear()
+    tp.add_variable("joint_state_real32", "q")
+    tp.add_variable("joint_state", "faults")
+    tp.add_variable(0x1001)
+    tp.enabled = True
+    tp.save()
+    assert [node.sdo[0x1A00][k].raw for k in range(4)] == [3, 0x23010120, 0x23000410, 0x10010008]
+    node.nmt.state = "OPERATIONAL"
+    assert tp.wait_for_reception(timeout=1.0) is not None
+    assert tp.wait_for_reception(timeout=1.0) is not None
+    q = tp["joint_state_real32.q"].raw
+    assert isinstance(q, float) and abs(q) < 1.0, q  # REAL32 in rad: no scale
+    assert tp["joint_state.faults"].raw == 0
+    assert len(tp.data) == 7
+    preop(node)
+    # refused steps name their reason and change nothing
+    node.sdo[0x1800][1].raw = 0x80000185
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][1].raw = 0x23010120
+    assert abort_code(e) == 0x06010000  # entries are locked while sub 0 is not 0
+    node.sdo[0x1A00][0].raw = 0
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][1].raw = 0x20000020  # a parameter object is not mappable
+    assert abort_code(e) == 0x06040041
+    node.sdo[0x1A00][3].raw = 0x23010220  # q̇: 4 + 2 + 4 = 10 bytes
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo[0x1A00][0].raw = 3
+    assert abort_code(e) == 0x06040042
+    node.sdo[0x1A00][3].raw = 0x10010008
+    node.sdo[0x1A00][0].raw = 3
+    node.sdo[0x1800][1].raw = 0x185
+    # stored with the parameters, back after a reset of the node
+    node.store()
+    node.nmt.state = "RESET"
+    node.nmt.wait_for_bootup(timeout=2)
+    time.sleep(0.2)
+    node.sdo["clear_faults"].raw = 1
+    node.tpdo.read()
+    assert [v.name for v in node.tpdo[1]] == ["joint_state_real32.q", "joint_state.faults", "error_register"]
+    # 0x1011: the defaults after the next reset
+    node.restore()
+    node.nmt.state = "RESET"
+    node.nmt.wait_for_bootup(timeout=2)
+    time.sleep(0.2)
+    node.sdo["clear_faults"].raw = 1
+    assert node.sdo[0x1A00][0].raw == 4 and node.sdo[0x1A00][1].raw == 0x23000110
+
+
+# ---- CAN FD ------------------------------------------------------------------------------
+# python-can's slcan interface speaks the CANable 2.0 FD extension (`b`/`d` lines, DLC 0..F),
+# so the FD joint is reached the same way: `jointctl sim --fd` on one end of a pty pair,
+# python-canopen with the FD EDS (`jointctl eds --fd`) on the other.
+
+FD_NODE = 6
+
+
+@pytest.fixture(scope="module")
+def fd_rig():
+    tmp = Path(tempfile.mkdtemp(prefix="joint-interop-fd-"))
+    a, b = tmp / "canA", tmp / "canB"
+    socat = subprocess.Popen(
+        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
+    eds = tmp / "joint-fd.eds"
+    subprocess.run([jointctl(), "eds", "--fd", "--out", str(eds)], check=True)
+    sim = subprocess.Popen(
+        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", str(FD_NODE), "--fd",
+         "--plant", str(ROOT / "examples/plants/trunk-right.toml")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    network = canopen.Network()
+    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
+    frames = can.BufferedReader()
+    network.notifier.add_listener(frames)
+    node = network.add_node(FD_NODE, str(eds))
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    hb = network.send_periodic(0x700 + HOST_ID, bytes([0x05]), 0.05)
+    node.nmt.wait_for_heartbeat(timeout=2)
+    time.sleep(0.1)
+    node.sdo["clear_faults"].raw = 1
+    try:
+        yield network, node, frames
+    finally:
+        hb.stop()
+        network.disconnect()
+        sim.terminate()
+        try:
+            rc = sim.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            sim.kill()
+            rc = "hung"
+        socat.terminate()
+        socat.wait(timeout=5)
+        shutil.rmtree(tmp, ignore_errors=True)
+        assert rc == 0, f"jointctl sim --fd did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
+
+
+def test_fd_tpdo_carries_the_whole_state_decoded_through_the_eds(fd_rig):
+    network, node, frames = fd_rig
+    node.tpdo.read(from_od=True)
+    tp3 = node.tpdo[3]
+    names = [v.name.split(".")[-1] for v in tp3]
+    assert names == ["q", "qd", "qdd", "tau_cmd", "tau_measured", "u_motor", "temperature",
+                     "faults", "mode", "error_register"], names
+    assert tp3.cob_id == 0x380 + FD_NODE
+    assert not node.tpdo[1].enabled and not node.tpdo[2].enabled, "classic TPDOs start invalid on FD"
+    node.nmt.state = "OPERATIONAL"
+    for _ in range(5):
+        assert tp3.wait_for_reception(timeout=1.0) is not None
+    vals = {v.name.split(".")[-1]: v.raw for v in tp3}
+    # REAL32 in SI units: no scale (the plant moves within ±0.5 rad)
+    assert abs(vals["q"]) < 1.0, vals
+    assert vals["temperature"] == 30.0, vals
+    assert vals["mode"] == 1 and vals["faults"] == 0, vals
+    # and the frame itself: a 32-byte FD frame with bit-rate switch (python-can's Message)
+    frames.get_message(0)
+    deadline = time.monotonic() + 1.0
+    msg = None
+    while time.monotonic() < deadline:
+        m = frames.get_message(0.1)
+        if m is not None and m.arbitration_id == 0x380 + FD_NODE:
+            msg = m
+            break
+    assert msg is not None and msg.is_fd and msg.bitrate_switch and msg.dlc == 32, msg
+    assert struct.unpack_from("<f", msg.data, 24)[0] == 30.0
+    preop(node)
+
+
+def test_fd_shared_command_frame_and_sdo_in_fd_frames(fd_rig):
+    network, node, frames = fd_rig
+    node.nmt.state = "OPERATIONAL"
+    time.sleep(0.05)
+    # joint 6's slot of the host's shared command frame: bytes 10..12 (assist command, 0.01 N·m)
+    cmd = bytearray(12)
+    struct.pack_into("<h", cmd, 2 * (FD_NODE - 1), 25)  # 0.25 N·m
+    network.bus.send(can.Message(arbitration_id=0x200, data=cmd, is_fd=True, bitrate_switch=True,
+                                 is_extended_id=False))
+    time.sleep(0.05)
+    assert abs(node.sdo[0x2301][10].raw - 0.25) < 1e-6
+    # an SDO request in an FD frame gets its reply in an FD frame of 8 bytes
+    while frames.get_message(0) is not None:
+        pass
+    network.bus.send(can.Message(arbitration_id=0x600 + FD_NODE, data=bytes([0x40, 0x18, 0x10, 2, 0, 0, 0, 0]),
+                                 is_fd=True, bitrate_switch=True, is_extended_id=False))
+    deadline = time.monotonic() + 1.0
+    reply = None
+    while time.monotonic() < deadline:
+        m = frames.get_message(0.1)
+        if m is not None and m.arbitration_id == 0x580 + FD_NODE:
+            reply = m
+            break
+    assert reply is not None and reply.is_fd and reply.bitrate_switch and len(reply.data) == 8, reply
+    assert reply.data[:4] == bytes([0x43, 0x18, 0x10, 2])
+    assert struct.unpack_from("<I", reply.data, 4)[0] == node.sdo[0x1018][2].raw
+    preop(node)

@@ -199,13 +199,21 @@ fn host_canopen() -> (Vec<String>, canopen_session::Summary) {
 }
 
 fn host_canopen_with<C: ControlStep>() -> (Vec<String>, canopen_session::Summary) {
+    let (lines, summary, _) = host_canopen_fd_with::<C>();
+    (lines, summary)
+}
+
+/// Both sessions as the image prints them: the classic one, then the CAN FD one.
+fn host_canopen_fd_with<C: ControlStep>() -> (Vec<String>, canopen_session::Summary, canopen_session::Summary) {
     let mut lines = Vec::new();
-    let summary = canopen_session::run_with::<C>(&mut |l: &canopen_session::Line| {
+    let mut emit = |l: &canopen_session::Line| {
         let mut s = String::new();
         l.write(&mut s).expect("formatting into a String");
         lines.push(s.trim_end().to_string());
-    });
-    (lines, summary)
+    };
+    let summary = canopen_session::run_with::<C>(&mut emit);
+    let fd = canopen_session::run_fd_with::<C>(&mut emit);
+    (lines, summary, fd)
 }
 
 /// The first line where QEMU's output differs from the host's, described with the step,
@@ -252,7 +260,7 @@ fn canopen_session_q16_on_qemu_matches_host_byte_for_byte() {
 }
 
 fn canopen_session_matches<C: ControlStep>(log_var: &str, bin: &str) {
-    let (host, summary) = host_canopen_with::<C>();
+    let (host, summary, fd) = host_canopen_fd_with::<C>();
     let text = qemu_output(log_var, bin);
     let qemu: Vec<&str> = text.lines().filter(|l| !l.starts_with("# ")).collect();
     let qemu_summary =
@@ -263,6 +271,21 @@ fn canopen_session_matches<C: ControlStep>(log_var: &str, bin: &str) {
     let mut expected_summary = String::new();
     summary.write(&mut expected_summary).expect("formatting into a String");
     assert_eq!(format!("# canopen {qemu_summary}"), expected_summary.trim_end(), "summary line");
+    let qemu_fd = text.lines().find(|l| l.starts_with("# canopen-fd ")).expect("the image printed no FD summary");
+    let mut expected_fd = String::new();
+    fd.write_fd(&mut expected_fd).expect("formatting into a String");
+    assert_eq!(qemu_fd, expected_fd.trim_end(), "FD summary line");
+
+    // The FD session: TPDO3 every 5 ms while operational (steps 10..200), SDO answered in FD
+    // for both FD requests, the shared command's slot (joint 5's value 5 × 7k at k = 9 → 3.15
+    // N·m) taken and the
+    // short frame refused with its EMCY.
+    assert!((36..=39).contains(&fd.fd_tpdo), "{fd:?}");
+    assert_eq!(fd.fd_sdo_replies, 2, "{fd:?}");
+    assert_eq!(fd.fd_frames, fd.fd_tpdo + 2, "{fd:?}");
+    assert_eq!(fd.fd_assist_centi, 315, "{fd:?}");
+    assert!(fd.fd_short_kept && fd.emcy >= 1, "{fd:?}");
+    assert!(host.iter().any(|l| l.contains(" poll 385 bd ")), "TPDO3 lines, FD with BRS, 32 bytes");
 
     // The session exercised what its script claims.
     assert_eq!(

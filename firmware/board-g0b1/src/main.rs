@@ -42,6 +42,9 @@ mod hal {
     pub type Step = joint_core::control::Controller;
 }
 
+#[cfg(feature = "fd")]
+compile_error!("CAN FD is not built for the G0B1 yet: 64 MHz gives no exact 5 Mbit/s data phase (see Cargo.toml)");
+
 #[cfg(target_os = "none")]
 mod fw {
     use embassy_executor::Spawner;

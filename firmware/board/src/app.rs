@@ -12,7 +12,7 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use defmt::{error, info, warn};
 use embassy_executor::Spawner;
 use embassy_futures::select::{select, Either};
-use embassy_stm32::can::{self, Frame};
+use embassy_stm32::can;
 use embassy_stm32::flash::Flash;
 use embassy_stm32::peripherals;
 use embassy_stm32::wdg::IndependentWatchdog;
@@ -24,7 +24,7 @@ use firmware::can_link::{self, BusMode, BusStats, Outbox};
 use firmware::control_loop::ControlLoop;
 use firmware::io::{Encoder, TorqueOutput};
 use firmware::storage::{BoardStorage, EraseOrder, Job};
-use joint_core::canopen::{Node, NodeConfig};
+use joint_core::canopen::{CanFrame, Node, NodeConfig};
 use joint_core::params::{check, ParamId, ParamSet, RawParams};
 use joint_core::safety::Faults;
 use joint_core::store::{NorFlash as _, SaveProgress, Store};
@@ -129,8 +129,10 @@ fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, Fau
 /// `Node::new` holds several parameter sets on the stack) are not part of `main`'s frame.
 #[inline(never)]
 fn create_node(boot: Option<RawParams>, fault: Faults) -> &'static mut JointNode {
-    NODE_CELL
-        .init_with(|| Node::with_step(NodeConfig::new(NODE_ID), BoardStorage::new(boot, fault, wake_params), now_us()))
+    NODE_CELL.init_with(|| {
+        let cfg = NodeConfig::new(NODE_ID).with_fd(cfg!(feature = "fd"));
+        Node::with_step(cfg, BoardStorage::new(boot, fault, wake_params), now_us())
+    })
 }
 
 /// Reads the parameter store and builds the node (the first thing `main` does after the
@@ -243,6 +245,51 @@ async fn control(
     }
 }
 
+/// The next received frame as the node's (or why it is not one). Classic image: the HAL's
+/// classic frames; FD image: its FD frames, whose header says FD and BRS.
+#[cfg(not(feature = "fd"))]
+async fn rx_frame(rx: &mut can::CanRx<'_>) -> Result<Result<CanFrame, can_link::Rejected>, can::enums::BusError> {
+    rx.read().await.map(|env| can_link::to_core(&env.frame))
+}
+#[cfg(feature = "fd")]
+async fn rx_frame(rx: &mut can::CanRx<'_>) -> Result<Result<CanFrame, can_link::Rejected>, can::enums::BusError> {
+    rx.read_fd().await.map(|env| {
+        let h = env.frame.header();
+        can_link::to_core_fd(&env.frame, h.fdcan(), h.bit_rate_switching())
+    })
+}
+
+#[cfg(not(feature = "fd"))]
+type HalFrame = can::Frame;
+#[cfg(feature = "fd")]
+type HalFrame = can::frame::FdFrame;
+
+/// The node's frame as the HAL's: FD frames (with their BRS) only in the FD image.
+#[cfg(not(feature = "fd"))]
+fn to_hal(f: &CanFrame) -> Option<HalFrame> {
+    can_link::to_hal::<can::Frame>(f)
+}
+#[cfg(feature = "fd")]
+fn to_hal(f: &CanFrame) -> Option<HalFrame> {
+    use can::frame::Header;
+    let id = embedded_can::StandardId::new(f.id())?.into();
+    let h = if f.is_fd() {
+        Header::new_fd(id, f.len() as u8, false, f.brs())
+    } else {
+        Header::new(id, f.len() as u8, false)
+    };
+    can::frame::FdFrame::new(h, f.data()).ok()
+}
+
+#[cfg(not(feature = "fd"))]
+async fn tx_frame(tx: &mut can::CanTx<'_>, f: &HalFrame) -> Option<HalFrame> {
+    tx.write(f).await
+}
+#[cfg(feature = "fd")]
+async fn tx_frame(tx: &mut can::CanTx<'_>, f: &HalFrame) -> Option<HalFrame> {
+    tx.write_fd(f).await
+}
+
 #[embassy_executor::task]
 async fn can_task(can: can::Can<'static>) {
     let (mut tx, mut rx, props) = can.split();
@@ -254,10 +301,10 @@ async fn can_task(can: can::Can<'static>) {
     let mut logged = stats;
     let mut next_log = Instant::now() + STATS_LOG;
     loop {
-        match select(rx.read(), poll.next()).await {
-            Either::First(Ok(env)) => {
+        match select(rx_frame(&mut rx), poll.next()).await {
+            Either::First(Ok(f)) => {
                 stats.count_rx();
-                match can_link::to_core(&env.frame) {
+                match f {
                     Ok(f) => {
                         let now = now_us();
                         with_node(|n| n.process(now, Some(&f), &mut outbox.sink()));
@@ -272,12 +319,12 @@ async fn can_task(can: can::Can<'static>) {
             }
         }
         for f in outbox.frames() {
-            let hal = can_link::to_hal::<Frame>(f);
+            let hal = to_hal(f);
             match hal {
                 Some(frame) if stats.mode != BusMode::BusOff => {
                     // write() waits for a free TX buffer; bounded so a dead bus cannot
                     // park the task (and with it the node's timers).
-                    match embassy_time::with_timeout(Duration::from_millis(5), tx.write(&frame)).await {
+                    match embassy_time::with_timeout(Duration::from_millis(5), tx_frame(&mut tx, &frame)).await {
                         Ok(None) => stats.count_tx(),
                         // A queued lower-priority frame was pushed out to make room.
                         Ok(Some(_)) => {

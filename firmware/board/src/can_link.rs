@@ -34,6 +34,23 @@ pub fn to_core<F: Frame>(f: &F) -> Result<CanFrame, Rejected> {
     CanFrame::new(id.as_raw(), f.data()).ok_or(Rejected::TooLong)
 }
 
+/// A received frame of a controller in CAN FD mode as the node's frame: `fd` and `brs` are
+/// what the HAL's header says (embassy-stm32's `FdFrame::header()`), which `embedded_can`
+/// does not carry.
+pub fn to_core_fd<F: Frame>(f: &F, fd: bool, brs: bool) -> Result<CanFrame, Rejected> {
+    let Id::Standard(id) = f.id() else {
+        return Err(Rejected::Extended);
+    };
+    if f.is_remote_frame() {
+        return Err(Rejected::Remote);
+    }
+    if fd {
+        CanFrame::new_fd(id.as_raw(), f.data(), brs).ok_or(Rejected::TooLong)
+    } else {
+        CanFrame::new(id.as_raw(), f.data()).ok_or(Rejected::TooLong)
+    }
+}
+
 /// A frame of the node as the HAL's frame. The node only makes frames with an 11-bit id and
 /// at most 8 bytes, so `None` means the HAL refused a valid classic frame.
 pub fn to_hal<F: Frame>(f: &CanFrame) -> Option<F> {
@@ -276,6 +293,24 @@ mod tests {
         fn data(&self) -> &[u8] {
             &[0; 12]
         }
+    }
+
+    #[test]
+    fn fd_frames_keep_their_format_and_bit_rate_switch() {
+        let long = LongFrame(TestFrame { id: Id::Standard(sid(0x605)), remote: false, dlc: 12, data: [0; 8] });
+        let f = to_core_fd(&long, true, true).unwrap();
+        assert!(f.is_fd() && f.brs() && f.len() == 12);
+        let f = to_core_fd(&long, true, false).unwrap();
+        assert!(f.is_fd() && !f.brs());
+        // a classic frame received in FD mode stays classic; a long one claimed classic is refused
+        let short = TestFrame::new(sid(0x605), &[1, 2]).unwrap();
+        let c = to_core_fd(&short, false, false).unwrap();
+        assert!(!c.is_fd() && c.data() == [1, 2]);
+        assert_eq!(to_core_fd(&long, false, false), Err(Rejected::TooLong));
+        let ext = TestFrame::new(ExtendedId::new(0x605).unwrap(), &[0]).unwrap();
+        assert_eq!(to_core_fd(&ext, true, true), Err(Rejected::Extended));
+        let remote = TestFrame::new_remote(sid(0x705), 1).unwrap();
+        assert_eq!(to_core_fd(&remote, true, true), Err(Rejected::Remote));
     }
 
     #[test]

@@ -74,6 +74,10 @@ mod fw {
     use crate::app::{self, CAN_BITRATE, ENCODER_COUNTS_PER_REV, IWDG_TIMEOUT_US, MOTOR_FULL_SCALE_NM};
     use crate::board::{HBridgeTorque, QeiEncoder};
 
+    // the FD image's nominal rate is the classic image's: 170 MHz / 170 tq
+    #[cfg(feature = "fd")]
+    const _: () = assert!(170_000_000 / (1 + 135 + 34) == CAN_BITRATE);
+
     bind_interrupts!(struct Irqs {
         FDCAN1_IT0 => can::IT0InterruptHandler<peripherals::FDCAN1>;
         FDCAN1_IT1 => can::IT1InterruptHandler<peripherals::FDCAN1>;
@@ -125,11 +129,79 @@ mod fw {
         let wdg = IndependentWatchdog::new(p.IWDG, IWDG_TIMEOUT_US);
 
         let mut can_cfg = can::CanConfigurator::new(p.FDCAN1, p.PA11, p.PB9, Irqs);
+        #[cfg(not(feature = "fd"))]
         can_cfg.set_bitrate(CAN_BITRATE);
+        #[cfg(feature = "fd")]
+        can_cfg.set_config(crate::fd::timing(can_cfg.config()));
         can_cfg.set_config(can_cfg.config().set_automatic_bus_off_recovery(true));
         let can = can_cfg.into_normal_mode();
+        #[cfg(feature = "fd")]
+        crate::fd::enable_delay_compensation();
 
         app::spawn(spawner, encoder, torque, wdg, can, store);
+    }
+}
+
+/// CAN FD bit timing of the G431 image (feature `fd`). The FDCAN kernel clock is PCLK1 =
+/// 170 MHz (fdcansel above; APB1 undivided), one time quantum 5.88 ns with prescaler 1 in both
+/// phases — CiA 601-3 recommends the same quantum for both, so the phases' edges line up:
+///
+/// | phase | rate | tq/bit | sync + TSEG1 + TSEG2 | sample point | SJW |
+/// |---|---|---|---|---|---|
+/// | nominal (arbitration) | 1 Mbit/s | 170 | 1 + 135 + 34 | 80.0 % | 34 |
+/// | data (BRS) | 5 Mbit/s | 34 | 1 + 25 + 8 | 76.5 % | 8 |
+///
+/// Register ranges (RM0440 FDCAN_NBTP/DBTP): NTSEG1 ≤ 256, NTSEG2 ≤ 128, DTSEG1 ≤ 32,
+/// DTSEG2 ≤ 16, DSJW ≤ 16; embassy writes value − 1. At 5 Mbit/s a bit is 200 ns, shorter
+/// than the transceiver loop delay (TX→bus→RX, ≈ 100–250 ns for a TCAN/MCP2562FD-class
+/// part), so the transmitter samples its own bits at a secondary sample point: transceiver
+/// delay compensation (DBTP.TDC) with offset TDCO = DBRP × DTSEG1 = 25 mtq after the measured
+/// delay (ST's HAL examples and AN5348), filter window TDCF 0 (off). embassy-stm32 0.6 does
+/// not write TDCR, so [`enable_delay_compensation`] does it through the PAC.
+#[cfg(all(target_os = "none", feature = "fd"))]
+mod fd {
+    use core::num::{NonZeroU16, NonZeroU8};
+    use embassy_stm32::can::config::{DataBitTiming, FdCanConfig, FrameTransmissionConfig, NominalBitTiming};
+
+    const fn nz8(v: u8) -> NonZeroU8 {
+        match NonZeroU8::new(v) {
+            Some(n) => n,
+            None => NonZeroU8::MIN,
+        }
+    }
+
+    /// Nominal 1 Mbit/s, data 5 Mbit/s, FD frames with bit-rate switch allowed.
+    pub fn timing(c: FdCanConfig) -> FdCanConfig {
+        let nominal =
+            NominalBitTiming { prescaler: NonZeroU16::MIN, seg1: nz8(135), seg2: nz8(34), sync_jump_width: nz8(34) };
+        let data = DataBitTiming {
+            transceiver_delay_compensation: true,
+            prescaler: NonZeroU16::MIN,
+            seg1: nz8(25),
+            seg2: nz8(8),
+            sync_jump_width: nz8(8),
+        };
+        c.set_nominal_bit_timing(nominal)
+            .set_data_bit_timing(data)
+            .set_frame_transmit(FrameTransmissionConfig::AllowFdCanAndBRS)
+    }
+
+    /// TDCO/TDCF and DBTP.TDC, which are writable only in configuration mode (CCCR.INIT and
+    /// CCE): enter it, write, leave (the controller then waits for 11 recessive bits to join
+    /// the bus again). Called once, right after the controller started.
+    pub fn enable_delay_compensation() {
+        let r = embassy_stm32::pac::FDCAN1;
+        r.cccr().modify(|w| w.set_init(true));
+        while !r.cccr().read().init() {}
+        r.cccr().modify(|w| w.set_cce(true));
+        r.tdcr().write(|w| {
+            w.set_tdco(25);
+            w.set_tdcf(0);
+        });
+        r.dbtp().modify(|w| w.set_tdc(true));
+        r.cccr().modify(|w| w.set_cce(false));
+        r.cccr().modify(|w| w.set_init(false));
+        while r.cccr().read().init() {}
     }
 }
 

@@ -13,7 +13,7 @@ pub fn run<C: joint_core::canopen::ControlStep>() -> i32 {
     let mut write_failed = false;
     let boot = stack::peak(|| {
         use joint_core::canopen::{MemoryStorage, Node, NodeConfig};
-        let storage = MemoryStorage { stored: Some(joint_core::vectors::trunk_right()), saves: 0 };
+        let storage = MemoryStorage { stored: Some(joint_core::vectors::trunk_right()), saves: 0, pdo: None };
         let node = Node::<_, C>::with_step(NodeConfig::new(canopen_session::NODE_ID), storage, 0);
         core::hint::black_box(&node);
     });
@@ -27,8 +27,19 @@ pub fn run<C: joint_core::canopen::ControlStep>() -> i32 {
         return crate::EXIT_CHECK_FAILED;
     };
     write_failed |= summary.write(&mut out).is_err();
+    let mut fd_summary = None;
+    let fd_session = stack::peak(|| {
+        fd_summary = Some(canopen_session::run_fd_with::<C>(&mut |l: &Line| {
+            write_failed |= l.write(&mut out).is_err();
+        }));
+    });
+    let Some(fd_summary) = fd_summary else {
+        return crate::EXIT_CHECK_FAILED;
+    };
+    write_failed |= fd_summary.write_fd(&mut out).is_err();
     {
         use core::fmt::Write;
+        let session = session.max(fd_session);
         write_failed |= writeln!(out, "# stack node_new={boot} session={session} bytes").is_err();
     }
     if write_failed {

@@ -15,6 +15,10 @@
 //! natively and compares the text line by line (tests/tests/qemu_parity.rs), so a single
 //! different byte or bit fails with the step named. f32 values are printed as bit patterns.
 //!
+//! [`run_fd_with`] is a second, shorter session on a node configured for CAN FD: SDO in FD
+//! frames (answered in FD), the host's shared FD command frame (one of them too short for the
+//! node's slot: EMCY 0x8210), and the 32-byte TPDO3 with bit-rate switch every 5 ms.
+//!
 //! This file is compiled into the `firmware-qemu` crate and, by path, into the host test:
 //! it may use `core` and `joint_core` only.
 
@@ -53,11 +57,17 @@ pub enum Line {
 
 impl Line {
     /// The line as printed: `T step what id dlc bytes` or `C step tau u_motor c_c assist
-    /// limited` (f32 as 8 hex digits of their bits).
+    /// limited` (f32 as 8 hex digits of their bits). An FD frame's DLC is written as slcan
+    /// does: `b` + hex digit with bit-rate switch, `d` + hex digit without.
     pub fn write<W: Write>(&self, w: &mut W) -> fmt::Result {
         match self {
             Line::Tx { step, what, frame } => {
-                write!(w, "T {step:05} {what} {:03x} {}", frame.id(), frame.dlc())?;
+                write!(w, "T {step:05} {what} {:03x} ", frame.id())?;
+                match (frame.is_fd(), frame.brs()) {
+                    (false, _) => write!(w, "{}", frame.dlc())?,
+                    (true, true) => write!(w, "b{:x}", frame.dlc())?,
+                    (true, false) => write!(w, "d{:x}", frame.dlc())?,
+                }
                 for b in frame.data() {
                     write!(w, " {b:02x}")?;
                 }
@@ -94,6 +104,14 @@ pub struct Summary {
     /// The refused writes left the staged value as it was.
     pub refused_writes_changed_nothing: bool,
     pub saves: u32,
+    /// FD session: frames sent as FD, of them TPDO3, SDO replies in FD frames
+    pub fd_frames: u32,
+    pub fd_tpdo: u32,
+    pub fd_sdo_replies: u32,
+    /// FD session: the assist command the node took from its slot of the shared frame, in
+    /// 0.01 N·m, and whether the short shared frame left it unchanged
+    pub fd_assist_centi: i32,
+    pub fd_short_kept: bool,
 }
 
 fn f(id: u16, data: &[u8]) -> CanFrame {
@@ -136,37 +154,51 @@ fn abort_code(frame: &CanFrame) -> Option<u32> {
     Some(u32::from_le_bytes(c))
 }
 
+/// One frame the node sent, into the summary and out as a line.
+fn record<E: FnMut(&Line)>(
+    s: &mut Summary,
+    emit: &mut E,
+    step: u32,
+    what: &'static str,
+    expected_abort: Option<u32>,
+    fr: &CanFrame,
+) {
+    s.frames += 1;
+    if let Some(code) = abort_code(fr) {
+        s.aborts += 1;
+        if Some(code) == expected_abort {
+            s.expected_aborts_seen += 1;
+        }
+    }
+    if fr.id() == 0x80 + u16::from(NODE_ID) {
+        s.emcy += 1;
+    }
+    if fr.id() == 0x180 + u16::from(NODE_ID) || fr.id() == 0x280 + u16::from(NODE_ID) {
+        s.tpdo += 1;
+    }
+    if fr.is_fd() {
+        s.fd_frames += 1;
+        if fr.id() == 0x380 + u16::from(NODE_ID) {
+            s.fd_tpdo += 1;
+        }
+        if fr.id() == 0x580 + u16::from(NODE_ID) {
+            s.fd_sdo_replies += 1;
+        }
+    }
+    s.lines += 1;
+    emit(&Line::Tx { step, what, frame: *fr });
+}
+
 struct Run<'a, E: FnMut(&Line), C: ControlStep> {
     node: Node<MemoryStorage, C>,
     emit: &'a mut E,
     s: Summary,
     step: u32,
-    expected_abort: Option<u32>,
 }
 
 impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     fn now(&self) -> u64 {
         u64::from(self.step) * PERIOD_US
-    }
-
-    fn out(&mut self, what: &'static str, frames: &[CanFrame]) {
-        for fr in frames {
-            self.s.frames += 1;
-            if let Some(code) = abort_code(fr) {
-                self.s.aborts += 1;
-                if Some(code) == self.expected_abort {
-                    self.s.expected_aborts_seen += 1;
-                }
-            }
-            if fr.id() == 0x80 + u16::from(NODE_ID) {
-                self.s.emcy += 1;
-            }
-            if fr.id() == 0x180 + u16::from(NODE_ID) || fr.id() == 0x280 + u16::from(NODE_ID) {
-                self.s.tpdo += 1;
-            }
-            self.s.lines += 1;
-            (self.emit)(&Line::Tx { step: self.step, what, frame: *fr });
-        }
     }
 
     /// One received frame, with what the node sends in answer.
@@ -175,32 +207,21 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     }
 
     fn rx_opt(&mut self, what: &'static str, frame: Option<CanFrame>, expect_abort: Option<u32>) {
-        let mut buf = [CanFrame::default(); 16];
-        let mut n = 0usize;
         let now = self.now();
-        self.node.process(now, frame.as_ref(), &mut |o| {
-            if let Some(slot) = buf.get_mut(n) {
-                *slot = o;
-                n += 1;
-            }
-        });
-        self.expected_abort = expect_abort;
-        self.out(what, buf.get(..n).unwrap_or(&[]));
-        self.expected_abort = None;
+        let step = self.step;
+        // each frame is recorded as the node sends it: no buffer of 68-byte frames on the stack
+        let Run { node, emit, s, .. } = self;
+        node.process(now, frame.as_ref(), &mut |o| record(s, &mut **emit, step, what, expect_abort, &o));
     }
 
     /// The board's 1 ms tick: timers, then the control step.
     fn tick(&mut self) {
-        let mut buf = [CanFrame::default(); 16];
-        let mut n = 0usize;
         let now = self.now();
-        self.node.poll(now, &mut |o| {
-            if let Some(slot) = buf.get_mut(n) {
-                *slot = o;
-                n += 1;
-            }
-        });
-        self.out("poll", buf.get(..n).unwrap_or(&[]));
+        let step = self.step;
+        {
+            let Run { node, emit, s, .. } = self;
+            node.poll(now, &mut |o| record(s, &mut **emit, step, "poll", None, &o));
+        }
         // A joint swinging ±0.6 rad at 0.5 Hz, with its exact derivatives.
         let t = self.step as f32 * (PERIOD_US as f32 * 1.0e-6);
         let w = 2.0 * core::f32::consts::PI * 0.5;
@@ -273,6 +294,69 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
     }
 }
 
+/// Steps of the FD session.
+pub const STEPS_FD: u32 = 200;
+
+impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
+    fn script_fd(&mut self) {
+        let me = NODE_ID;
+        let sdo = 0x600 + u16::from(me);
+        match self.step {
+            2 => {
+                self.rx("nmt-preop", f(0x000, &[0x80, me]), None);
+                // identity product code, asked in an FD frame with BRS, then without, then classic
+                let req = f(sdo, &[0x40, 0x18, 0x10, 2, 0, 0, 0, 0]);
+                self.rx("sdo-fd-brs", req.into_fd(true), None);
+                self.rx("sdo-fd", req.into_fd(false), None);
+                self.rx("sdo-classic", req, None);
+                // TPDO3 every 5 ms
+                self.rx("tpdo3-event-5ms", f(sdo, &[0x2B, 0x02, 0x18, 5, 5, 0, 0, 0]), None);
+            }
+            10 => self.rx("nmt-start", f(0x000, &[0x01, me]), None),
+            _ => {}
+        }
+        if self.step % 100 == 1 {
+            self.rx("host-heartbeat", f(0x700 + u16::from(HOST_ID), &[0x05]), None);
+        }
+        if self.step >= 20 && self.step % 20 == 0 && self.step != 160 {
+            // six joints' commands; ours (node 5) at bytes 8..10: 5 × 7k (0.01 N·m), k = step / 20
+            let k = (self.step / 20) as i16;
+            let mut cmd = [0u8; 12];
+            for (j, c) in cmd.chunks_exact_mut(2).enumerate() {
+                let v = (j as i16 + 1) * if j + 1 == usize::from(me) { 7 * k } else { 1 };
+                c.copy_from_slice(&v.to_le_bytes());
+            }
+            let shared = CanFrame::new_fd(od::SHARED_CMD_COB, &cmd, true).unwrap_or_default();
+            self.rx("shared-command", shared, None);
+            self.s.fd_assist_centi = math::floor(self.node.assist_cmd() * 100.0 + 0.5) as i32;
+        }
+        if self.step == 160 {
+            // too short for node 5's slot: not processed (EMCY 0x8210), the command stays
+            let before = self.node.assist_cmd().to_bits();
+            self.rx("shared-command-short", f(od::SHARED_CMD_COB, &[1, 0, 2, 0]), None);
+            self.s.fd_short_kept = self.node.assist_cmd().to_bits() == before;
+        }
+    }
+}
+
+/// Runs the FD session on a fresh node configured for CAN FD; `emit` gets every line.
+/// Called after [`run_with`] returned, so the two nodes never share the stack.
+pub fn run_fd_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
+    let mut r = Run {
+        node: Node::<MemoryStorage, C>::with_step(NodeConfig::new(NODE_ID).with_fd(true), MemoryStorage::default(), 0),
+        emit,
+        s: Summary::default(),
+        step: 0,
+    };
+    r.rx_opt("boot", None, None);
+    for step in 0..STEPS_FD {
+        r.step = step;
+        r.script_fd();
+        r.tick();
+    }
+    r.s
+}
+
 /// Runs the session; `emit` gets every line in order.
 /// `C` is the node's control step: the session is the same for a node whose step runs in Q16.16 (what the FPU-less
 /// board image runs); only its control outputs differ.
@@ -285,7 +369,6 @@ pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
         emit,
         s: Summary::default(),
         step: 0,
-        expected_abort: None,
     };
     // The first process call sends the boot-up message.
     r.rx_opt("boot", None, None);
@@ -298,6 +381,22 @@ pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
 }
 
 impl Summary {
+    /// The FD session's summary line (`# canopen-fd …`).
+    pub fn write_fd<W: Write>(&self, w: &mut W) -> fmt::Result {
+        writeln!(
+            w,
+            "# canopen-fd lines={} frames={} fd_frames={} fd_tpdo={} fd_sdo_replies={} emcy={} assist_centi={} short_kept={}",
+            self.lines,
+            self.frames,
+            self.fd_frames,
+            self.fd_tpdo,
+            self.fd_sdo_replies,
+            self.emcy,
+            self.fd_assist_centi,
+            u8::from(self.fd_short_kept)
+        )
+    }
+
     pub fn write<W: Write>(&self, w: &mut W) -> fmt::Result {
         writeln!(
             w,

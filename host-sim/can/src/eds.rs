@@ -31,6 +31,8 @@ fn default_value<C: ControlStep>(node: &Node<MemoryStorage, C>, s: &SubInfo) -> 
         DataType::Real32 => format!("{}", f32::from_le_bytes(b4)),
         DataType::Integer16 => format!("{}", u as u16 as i16),
         DataType::Integer32 => format!("{}", u as i32),
+        // an FD node's RPDO1 listens to the host's shared command frame, whatever its id
+        _ if s.index == od::RPDO_COMM && s.sub == 1 && u == u32::from(od::SHARED_CMD_COB) => format!("0x{u:X}"),
         _ if s.node_relative && u & 0x8000_0000 == 0 => format!("$NODEID+0x{:X}", u - u32::from(REF_ID)),
         _ => format!("0x{u:X}"),
     }
@@ -59,6 +61,21 @@ fn physical(s: &SubInfo) -> (Option<f32>, Option<String>, Option<String>) {
                 })
                 .collect();
             (None, None, Some(format!("fault bits: {}", bits.join(", "))))
+        }
+        (od::JOINT_STATE_F32, sub) => {
+            // REAL32 in SI units: a master needs no scale (Factor 1)
+            let unit = match sub {
+                od::JF_Q => "rad",
+                od::JF_QD => "rad/s",
+                od::JF_QDD => "rad/s^2",
+                od::JF_TAU | od::JF_TAU_MEAS | od::JF_ASSIST => "N*m",
+                od::JF_U_MOTOR => "N*m (at the motor)",
+                od::JF_TEMP => "degC",
+                od::JF_GAIN => "1 (assist gain, 1 = full)",
+                od::JF_MODE => return (None, None, Some("0 torque off, 1 assist (operational)".into())),
+                _ => return (None, None, None),
+            };
+            (Some(1.0), Some(unit.into()), None)
         }
         (od::HOST_COMMAND, _) => scaled(pdo::TAU_LSB, "N*m"),
         (od::OTHER_ANGLES, sub) if sub > 0 => scaled(pdo::Q_LSB, "rad"),
@@ -110,15 +127,23 @@ pub fn generate() -> String {
 /// board's default) has its own product number and name (0x1018 sub 2, 0x1008), which is how a
 /// master tells which numbers the joint computes; everything else is the same dictionary.
 pub fn generate_for(a: Arithmetic) -> String {
+    generate_for_bus(a, false)
+}
+
+/// The EDS of a node on a CAN FD bus (`fd`): the same dictionary, with the defaults of an FD
+/// node — TPDO3 (0x1802/0x1A02: the whole state in REAL32, 32 bytes, FD frames with bit-rate
+/// switch) valid and the classic TPDO1/2 invalid.
+pub fn generate_for_bus(a: Arithmetic, fd: bool) -> String {
     match a {
-        Arithmetic::F32 => generate_with::<Controller>(),
-        Arithmetic::Q16 => generate_with::<ControllerFx>(),
+        Arithmetic::F32 => generate_with::<Controller>(fd),
+        Arithmetic::Q16 => generate_with::<ControllerFx>(fd),
     }
 }
 
-fn generate_with<C: ControlStep>() -> String {
-    let node = Node::<MemoryStorage, C>::with_step(NodeConfig::new(REF_ID), MemoryStorage::default(), 0);
-    let cfg = NodeConfig::new(REF_ID).with_arithmetic(C::ARITHMETIC);
+fn generate_with<C: ControlStep>(fd: bool) -> String {
+    let cfg = NodeConfig::new(REF_ID).with_fd(fd);
+    let node = Node::<MemoryStorage, C>::with_step(cfg, MemoryStorage::default(), 0);
+    let cfg = cfg.with_arithmetic(C::ARITHMETIC);
     let mut out = String::new();
     let idx: Vec<u16> = od::indices().collect();
     let mandatory = [od::DEVICE_TYPE, od::ERROR_REGISTER, od::IDENTITY];
@@ -127,8 +152,8 @@ fn generate_with<C: ControlStep>() -> String {
 
     let _ = writeln!(out, "[FileInfo]");
     let _ = match C::ARITHMETIC {
-        Arithmetic::F32 => writeln!(out, "FileName=joint-node.eds"),
-        Arithmetic::Q16 => writeln!(out, "FileName=joint-node-q16.eds"),
+        Arithmetic::F32 => writeln!(out, "FileName=joint-node{}.eds", if fd { "-fd" } else { "" }),
+        Arithmetic::Q16 => writeln!(out, "FileName=joint-node-q16{}.eds", if fd { "-fd" } else { "" }),
     };
     let _ = writeln!(out, "FileVersion=1");
     let _ = writeln!(out, "FileRevision=0");
@@ -141,6 +166,15 @@ fn generate_with<C: ControlStep>() -> String {
             Arithmetic::Q16 => "; control step in Q16.16 fixed point",
         }
     );
+    if fd {
+        // CiA 306 v4.0 has no key for CAN FD: say it where a reader looks
+        let _ = writeln!(
+            out,
+            "Comment=CAN FD node (CiA 1301 frames, 1 Mbit/s nominal, 5 Mbit/s data with BRS): TPDO3 carries the \
+             whole joint state in 32 bytes of REAL32 (0x2301, SI units, no scale); SDO is CiA 301 SDO in 8-byte \
+             frames (no USDO)"
+        );
+    }
     let _ = writeln!(out, "CreatedBy=jointctl {}", env!("CARGO_PKG_VERSION"));
     out.push('\n');
     let _ = writeln!(out, "[DeviceInfo]");
@@ -166,7 +200,8 @@ fn generate_with<C: ControlStep>() -> String {
     out.push('\n');
     let _ = writeln!(out, "[DummyUsage]");
     for d in 1..=7 {
-        let _ = writeln!(out, "Dummy000{d}=0");
+        // an FD node's RPDO1 maps UNSIGNED16/32 dummies before its slot of the shared frame
+        let _ = writeln!(out, "Dummy000{d}={}", u8::from(fd && (d == 6 || d == 7)));
     }
     out.push('\n');
     // Units and documentation of the parameter objects (EDS has no unit field).

@@ -83,6 +83,16 @@ impl std::str::FromStr for BusSpec {
     }
 }
 
+/// Open a real bus for CAN FD: an slcan adapter with its data phase at `data_bitrate`
+/// (`Yn`); a SocketCAN socket receives FD frames in any case (the interface's own data bit
+/// rate is set with `ip link`).
+pub fn open_fd(spec: &BusSpec, data_bitrate: u32) -> anyhow::Result<Box<dyn Bus>> {
+    match spec {
+        BusSpec::Slcan { path, bitrate } => Ok(Box::new(slcan::SlcanBus::open_fd(path, *bitrate, data_bitrate)?)),
+        other => open(other),
+    }
+}
+
 /// Open a real bus (`slcan`, `socketcan`). The simulated bus is built by its owner, which
 /// also attaches the simulated joints, so it is not opened here.
 pub fn open(spec: &BusSpec) -> anyhow::Result<Box<dyn Bus>> {

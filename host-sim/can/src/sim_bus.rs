@@ -8,6 +8,12 @@
 //! configured bitrate, intermission included; when the bus falls idle the pending frame with
 //! the lowest identifier wins (CAN arbitration). A device's reply to a frame becomes ready
 //! `turnaround` after the frame ended — its processing and controller latency.
+//!
+//! A CAN FD bus ([`SimBus::new_fd`]) has a data bit rate too: an FD frame with bit-rate
+//! switch runs its data phase at it ([`timing::frame_time_ns`], ISO 11898-1:2015 layout);
+//! classic frames and FD frames without BRS run wholly at the nominal rate. On a classic bus
+//! (no data rate) an FD frame is timed as if it had no BRS: a classic controller would destroy
+//! it with an error frame, which the simulation does not model.
 
 use super::timing;
 use super::Bus;
@@ -30,7 +36,9 @@ pub trait SimDevice: Send {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BusStats {
     pub frames: u64,
-    /// bits on the wire, stuffing and intermission included
+    /// of which CAN FD frames
+    pub fd_frames: u64,
+    /// bits on the wire, stuffing and intermission included (nominal and data phase)
     pub bits: u64,
     /// time the bus was busy, ns
     pub busy_ns: u64,
@@ -119,6 +127,8 @@ impl Faults {
 /// See the module documentation.
 pub struct SimBus {
     bitrate: u32,
+    /// CAN FD data-phase rate; `None` on a classic bus
+    data_bitrate: Option<u32>,
     now_ns: u64,
     devices: Vec<(Arc<Mutex<dyn SimDevice>>, u64)>,
     pending: Vec<Pending>,
@@ -145,6 +155,7 @@ impl SimBus {
     pub fn new(bitrate: u32) -> SimBus {
         SimBus {
             bitrate: bitrate.max(1),
+            data_bitrate: None,
             now_ns: 0,
             devices: Vec::new(),
             pending: Vec::new(),
@@ -165,8 +176,20 @@ impl SimBus {
         self.cut_master_after = Some(self.master_sent + n);
     }
 
+    /// A CAN FD bus: arbitration at `nominal`, the data phase of BRS frames at `data`.
+    pub fn new_fd(nominal: u32, data: u32) -> SimBus {
+        let mut b = SimBus::new(nominal);
+        b.data_bitrate = Some(data.max(1));
+        b
+    }
+
     pub fn bitrate(&self) -> u32 {
         self.bitrate
+    }
+
+    /// The data-phase rate of a CAN FD bus.
+    pub fn data_bitrate(&self) -> Option<u32> {
+        self.data_bitrate
     }
 
     /// Attach a device; its first tick is now.
@@ -185,6 +208,11 @@ impl SimBus {
         while self.now_ns < limit {
             self.advance(limit, false);
         }
+    }
+
+    /// Frames waiting for the bus (a backlog that grows: the bus is saturated).
+    pub fn backlog(&self) -> usize {
+        self.pending.len()
     }
 
     /// Drop every frame queued for the master.
@@ -211,10 +239,11 @@ impl SimBus {
             .map(|(i, _)| i);
         if let Some(i) = winner {
             let p = self.pending.swap_remove(i);
-            let bits = timing::classic_bits(p.frame.id(), p.frame.data());
-            let dur = u64::from(bits) * 1_000_000_000 / u64::from(self.bitrate);
+            let (n, d) = timing::frame_bits(&p.frame);
+            let dur = timing::frame_time_ns(&p.frame, self.bitrate, self.data_bitrate.unwrap_or(self.bitrate));
             self.stats.frames += 1;
-            self.stats.bits += u64::from(bits);
+            self.stats.fd_frames += u64::from(p.frame.is_fd());
+            self.stats.bits += u64::from(n + d);
             self.stats.busy_ns += dur;
             self.in_flight = Some((now + dur, p.src, p.frame));
         }
@@ -349,7 +378,10 @@ impl Bus for SimBus {
     }
 
     fn describe(&self) -> String {
-        format!("simulated bus at {} kbit/s", self.bitrate / 1000)
+        match self.data_bitrate {
+            Some(d) => format!("simulated CAN FD bus at {}/{} kbit/s", self.bitrate / 1000, d / 1000),
+            None => format!("simulated bus at {} kbit/s", self.bitrate / 1000),
+        }
     }
 }
 

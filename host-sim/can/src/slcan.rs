@@ -7,8 +7,15 @@
 //! adapter; when the other end is another program on a `socat` pty pair the commands it sends
 //! are simply ignored here, and adapter acknowledgements (`z\r`, `\r`, BEL) are skipped when
 //! reading. A reader thread turns lines into frames, so `recv` can wait with a timeout.
+//!
+//! CAN FD: the extension of the CANable 2.0 slcan firmware (normaldotcom/canable2-fw, also
+//! WeAct's and candleLight-derived slcan firmwares, and python-can's `slcan` interface since
+//! 4.x): `dIIIL…` an FD frame without bit-rate switch, `bIIIL…` with it (`D`/`B` extended),
+//! `L` the DLC as one hex digit 0..F (9 = 12 bytes … F = 64); `Yn` before `O` sets the data
+//! bit rate (Y1 1, Y2 2, Y4 4, Y5 5, Y8 8 Mbit/s).
 
 use super::Bus;
+use joint_core::canopen::frame::{fd_len_of_dlc, FD_MAX_LEN};
 use joint_core::canopen::CanFrame;
 use std::io::{Read, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -30,9 +37,27 @@ pub fn bitrate_code(bitrate: u32) -> Option<u8> {
     }
 }
 
-/// The slcan line of a frame, `\r` included.
+/// `Y` code of a CAN FD data bit rate.
+pub fn data_bitrate_code(bitrate: u32) -> Option<u8> {
+    match bitrate {
+        1_000_000 => Some(1),
+        2_000_000 => Some(2),
+        4_000_000 => Some(4),
+        5_000_000 => Some(5),
+        8_000_000 => Some(8),
+        _ => None,
+    }
+}
+
+/// The slcan line of a frame, `\r` included: `t` classic, `b` FD with bit-rate switch, `d`
+/// FD without.
 pub fn encode(f: &CanFrame) -> String {
-    let mut s = format!("t{:03X}{}", f.id(), f.dlc());
+    let kind = match (f.is_fd(), f.brs()) {
+        (false, _) => 't',
+        (true, true) => 'b',
+        (true, false) => 'd',
+    };
+    let mut s = format!("{kind}{:03X}{:X}", f.id(), f.dlc());
     for b in f.data() {
         s.push_str(&format!("{b:02X}"));
     }
@@ -41,23 +66,30 @@ pub fn encode(f: &CanFrame) -> String {
 }
 
 /// A frame from one received line (without its `\r`); `None` for anything that is not a
-/// well-formed standard data frame (commands, acknowledgements, extended or remote frames,
-/// garbage). Trailing timestamp digits (`Z1` mode) are ignored.
+/// well-formed standard data frame, classic or FD (commands, acknowledgements, extended or
+/// remote frames, garbage). Trailing timestamp digits (`Z1` mode) are ignored.
 pub fn decode(line: &str) -> Option<CanFrame> {
     let b = line.as_bytes();
-    if b.first() != Some(&b't') || b.len() < 5 {
+    let kind = *b.first()?;
+    if !matches!(kind, b't' | b'b' | b'd') || b.len() < 5 {
         return None;
     }
     let id = u16::from_str_radix(line.get(1..4)?, 16).ok()?;
-    let len = (*b.get(4)? as char).to_digit(10)? as usize;
-    if len > 8 {
-        return None;
-    }
-    let mut data = [0u8; 8];
+    let code = (*b.get(4)? as char).to_digit(16)? as u8;
+    let len = match kind {
+        b't' if code <= 8 => usize::from(code),
+        b't' => return None,
+        _ => fd_len_of_dlc(code)?,
+    };
+    let mut data = [0u8; FD_MAX_LEN];
     for (k, d) in data.iter_mut().enumerate().take(len) {
         *d = u8::from_str_radix(line.get(5 + 2 * k..7 + 2 * k)?, 16).ok()?;
     }
-    CanFrame::new(id, data.get(..len)?)
+    let data = data.get(..len)?;
+    match kind {
+        b't' => CanFrame::new(id, data),
+        _ => CanFrame::new_fd(id, data, kind == b'b'),
+    }
 }
 
 /// An slcan adapter (or pty) as a [`Bus`].
@@ -85,14 +117,31 @@ impl Drop for SlcanBus {
 
 impl SlcanBus {
     pub fn open(path: &str, bitrate: u32) -> anyhow::Result<SlcanBus> {
+        Self::open_with(path, bitrate, None)
+    }
+
+    /// A CAN FD adapter: nominal `bitrate`, data phase at `data_bitrate` (`Yn`).
+    pub fn open_fd(path: &str, bitrate: u32, data_bitrate: u32) -> anyhow::Result<SlcanBus> {
+        Self::open_with(path, bitrate, Some(data_bitrate))
+    }
+
+    fn open_with(path: &str, bitrate: u32, data_bitrate: Option<u32>) -> anyhow::Result<SlcanBus> {
         let code = bitrate_code(bitrate).ok_or_else(|| anyhow::anyhow!("slcan: unsupported bitrate {bitrate}"))?;
+        let fd = match data_bitrate {
+            Some(d) => {
+                let y = data_bitrate_code(d)
+                    .ok_or_else(|| anyhow::anyhow!("slcan: unsupported data bitrate {d} (1, 2, 4, 5, 8 Mbit/s)"))?;
+                format!("Y{y}\r")
+            }
+            None => String::new(),
+        };
         let mut port = serialport::new(path, 115_200)
             .timeout(Duration::from_millis(50))
             .open()
             .map_err(|e| anyhow::anyhow!("slcan: cannot open {path}: {e}"))?;
         // Close (in case it was open), set the bitrate, open. An adapter answers each with \r;
         // a peer program ignores them.
-        port.write_all(format!("C\rS{code}\rO\r").as_bytes()).map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
+        port.write_all(format!("C\rS{code}\r{fd}O\r").as_bytes()).map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
         let mut reader = port.try_clone().map_err(|e| anyhow::anyhow!("slcan: {path}: {e}"))?;
         let (tx, rx) = mpsc::channel();
         let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -115,7 +164,7 @@ impl SlcanBus {
                                     }
                                 }
                                 line.clear();
-                            } else if line.len() < 64 {
+                            } else if line.len() < 160 {
                                 line.push(c);
                             } else {
                                 // an endless line is garbage: drop it
@@ -173,10 +222,34 @@ mod tests {
 
     #[test]
     fn garbage_lines_are_not_frames() {
-        for l in ["", "z", "S8", "O", "T12345678100", "r1230", "t12", "t1239", "t123200", "tXYZ0", "t12320G00"] {
+        for l in ["", "z", "S8", "O", "T12345678100", "r1230", "t12", "t1239", "t123200", "tXYZ0", "t12320G00", "t123A"]
+        {
             assert_eq!(decode(l), None, "{l:?}");
         }
         // trailing timestamp is ignored
         assert_eq!(decode("t12310012AB"), CanFrame::new(0x123, &[0x00]));
+    }
+
+    #[test]
+    fn fd_lines_carry_the_dlc_as_one_hex_digit() {
+        // the lines python-can's slcan interface writes: b/d, 3-digit id, DLC 0..F
+        let d: Vec<u8> = (0..32).collect();
+        let f = CanFrame::new_fd(0x385, &d, true).unwrap();
+        let s = encode(&f);
+        assert_eq!(&s[..5], "b385D");
+        assert_eq!(s.len(), 5 + 64 + 1);
+        assert_eq!(decode(s.trim_end_matches('\r')), Some(f));
+        let slow = CanFrame::new_fd(0x200, &[0x10, 0, 0x20, 0, 0x30, 0, 0, 0, 0, 0, 0, 0], false).unwrap();
+        assert_eq!(encode(&slow), "d2009100020003000000000000000\r");
+        assert_eq!(decode("d2009100020003000000000000000"), Some(slow));
+        assert_eq!(decode(&format!("b7FFF{}", "AB".repeat(64))), CanFrame::new_fd(0x7FF, &[0xAB; 64], true));
+        // an FD frame of ≤ 8 bytes keeps its digit
+        assert_eq!(encode(&CanFrame::new(0x605, &[1, 2]).unwrap().into_fd(true)), "b60520102\r");
+        // short data, bad digits
+        for l in ["b385D00", "b385G", "d12", &format!("b385F{}", "0".repeat(126))] {
+            assert_eq!(decode(l), None, "{l:?}");
+        }
+        assert_eq!(data_bitrate_code(5_000_000), Some(5));
+        assert_eq!(data_bitrate_code(3_000_000), None);
     }
 }

@@ -15,6 +15,19 @@
 //! [`fd_time_ns`], bounded by one stuff bit per four bits for the worst case. The bit-rate
 //! switch happens at the sample points of BRS and CRC delimiter; we count those bits whole at
 //! the nominal rate, a slight over-estimate (< 1 nominal bit per frame).
+//!
+//! The FD field layout (ISO 11898-1:2015 §10.4.2, fig. 21/22), base format:
+//!
+//! | field | bits | rate (BRS = 1) | stuffing |
+//! |---|---|---|---|
+//! | SOF, identifier, RRS, IDE, FDF, res, BRS | 1 + 11 + 5 = 17 | nominal | dynamic |
+//! | ESI, DLC, data | 1 + 4 + 8n | data | dynamic |
+//! | stuff count (3-bit Gray + parity) | 4 | data | fixed: 1 before it |
+//! | CRC | 17 (n ≤ 16) or 21 | data | fixed: 1 after every 4 bits |
+//! | CRC delimiter, ACK slot, ACK delimiter, EOF, intermission | 1 + 1 + 1 + 7 + 3 | nominal | none |
+//!
+//! So a frame without dynamic stuff bits is 30 nominal bits and `5 + 8n + 4 + 17 + 6` (CRC-17)
+//! or `5 + 8n + 4 + 21 + 7` (CRC-21) data bits. Without BRS every bit runs at the nominal rate.
 
 /// Bits after the stuffed part: CRC delimiter 1, ACK slot 1, ACK delimiter 1, EOF 7, IFS 3.
 const CLASSIC_TAIL: u32 = 13;
@@ -89,6 +102,8 @@ pub fn classic_bits_worst(n: usize) -> u32 {
     47 + 8 * n + (34 + 8 * n - 1) / 4
 }
 
+use joint_core::canopen::CanFrame;
+
 /// Valid CAN FD payload sizes.
 pub const FD_SIZES: [usize; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64];
 
@@ -104,11 +119,17 @@ fn fd_dlc(size: usize) -> u32 {
 /// Nominal-phase and data-phase bits of an FD frame with bit-rate switch: (nominal, data).
 /// `worst`: bound the dynamic stuffing instead of counting it.
 pub fn fd_bits(id: u16, data: &[u8], worst: bool) -> (u32, u32) {
+    fd_bits_brs(id, data, true, worst)
+}
+
+/// [`fd_bits`] with the BRS bit as given (it is one of the stuffed bits; without BRS the
+/// caller times both parts at the nominal rate).
+pub fn fd_bits_brs(id: u16, data: &[u8], brs: bool, worst: bool) -> (u32, u32) {
     let size = fd_size(data.len());
     let mut arb = Vec::with_capacity(17);
     arb.push(false); // SOF
     push_bits(&mut arb, u32::from(id & 0x7FF), 11);
-    arb.extend([false, false, true, false, true]); // RRS, IDE, FDF, res, BRS
+    arb.extend([false, false, true, false, brs]); // RRS, IDE, FDF (recessive), res, BRS
     let mut dat = Vec::with_capacity(5 + 8 * size);
     dat.push(false); // ESI (error active)
     push_bits(&mut dat, fd_dlc(size), 4);
@@ -132,6 +153,28 @@ pub fn fd_bits(id: u16, data: &[u8], worst: bool) -> (u32, u32) {
     let nominal = arb.len() as u32 + s_arb + CLASSIC_TAIL;
     let data_bits = dat.len() as u32 + s_dat + 4 + crc_len + fixed;
     (nominal, data_bits)
+}
+
+/// Bits of a frame as the node makes it, classic or FD: (at the nominal rate, at the data
+/// rate); an FD frame without BRS has all its bits at the nominal rate.
+pub fn frame_bits(f: &CanFrame) -> (u32, u32) {
+    if !f.is_fd() {
+        return (classic_bits(f.id(), f.data()), 0);
+    }
+    let (n, d) = fd_bits_brs(f.id(), f.data(), f.brs(), false);
+    if f.brs() {
+        (n, d)
+    } else {
+        (n + d, 0)
+    }
+}
+
+/// Time on the wire of a frame, ns, intermission included: the data phase of an FD frame with
+/// BRS at `data_rate`, everything else at `nominal`.
+pub fn frame_time_ns(f: &CanFrame, nominal: u32, data_rate: u32) -> u64 {
+    let (n, d) = frame_bits(f);
+    u64::from(n) * 1_000_000_000 / u64::from(nominal.max(1))
+        + u64::from(d) * 1_000_000_000 / u64::from(data_rate.max(1))
 }
 
 /// Time on the wire of a classic frame, ns.
@@ -186,6 +229,49 @@ mod tests {
         assert_eq!(v.len(), 34);
         assert_eq!(crc15(&v[..19]), 0);
         assert!(classic_bits(0, &[]) > 47);
+    }
+
+    /// Hand count (ISO 11898-1:2015 field layout, module doc): id 0x555 and 0x55 bytes
+    /// alternate, so no dynamic stuff bit is due (the longest run is the DLC's trailing zeros
+    /// into the first data bit: 4).
+    #[test]
+    fn fd_frame_lengths_match_hand_counts() {
+        // 8 bytes (DLC 1000, CRC-17): nominal 17 + 13 = 30; data 1 + 4 + 64 + 4 + 17 + 6 = 96
+        let f8 = CanFrame::new_fd(0x555, &[0x55; 8], true).unwrap();
+        assert_eq!(frame_bits(&f8), (30, 96));
+        // 1/5 Mbit/s: 30 µs + 96 × 0.2 µs = 49.2 µs
+        assert_eq!(frame_time_ns(&f8, 1_000_000, 5_000_000), 49_200);
+        // 16 bytes (DLC 1010): still CRC-17: data 1 + 4 + 128 + 4 + 17 + 6 = 160
+        let f16 = CanFrame::new_fd(0x555, &[0x55; 16], true).unwrap();
+        assert_eq!(frame_bits(&f16), (30, 160));
+        // 32 bytes (DLC 1101, CRC-21): data 1 + 4 + 256 + 4 + 21 + 7 = 293 → 30 + 58.6 µs
+        let f32b = CanFrame::new_fd(0x555, &[0x55; 32], true).unwrap();
+        assert_eq!(frame_bits(&f32b), (30, 293));
+        assert_eq!(frame_time_ns(&f32b, 1_000_000, 5_000_000), 88_600);
+        // 64 bytes (DLC 1111): data 1 + 4 + 512 + 4 + 21 + 7 = 549 → 30 + 109.8 µs: six joints
+        // at 1 kHz would need 83.9 % of the bus for these frames alone
+        let f64b = CanFrame::new_fd(0x555, &[0x55; 64], true).unwrap();
+        assert_eq!(frame_bits(&f64b), (30, 549));
+        assert_eq!(frame_time_ns(&f64b, 1_000_000, 5_000_000), 139_800);
+        // without BRS every bit at the nominal rate (BRS dominant: 0,1,0,0,1,0,0 has no run of 5)
+        let slow = CanFrame::new_fd(0x555, &[0x55; 8], false).unwrap();
+        assert_eq!(frame_bits(&slow), (126, 0));
+        // a classic frame: 0x555, 8 × 0x55: 47 + 64 = 111 bits plus its stuff bits
+        let c = CanFrame::new(0x555, &[0x55; 8]).unwrap();
+        assert_eq!(frame_bits(&c), (classic_bits(0x555, &[0x55; 8]), 0));
+        assert!(classic_bits(0x555, &[0x55; 8]) >= 111);
+    }
+
+    /// Dynamic stuffing in the FD data phase: eight 0x00 bytes after DLC 1000 are a run of
+    /// 3 + 64 zeros: a stuff bit (a one) after every fifth zero; each starts a run of its own,
+    /// so the next is due five zeros later.
+    #[test]
+    fn fd_dynamic_stuffing_is_counted_in_the_data_phase() {
+        let z = CanFrame::new_fd(0x555, &[0; 8], true).unwrap();
+        let (n, d) = frame_bits(&z);
+        assert_eq!(n, 30, "the arbitration bits alternate");
+        // run of 67 zeros: ⌊67 / 5⌋ = 13 stuff bits
+        assert_eq!(d, 96 + 13);
     }
 
     #[test]

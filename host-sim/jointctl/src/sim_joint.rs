@@ -11,6 +11,7 @@
 use host_sim::plant::{Operator, Plant, PlantFile, State};
 use joint_can::sim_bus::SimDevice;
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
+use joint_core::canopen::pdo_map::PDO_MAPS_BYTES;
 use joint_core::canopen::CanFrame;
 use joint_core::params::{ParamId, ParamSet, RawParams};
 use joint_formats::model_file::ModelFile;
@@ -77,6 +78,36 @@ impl ParamStorage for SimStorage {
             }
         }
     }
+    fn save_pdo(&mut self, maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        match self {
+            SimStorage::Memory(m) => m.save_pdo(maps),
+            SimStorage::File { path, .. } => {
+                // next to the model file: the PDO mappings as hex, after their CRC-32
+                let hex: String = maps.iter().map(|b| format!("{b:02x}")).collect();
+                let text = format!("{:08x}\n{hex}\n", joint_core::store::crc32(maps));
+                joint_formats::output::write_file(&pdo_path(path), |w| w.write_all(text.as_bytes()))
+                    .map_err(|_| StorageError::Failed)
+            }
+        }
+    }
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        match self {
+            SimStorage::Memory(m) => m.load_pdo(),
+            SimStorage::File { path, .. } => {
+                let text = std::fs::read_to_string(pdo_path(path)).ok()?;
+                let (crc, hex) = text.split_once('\n')?;
+                let mut b = [0u8; PDO_MAPS_BYTES];
+                let hex = hex.trim();
+                if hex.len() != 2 * PDO_MAPS_BYTES {
+                    return None;
+                }
+                for (k, d) in b.iter_mut().enumerate() {
+                    *d = u8::from_str_radix(hex.get(2 * k..2 * k + 2)?, 16).ok()?;
+                }
+                (u32::from_str_radix(crc.trim(), 16).ok()? == joint_core::store::crc32(&b)).then_some(b)
+            }
+        }
+    }
     fn load_fault(&self) -> joint_core::safety::Faults {
         match self {
             SimStorage::File { damaged: true, .. } => joint_core::safety::Faults::PARAMS_CORRUPT,
@@ -86,13 +117,23 @@ impl ParamStorage for SimStorage {
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         match self {
             SimStorage::Memory(m) => m.restore_defaults(),
-            SimStorage::File { path: p, .. } => match std::fs::remove_file(p) {
-                Ok(()) => Ok(()),
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-                Err(_) => Err(StorageError::Failed),
-            },
+            SimStorage::File { path: p, .. } => {
+                for f in [p.clone(), pdo_path(p)] {
+                    match std::fs::remove_file(f) {
+                        Ok(()) => {}
+                        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                        Err(_) => return Err(StorageError::Failed),
+                    }
+                }
+                Ok(())
+            }
         }
     }
+}
+
+/// Where a file-backed joint keeps its PDO mappings: `node-N.toml` → `node-N.pdo`.
+fn pdo_path(p: &std::path::Path) -> PathBuf {
+    p.with_extension("pdo")
 }
 
 /// First line of a store file the simulated joint wrote: its CRC-32 over the rest follows.
@@ -112,7 +153,12 @@ pub struct JointSim {
 
 impl JointSim {
     pub fn new(node_id: u8, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
-        let node = Node::new(NodeConfig::new(node_id), storage, now_us);
+        Self::with_config(NodeConfig::new(node_id), plant, storage, now_us)
+    }
+
+    /// A joint whose node has `cfg` (a CAN FD node: `NodeConfig::new(id).with_fd(true)`).
+    pub fn with_config(cfg: NodeConfig, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
+        let node = Node::new(cfg, storage, now_us);
         let plant = plant.map(|pf| {
             let limit = f64::from(node.params().get(ParamId::TorqueLimit));
             (Plant::new(pf, 1.0e-3 / f64::from(PLANT_SUBSTEPS), limit.max(1.0)), State::default())

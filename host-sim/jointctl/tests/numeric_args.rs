@@ -72,6 +72,7 @@ const TABLE: &[Row] = &[
     ("sim", "node", NODE_OK, NODE_BAD, "1..=127"),
     ("sim", "seconds", &["1e-3", "1e7"], &["nan", "0", "-1"], "0 < x ≤ 1e7 s"),
     ("sim", "bus", &["slcan:/dev/x@125000", "socketcan:can0"], BUS_BAD, ""),
+    ("sim", "data-bitrate", &["10000", "8000000"], &["0", "8000001"], "10000..=8000000"),
     ("bus-budget", "joints", &["1", "127"], &["0", "128"], "1..=127"),
     ("bus-budget", "rate", &["1e-3", "10000"], &["nan", "0", "inf", "10001"], "0 < x ≤ 10000 Hz"),
     ("bus-budget", "bitrate", BITRATE_OK, BITRATE_BAD, "10000..=1000000"),

@@ -14,6 +14,7 @@ pub mod frame;
 pub mod node;
 pub mod od;
 pub mod pdo;
+pub mod pdo_map;
 pub mod sdo;
 pub mod storage;
 

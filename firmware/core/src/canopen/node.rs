@@ -32,6 +32,7 @@
 use super::frame::CanFrame;
 use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
+use super::pdo_map::{PdoMaps, PDO_MAPS_BYTES};
 use super::sdo::{self, Abort};
 use crate::control::{Controller, Input, Mode, Output};
 use crate::fixed::{Arithmetic, ControllerFx};
@@ -186,6 +187,11 @@ pub struct NodeConfig {
     /// [`Node::new`] sets it (and the identity) from the node's step type, so it cannot lie;
     /// a host sets it to describe a board (the EDS).
     pub arithmetic: Arithmetic,
+    /// The bus is CAN FD (nominal and data bit rate, BRS): TPDO3 (the whole state in REAL32,
+    /// 32 bytes, [`od::TPDO_FD`]) is valid and the classic TPDO1/2 start invalid; PDOs longer
+    /// than 8 bytes go out as FD frames with bit-rate switch. SDO, NMT, heartbeat and EMCY
+    /// stay 8-byte CiA 301 frames (SDO replies in the format of the request).
+    pub fd: bool,
 }
 
 /// Identity of this project's joint node. The vendor id is 0 ("unassigned" in CiA's list):
@@ -205,7 +211,15 @@ impl NodeConfig {
             device_name: "joint-node",
             software_version: env!("CARGO_PKG_VERSION"),
             arithmetic: Arithmetic::F32,
+            fd: false,
         }
+    }
+
+    /// The same node on a CAN FD bus (see [`NodeConfig::fd`]).
+    pub const fn with_fd(self, fd: bool) -> NodeConfig {
+        let mut c = self;
+        c.fd = fd;
+        c
     }
 
     /// The same node with its control step in `a`: a Q16.16 node has its own product code
@@ -244,6 +258,16 @@ pub trait ParamStorage {
     /// Persist the committed set. `Ok` means accepted: a firmware flash task may finish the
     /// write later and raise [`Faults::STORE_WRITE`] should it fail.
     fn save(&mut self, set: &ParamSet) -> Result<(), StorageError>;
+    /// Keep the PDO mappings (0x1010 saves them with the parameters; [`PdoMaps::to_bytes`]).
+    /// A storage that does not keep them says [`StorageError::Unsupported`]: the parameters
+    /// are saved all the same and the mappings return to their defaults at reset.
+    fn save_pdo(&mut self, _maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        Err(StorageError::Unsupported)
+    }
+    /// The stored PDO mappings, if any (read at every reset of communication).
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        None
+    }
     /// The stored set, read at boot and on NMT reset-node; `None` when nothing is stored.
     fn load(&mut self) -> Option<RawParams>;
     /// The fault the last [`ParamStorage::load`] found (a damaged or unreadable store), raised
@@ -276,6 +300,8 @@ impl ParamStorage for NoStorage {
 pub struct MemoryStorage {
     pub stored: Option<RawParams>,
     pub saves: u32,
+    /// the PDO mappings saved with the set
+    pub pdo: Option<[u8; PDO_MAPS_BYTES]>,
 }
 
 impl ParamStorage for MemoryStorage {
@@ -287,8 +313,16 @@ impl ParamStorage for MemoryStorage {
     fn load(&mut self) -> Option<RawParams> {
         self.stored.clone()
     }
+    fn save_pdo(&mut self, maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        self.pdo = Some(*maps);
+        Ok(())
+    }
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        self.pdo
+    }
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         self.stored = None;
+        self.pdo = None;
         Ok(())
     }
 }
@@ -376,6 +410,8 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     host_id: u8,
     rpdo_cob: [u32; od::RPDO_COUNT as usize],
     tpdo: [Tpdo; od::TPDO_COUNT as usize],
+    /// the PDO mappings in force (0x1600.., 0x1A00..)
+    maps: PdoMaps,
     assist_cmd: f32,
     others: [f32; 3],
     state: JointState,
@@ -458,6 +494,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             next_heartbeat_us: now_us,
             host_id: DEFAULT_HOST_ID,
             rpdo_cob: [0; od::RPDO_COUNT as usize],
+            maps: PdoMaps::EMPTY,
             tpdo: [Tpdo { cob_id: 0, transmission: 0, inhibit: 0, event_ms: 0, next_us: 0, last_us: None, syncs: 0 };
                 od::TPDO_COUNT as usize],
             error_history: [0; od::ERROR_HISTORY_LEN],
@@ -509,10 +546,16 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let id = u16::from(self.cfg.node_id);
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
-        self.rpdo_cob = [u32::from(RPDO1_BASE + id), COB_INVALID, COB_INVALID, COB_INVALID];
+        // an FD node with a slot takes its command from the host's shared command frame
+        let rpdo1 =
+            if self.cfg.fd && id <= u16::from(od::SHARED_CMD_IDS) { od::SHARED_CMD_COB } else { RPDO1_BASE + id };
+        self.rpdo_cob = [u32::from(rpdo1), COB_INVALID, COB_INVALID, COB_INVALID];
+        let fd = self.cfg.fd;
         for (n, t) in self.tpdo.iter_mut().enumerate() {
+            // an FD node sends the whole state in TPDO3, a classic one in TPDO1/2
+            let off = if (n as u8 == od::TPDO_FD) == fd { 0 } else { COB_INVALID };
             *t = Tpdo {
-                cob_id: u32::from(TPDO1_BASE + 0x100 * n as u16 + id),
+                cob_id: u32::from(TPDO1_BASE + 0x100 * n as u16 + id) | off,
                 transmission: 0xFE,
                 inhibit: 0,
                 event_ms: DEFAULT_TPDO_MS,
@@ -521,6 +564,9 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 syncs: 0,
             };
         }
+        // the stored mappings (0x1010), else the dictionary's
+        self.maps.reset(self.cfg.node_id, fd);
+        self.load_stored_maps();
         self.sync_cob = DEFAULT_SYNC_COB;
         self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
@@ -674,7 +720,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         if id == sdo::RX_BASE + me {
             if let Some(resp) = self.sdo_request(now_us, d) {
-                tx(frame(sdo::TX_BASE + me, resp, 8));
+                // classic SDO in FD frames too (no CiA 1301 USDO): the reply takes the
+                // request's format
+                let r = frame(sdo::TX_BASE + me, resp, 8);
+                tx(if f.is_fd() { r.into_fd(f.brs()) } else { r });
             }
             return;
         }
@@ -689,18 +738,26 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     }
 
     fn rpdo(&mut self, n: u8, d: &[u8], tx: &mut impl FnMut(CanFrame)) {
-        let need: usize = od::rpdo_mapping(n).iter().map(|m| (m & 0xFF) as usize / 8).sum();
+        let mut copy = [0u32; od::MAP_MAX];
+        let src = self.maps.get(false, n);
+        for (c, s) in copy.iter_mut().zip(src) {
+            *c = *s;
+        }
+        let map = copy.get(..src.len()).unwrap_or(&[]);
+        let need: usize = map.iter().map(|m| (m & 0xFF) as usize / 8).sum();
         if d.len() < need {
             // CiA 301: a PDO shorter than its mapping is not processed; EMCY 0x8210.
             self.emcy(EMCY_PDO_LENGTH, [n, d.len() as u8, 0, 0, 0], tx);
             return;
         }
         let mut off = 0usize;
-        for m in od::rpdo_mapping(n) {
+        for m in map {
             let bytes = (m & 0xFF) as usize / 8;
             let index = (m >> 16) as u16;
             let sub = ((m >> 8) & 0xFF) as u8;
-            if let (Some(chunk), Ok(info)) = (d.get(off..off + bytes), od::sub_info(index, sub)) {
+            // dummy entries (data-type indices) only skip their bytes
+            if let (Some(chunk), Ok(info), true) = (d.get(off..off + bytes), od::sub_info(index, sub), index >= 0x1000)
+            {
                 // Mapped objects are plain RW integers: the write cannot be refused.
                 let _ = self.write_value(&info, chunk, false);
             }
@@ -813,8 +870,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             t.syncs = 0;
             t.last_us = Some(now_us);
             let cob = (t.cob_id & 0x7FF) as u16;
-            let (data, len) = self.tpdo_payload(n);
-            tx(frame(cob, data, len));
+            tx(self.tpdo_frame(n, cob));
         }
     }
 
@@ -831,8 +887,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 return;
             }
         }
-        let (data, len) = self.tpdo_payload(n);
-        tx(frame((t.cob_id & 0x7FF) as u16, data, len));
+        tx(self.tpdo_frame(n, (t.cob_id & 0x7FF) as u16));
         if let Some(t) = self.tpdo.get_mut(n as usize) {
             let period = u64::from(t.event_ms) * 1000;
             t.next_us = t.next_us.saturating_add(period).max(now_us.saturating_add(1));
@@ -840,11 +895,20 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
     }
 
-    /// The current payload of TPDO `n` (0-based), from its mapping.
+    /// The current payload of TPDO `n` (0-based) as far as a classic frame holds it: its first
+    /// 8 bytes and its length, at most 8 ([`Node::tpdo_frame`] has the whole of an FD TPDO).
     pub fn tpdo_payload(&self, n: u8) -> ([u8; 8], u8) {
-        let mut data = [0u8; 8];
+        let f = self.tpdo_frame(n, 0);
+        (*f.raw_data(), f.len().min(8) as u8)
+    }
+
+    /// TPDO `n` (0-based) as it goes out with COB-ID `cob`: a classic frame if its mapping
+    /// holds ≤ 8 bytes, else an FD frame with bit-rate switch (only an FD node validates such
+    /// a TPDO).
+    pub fn tpdo_frame(&self, n: u8, cob: u16) -> CanFrame {
+        let mut data = [0u8; crate::canopen::frame::FD_MAX_LEN];
         let mut off = 0usize;
-        for m in od::tpdo_mapping(n) {
+        for m in self.maps.get(true, n) {
             let bytes = (m & 0xFF) as usize / 8;
             let index = (m >> 16) as u16;
             let sub = ((m >> 8) & 0xFF) as u8;
@@ -857,7 +921,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }
             off += bytes;
         }
-        (data, off.min(8) as u8)
+        let d = data.get(..off).unwrap_or(&data);
+        if off <= 8 { CanFrame::new(cob, d) } else { CanFrame::new_fd(cob, d, true) }.unwrap_or_default()
     }
 
     fn emcy(&mut self, code: u16, mfr: [u8; 5], tx: &mut impl FnMut(CanFrame)) {
@@ -1110,12 +1175,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }),
             Key::RpdoCobId(n) => put_u32(self.rpdo_cob.get(n as usize).copied().unwrap_or(COB_INVALID)),
             Key::RpdoType(_) => put_u8(0xFE),
-            Key::RpdoMap(n, s) => put_u32(od::rpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+            Key::RpdoMap(n, s) => put_u32(self.maps.read(false, n, s)),
+            Key::MapCount(tx, n) => put_u8(self.maps.read(tx, n, 0) as u8),
             Key::TpdoCobId(n) => put_u32(self.tpdo.get(n as usize).map_or(COB_INVALID, |t| t.cob_id)),
             Key::TpdoType(n) => put_u8(self.tpdo.get(n as usize).map_or(0xFE, |t| t.transmission)),
             Key::TpdoInhibit(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.inhibit)),
             Key::TpdoEvent(n) => put_u16(self.tpdo.get(n as usize).map_or(0, |t| t.event_ms)),
-            Key::TpdoMap(n, s) => put_u32(od::tpdo_mapping(n).get((s as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+            Key::TpdoMap(n, s) => put_u32(self.maps.read(true, n, s)),
             Key::Param(p) => put_u32(self.staged.get(p).to_bits()),
             Key::TableShape(s) => put_u8(match s {
                 1 => t.n_axes,
@@ -1148,6 +1214,22 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                     od::JS_TEMP => put_i16(to_i16(st.temperature, pdo::TEMP_LSB)),
                     _ => put_u16((self.safety.gain() * 1000.0 + 0.5) as u16),
                 }
+            }
+            Key::JointStateF32(s) => {
+                let st = &self.state;
+                let f = match s {
+                    od::JF_Q => st.q,
+                    od::JF_QD => st.qd,
+                    od::JF_QDD => st.qdd,
+                    od::JF_TAU => st.tau_cmd,
+                    od::JF_TAU_MEAS => st.tau_measured,
+                    od::JF_U_MOTOR => st.tau_cmd * self.active.current().inv_ratio_m1(),
+                    od::JF_TEMP => st.temperature,
+                    od::JF_MODE => return Ok(put_u8(u8::from(self.mode() == Mode::Assist))),
+                    od::JF_GAIN => self.safety.gain(),
+                    _ => self.assist_cmd,
+                };
+                put_u32(f.to_bits())
             }
             Key::AssistCmd => put_i16(to_i16(self.assist_cmd, pdo::TAU_LSB)),
             Key::OtherAngle(s) => {
@@ -1185,6 +1267,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             | Key::TpdoEvent(_)
             | Key::SyncCobId
             | Key::ErrorBehaviour => self.write_comm(info.key, u),
+            Key::MapCount(..) | Key::RpdoMap(..) | Key::TpdoMap(..) => self.write_map(info.key, u),
             Key::ErrorHistoryCount => {
                 // CiA 301: only 0 may be written, and it clears the history
                 if u != 0 {
@@ -1252,7 +1335,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 return Err(Abort::CannotStore);
             }
             let set = self.active.current();
-            let r = self.storage.save(set);
+            let mut r = self.storage.save(set);
+            if r.is_ok() {
+                r = self.save_maps();
+            }
             if r == Err(StorageError::Failed) {
                 self.safety.raise(Faults::STORE_WRITE);
             }
@@ -1265,6 +1351,38 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         // does what is staged (staging the defaults let the next commit, anyone's, apply them).
         self.storage.restore_defaults().map_err(|_| Abort::CannotStore)?;
         Ok(())
+    }
+
+    /// The stored PDO mappings, if the storage has some this firmware accepts. Out of line:
+    /// the 455-byte image lives on the stack only during this call.
+    #[inline(never)]
+    fn load_stored_maps(&mut self) {
+        if let Some(b) = self.storage.load_pdo() {
+            self.maps.load(&b);
+        }
+    }
+
+    /// The PDO mappings to the storage with the parameters (0x1010); a storage without room
+    /// for them keeps the parameters only.
+    #[inline(never)]
+    fn save_maps(&mut self) -> Result<(), StorageError> {
+        let mut b = [0u8; PDO_MAPS_BYTES];
+        self.maps.to_bytes(&mut b);
+        self.storage.save_pdo(&b).or_else(|e| if e == StorageError::Unsupported { Ok(()) } else { Err(e) })
+    }
+
+    /// A write to a PDO mapping (see [`super::pdo_map`]): only while the PDO is invalid.
+    fn write_map(&mut self, key: Key, u: u32) -> Result<(), Abort> {
+        let (tx, n, sub) = match key {
+            Key::MapCount(tx, n) => (tx, n, 0),
+            Key::RpdoMap(n, s) => (false, n, s),
+            Key::TpdoMap(n, s) => (true, n, s),
+            _ => return Err(Abort::ReadOnly),
+        };
+        let cob = if tx { self.tpdo.get(n as usize).map(|t| t.cob_id) } else { self.rpdo_cob.get(n as usize).copied() };
+        let valid = cob.is_some_and(|c| c & COB_INVALID == 0);
+        let max = if self.cfg.fd { crate::canopen::frame::FD_MAX_LEN } else { 8 };
+        self.maps.write(tx, n, sub, u, valid, max)
     }
 
     /// Heartbeat consumer/producer and the PDO communication parameters.
@@ -1294,6 +1412,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }
             Key::TpdoCobId(n) => {
                 let v = check_cob(u)?;
+                // a classic frame holds 8 bytes: a longer TPDO exists only on an FD bus
+                if v & COB_INVALID == 0 && self.maps.bytes(true, n) > 8 && !self.cfg.fd {
+                    return Err(Abort::MapLength);
+                }
                 if let Some(t) = self.tpdo.get_mut(n as usize) {
                     t.cob_id = v;
                 }

@@ -14,8 +14,9 @@
 //!   records (f32 amplitude, f32 phase, 4 × i8 multipliers; see [`crate::series`]);
 //! - `0x2200` commit (write 1: check the staged set and swap it in whole; write 0: discard the
 //!   staged changes), `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active;
-//! - `0x2300` joint state (PDO-mappable scaled integers), `0x2310` host command, `0x2311` the
-//!   other joints' angles (inputs of a multi-joint gravity table).
+//! - `0x2300` joint state (PDO-mappable scaled integers), `0x2301` the same state in REAL32 (the
+//!   CAN FD TPDO3: a master needs no scale), `0x2310` host command, `0x2311` the other joints'
+//!   angles (inputs of a multi-joint gravity table).
 
 use super::sdo::Abort;
 use crate::params::{ParamId, PARAMS, PARAM_COUNT};
@@ -115,6 +116,8 @@ pub enum Key {
     RpdoType(u8),
     /// (pdo, sub 1..)
     RpdoMap(u8, u8),
+    /// sub 0 of a PDO mapping (tx, pdo): the number of entries in force, written to change it
+    MapCount(bool, u8),
     TpdoCobId(u8),
     TpdoType(u8),
     TpdoInhibit(u8),
@@ -144,6 +147,8 @@ pub enum Key {
     CommitCrc,
     /// sub-index of 0x2300
     JointState(u8),
+    /// sub-index of 0x2301
+    JointStateF32(u8),
     AssistCmd,
     /// 1..=3
     OtherAngle(u8),
@@ -214,6 +219,8 @@ pub const PARAMS_CRC: u16 = 0x2204;
 /// it commits, so another master's writes in between can never go live with it)
 pub const COMMIT_CRC: u16 = 0x2205;
 pub const JOINT_STATE: u16 = 0x2300;
+/// the joint state in REAL32 (SI units), mapped into the CAN FD TPDO3
+pub const JOINT_STATE_F32: u16 = 0x2301;
 pub const HOST_COMMAND: u16 = 0x2310;
 pub const OTHER_ANGLES: u16 = 0x2311;
 
@@ -222,8 +229,15 @@ const _: () = assert!(PARAM_COUNT <= (TABLE_SHAPE - PARAM_BASE) as usize);
 
 /// Number of RPDOs: 1 = host command, 2..=4 = other joints' angles.
 pub const RPDO_COUNT: u8 = 4;
-/// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain.
-pub const TPDO_COUNT: u8 = 2;
+/// Number of TPDOs: 1 = q, q̇, τ, faults; 2 = q̈, measured τ, temperature, gain (classic CAN,
+/// 8 bytes each); 3 = the whole state in REAL32, 32 bytes (CAN FD only: [`TPDO_FD`]).
+pub const TPDO_COUNT: u8 = 3;
+/// The 0-based number of the CAN FD TPDO (TPDO3, COB-ID 0x380 + node): valid by default on a
+/// node configured for FD (whose classic TPDO1/2 start invalid), invalid on a classic node,
+/// which refuses to validate it (its 32 bytes exceed a classic frame: abort 0x06040042).
+pub const TPDO_FD: u8 = 2;
+/// Most mapping entries a PDO holds here (CiA 301 allows up to 64; 16 REAL32 fill an FD frame).
+pub const MAP_MAX: usize = 16;
 
 /// "save" in little-endian ASCII, the CiA 301 signature for 0x1010.
 pub const SAVE_SIGNATURE: u32 = 0x6576_6173;
@@ -240,6 +254,23 @@ pub const JS_TAU_MEAS: u8 = 6;
 pub const JS_TEMP: u8 = 7;
 pub const JS_GAIN: u8 = 8;
 
+/// Sub-indices of 0x2301 (joint state, REAL32; q … temperature in the SI units of 0x2300).
+pub const JF_Q: u8 = 1;
+pub const JF_QD: u8 = 2;
+pub const JF_QDD: u8 = 3;
+pub const JF_TAU: u8 = 4;
+pub const JF_TAU_MEAS: u8 = 5;
+/// torque command at the motor, N·m (τ / gear ratio)
+pub const JF_U_MOTOR: u8 = 6;
+pub const JF_TEMP: u8 = 7;
+/// U8: 0 torque off, 1 assist (operational)
+pub const JF_MODE: u8 = 8;
+/// safety output gain, 0..=1
+pub const JF_GAIN: u8 = 9;
+/// the host's assist command as the node holds it, N·m
+pub const JF_ASSIST: u8 = 10;
+const JOINT_STATE_F32_NAMES: [&str; 10] =
+    ["q", "qd", "qdd", "tau_cmd", "tau_measured", "u_motor", "temperature", "mode", "gain", "assist_cmd"];
 const JOINT_STATE_NAMES: [&str; 8] =
     ["q", "qd", "tau_cmd", "faults", "qdd", "tau_measured", "temperature", "gain_permille"];
 const SHAPE_NAMES: [&str; 11] = [
@@ -256,17 +287,39 @@ const SHAPE_NAMES: [&str; 11] = [
     "residual",
 ];
 const IDENTITY_NAMES: [&str; 4] = ["vendor_id", "product_code", "revision_number", "serial_number"];
-const MAP_NAMES: [&str; 4] = ["mapped_object_1", "mapped_object_2", "mapped_object_3", "mapped_object_4"];
+const MAP_NAMES: [&str; MAP_MAX] = [
+    "mapped_object_1",
+    "mapped_object_2",
+    "mapped_object_3",
+    "mapped_object_4",
+    "mapped_object_5",
+    "mapped_object_6",
+    "mapped_object_7",
+    "mapped_object_8",
+    "mapped_object_9",
+    "mapped_object_10",
+    "mapped_object_11",
+    "mapped_object_12",
+    "mapped_object_13",
+    "mapped_object_14",
+    "mapped_object_15",
+    "mapped_object_16",
+];
 const OTHER_NAMES: [&str; 3] = ["other_angle_1", "other_angle_2", "other_angle_3"];
 const RPDO_NAMES: [&str; 4] =
     ["rpdo1_communication", "rpdo2_communication", "rpdo3_communication", "rpdo4_communication"];
 const RPDO_MAP_NAMES: [&str; 4] = ["rpdo1_mapping", "rpdo2_mapping", "rpdo3_mapping", "rpdo4_mapping"];
-const TPDO_NAMES: [&str; 2] = ["tpdo1_communication", "tpdo2_communication"];
-const TPDO_MAP_NAMES: [&str; 2] = ["tpdo1_mapping", "tpdo2_mapping"];
+const TPDO_NAMES: [&str; 3] = ["tpdo1_communication", "tpdo2_communication", "tpdo3_communication"];
+const TPDO_MAP_NAMES: [&str; 3] = ["tpdo1_mapping", "tpdo2_mapping", "tpdo3_mapping"];
 
-/// Mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based). Static: the joint
-/// state needs no remapping, and a fixed layout keeps every master's decoding the EDS's.
+/// Default mapping entries (index << 16 | sub << 8 | bits) of TPDO `n` (0-based); a master
+/// may remap (0x1A00.., [`super::pdo_map`]).
 pub fn tpdo_mapping(n: u8) -> &'static [u32] {
+    TPDO_DEFAULTS.get(n as usize).copied().unwrap_or(&[])
+}
+
+/// The default TPDO mappings, TPDO1 first.
+pub const TPDO_DEFAULTS: [&[u32]; TPDO_COUNT as usize] = {
     const T1: [u32; 4] = [
         map_entry(JOINT_STATE, JS_Q, 16),
         map_entry(JOINT_STATE, JS_QD, 16),
@@ -279,11 +332,58 @@ pub fn tpdo_mapping(n: u8) -> &'static [u32] {
         map_entry(JOINT_STATE, JS_TEMP, 16),
         map_entry(JOINT_STATE, JS_GAIN, 16),
     ];
-    match n {
-        0 => &T1,
-        1 => &T2,
-        _ => &[],
+    // CAN FD: the whole state in one 32-byte frame (7 × REAL32, faults, mode, error register).
+    // Not 64 bytes: at 1/5 Mbit/s a 64-byte frame takes ≥ 140 µs, so six joints at 1 kHz
+    // would load the bus ≥ 84 %; 32 bytes take ≈ 90 µs (docs/canopen.md, bus budget).
+    const T3: [u32; 10] = [
+        map_entry(JOINT_STATE_F32, JF_Q, 32),
+        map_entry(JOINT_STATE_F32, JF_QD, 32),
+        map_entry(JOINT_STATE_F32, JF_QDD, 32),
+        map_entry(JOINT_STATE_F32, JF_TAU, 32),
+        map_entry(JOINT_STATE_F32, JF_TAU_MEAS, 32),
+        map_entry(JOINT_STATE_F32, JF_U_MOTOR, 32),
+        map_entry(JOINT_STATE_F32, JF_TEMP, 32),
+        map_entry(JOINT_STATE, JS_FAULTS, 16),
+        map_entry(JOINT_STATE_F32, JF_MODE, 8),
+        map_entry(ERROR_REGISTER, 0, 8),
+    ];
+    [&T1, &T2, &T3]
+};
+
+/// CiA 301 dummy mapping entries: the data types UNSIGNED16 (0x0006) and UNSIGNED32 (0x0007)
+/// as mapped objects skip that many bits of a received PDO.
+pub const DUMMY_U16: u32 = map_entry(0x0006, 0, 16);
+pub const DUMMY_U32: u32 = map_entry(0x0007, 0, 32);
+
+/// COB-ID of the host's shared command frame on a CAN FD bus: one FD frame with every
+/// joint's 16-bit assist command, joint `id` at bytes `2(id − 1)..2id` (ids 1..=[`SHARED_CMD_IDS`]).
+/// 0x200 is RPDO1's base with node id 0, which no node has.
+pub const SHARED_CMD_COB: u16 = 0x200;
+/// Node ids with a slot in the shared command frame: 1..=31 (id 32's slot, bytes 62..64,
+/// would need 17 mapping entries: 15 UNSIGNED32 and one UNSIGNED16 dummy, then its value).
+pub const SHARED_CMD_IDS: u8 = 31;
+
+/// RPDO1's mapping on an FD node with id `node_id`: dummies up to its slot in the shared
+/// command frame, then the assist command (`None` when the id has no slot). Written into
+/// `out`, the number of entries returned.
+#[inline(never)]
+pub fn shared_cmd_mapping(node_id: u8, out: &mut [u32; MAP_MAX]) -> Option<usize> {
+    if !(1..=SHARED_CMD_IDS).contains(&node_id) {
+        return None;
     }
+    let skip = usize::from(node_id - 1); // 16-bit slots before ours
+                                         // a loop bounded by the id, not by MAP_MAX: unrolled 16 times it cost 0.9 KiB of flash
+    let mut k = 0;
+    while k < skip / 2 {
+        *out.get_mut(k)? = DUMMY_U32;
+        k += 1;
+    }
+    if skip % 2 == 1 {
+        *out.get_mut(k)? = DUMMY_U16;
+        k += 1;
+    }
+    *out.get_mut(k)? = map_entry(HOST_COMMAND, 1, 16);
+    Some(k + 1)
 }
 
 /// Mapping of RPDO `n` (0-based): RPDO1 carries the host's assist command; RPDO2..4 each take
@@ -291,18 +391,17 @@ pub fn tpdo_mapping(n: u8) -> &'static [u32] {
 /// and its `q` lands in the matching `others` slot. Extra bytes of a longer frame are ignored
 /// (CiA 301 allows a received PDO longer than its mapping).
 pub fn rpdo_mapping(n: u8) -> &'static [u32] {
+    RPDO_DEFAULTS.get(n as usize).copied().unwrap_or(&[])
+}
+
+/// The default RPDO mappings, RPDO1 first.
+pub const RPDO_DEFAULTS: [&[u32]; RPDO_COUNT as usize] = {
     const R1: [u32; 1] = [map_entry(HOST_COMMAND, 1, 16)];
     const R2: [u32; 1] = [map_entry(OTHER_ANGLES, 1, 16)];
     const R3: [u32; 1] = [map_entry(OTHER_ANGLES, 2, 16)];
     const R4: [u32; 1] = [map_entry(OTHER_ANGLES, 3, 16)];
-    match n {
-        0 => &R1,
-        1 => &R2,
-        2 => &R3,
-        3 => &R4,
-        _ => &[],
-    }
-}
+    [&R1, &R2, &R3, &R4]
+};
 
 const fn map_entry(index: u16, sub: u8, bits: u8) -> u32 {
     ((index as u32) << 16) | ((sub as u32) << 8) | bits as u32
@@ -325,7 +424,7 @@ pub fn indices() -> impl Iterator<Item = u16> {
         IDENTITY,
         ERROR_BEHAVIOUR,
     ];
-    const HIGH: [u16; 15] = [
+    const HIGH: [u16; 16] = [
         TABLE_SHAPE,
         TABLE_GRID,
         TABLE_TORQUE,
@@ -339,6 +438,7 @@ pub fn indices() -> impl Iterator<Item = u16> {
         PARAMS_CRC,
         COMMIT_CRC,
         JOINT_STATE,
+        JOINT_STATE_F32,
         HOST_COMMAND,
         OTHER_ANGLES,
     ];
@@ -367,7 +467,9 @@ const SUBS_2: &[u8] = &[0, 1, 2];
 const SUBS_3: &[u8] = &[0, 1, 2, 3];
 const SUBS_4: &[u8] = &[0, 1, 2, 3, 4];
 const SUBS_8: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8];
+const SUBS_10: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
 const SUBS_11: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
+const SUBS_16: &[u8] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16];
 const TPDO_COMM_SUBS: &[u8] = &[0, 1, 2, 3, 5];
 
 /// The object at `index`, if the dictionary has it.
@@ -392,17 +494,14 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
             o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
-            let n = (i - RPDO_MAP) as u8;
-            let subs = SUBS_4.get(..=rpdo_mapping(n).len()).unwrap_or(SUB0);
-            o(RPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
+            // writable mappings: every entry a PDO may hold is listed, sub 0 says how many count
+            o(RPDO_MAP_NAMES.get((i - RPDO_MAP) as usize).copied().unwrap_or(""), Record, SUBS_16)
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
             o(TPDO_NAMES.get((i - TPDO_COMM) as usize).copied().unwrap_or(""), Record, TPDO_COMM_SUBS)
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
-            let n = (i - TPDO_MAP) as u8;
-            let subs = SUBS_4.get(..=tpdo_mapping(n).len()).unwrap_or(SUB0);
-            o(TPDO_MAP_NAMES.get(n as usize).copied().unwrap_or(""), Record, subs)
+            o(TPDO_MAP_NAMES.get((i - TPDO_MAP) as usize).copied().unwrap_or(""), Record, SUBS_16)
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let d = PARAMS.get((i - PARAM_BASE) as usize)?;
@@ -421,6 +520,7 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         PARAMS_CRC => o("params_crc", Record, SUBS_2),
         COMMIT_CRC => o("params_commit_crc", Var, SUB0),
         JOINT_STATE => o("joint_state", Record, SUBS_8),
+        JOINT_STATE_F32 => o("joint_state_real32", Record, SUBS_10),
         HOST_COMMAND => o("host_command", Record, SUBS_1),
         OTHER_ANGLES => o("other_joint_angles", Array, SUBS_3),
         _ => None,
@@ -451,6 +551,14 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
     if index == ERROR_HISTORY && sub == 0 {
         // not the highest sub-index but the number of errors recorded; writing 0 clears them
         return Ok(mk("number_of_errors", Unsigned8, Rw, Key::ErrorHistoryCount));
+    }
+    if sub == 0 {
+        if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&index) {
+            return Ok(mk("number_of_mapped_objects", Unsigned8, Rw, Key::MapCount(false, (index - RPDO_MAP) as u8)));
+        }
+        if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&index) {
+            return Ok(mk("number_of_mapped_objects", Unsigned8, Rw, Key::MapCount(true, (index - TPDO_MAP) as u8)));
+        }
     }
     if sub == 0 && obj.kind != ObjectKind::Var {
         return Ok(mk("highest_sub_index", Unsigned8, Const, Key::Count(highest)));
@@ -485,7 +593,7 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         }
         i if (RPDO_MAP..RPDO_MAP + RPDO_COUNT as u16).contains(&i) => {
             let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
-            mk(name, Unsigned32, Ro, Key::RpdoMap(idx_in(RPDO_MAP), sub))
+            mk(name, Unsigned32, Rw, Key::RpdoMap(idx_in(RPDO_MAP), sub))
         }
         i if (TPDO_COMM..TPDO_COMM + TPDO_COUNT as u16).contains(&i) => {
             let n = idx_in(TPDO_COMM);
@@ -498,7 +606,7 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         }
         i if (TPDO_MAP..TPDO_MAP + TPDO_COUNT as u16).contains(&i) => {
             let name = MAP_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
-            mk(name, Unsigned32, Ro, Key::TpdoMap(idx_in(TPDO_MAP), sub))
+            mk(name, Unsigned32, Rw, Key::TpdoMap(idx_in(TPDO_MAP), sub))
         }
         i if (PARAM_BASE..PARAM_BASE + PARAM_COUNT as u16).contains(&i) => {
             let id = ParamId::from_index((i - PARAM_BASE) as usize).ok_or(Abort::NoObject)?;
@@ -531,6 +639,11 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
             let name = JOINT_STATE_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             let dtype = if sub == JS_FAULTS || sub == JS_GAIN { Unsigned16 } else { Integer16 };
             SubInfo { pdo: true, ..mk(name, dtype, Ro, Key::JointState(sub)) }
+        }
+        JOINT_STATE_F32 => {
+            let name = JOINT_STATE_F32_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
+            let dtype = if sub == JF_MODE { Unsigned8 } else { Real32 };
+            SubInfo { pdo: true, ..mk(name, dtype, Ro, Key::JointStateF32(sub)) }
         }
         HOST_COMMAND => SubInfo { pdo: true, ..mk("assist_cmd", Integer16, Rw, Key::AssistCmd) },
         OTHER_ANGLES => {

@@ -15,6 +15,8 @@ pub enum Abort {
     Timeout,
     /// 0x05040001 client/server command specifier not valid or unknown
     Command,
+    /// 0x06010000 unsupported access to an object
+    Unsupported,
     /// 0x06010001 attempt to read a write-only object
     WriteOnly,
     /// 0x06010002 attempt to write a read-only object
@@ -27,6 +29,10 @@ pub enum Abort {
     TooLong,
     /// 0x06070013 data type does not match, length of service parameter too low
     TooShort,
+    /// 0x06040041 object cannot be mapped to the PDO
+    CannotMap,
+    /// 0x06040042 the number and length of the objects to be mapped would exceed the PDO length
+    MapLength,
     /// 0x06090011 sub-index does not exist
     NoSubIndex,
     /// 0x06090030 invalid value for parameter (download only)
@@ -49,12 +55,15 @@ impl Abort {
             Abort::Toggle => 0x0503_0000,
             Abort::Timeout => 0x0504_0000,
             Abort::Command => 0x0504_0001,
+            Abort::Unsupported => 0x0601_0000,
             Abort::WriteOnly => 0x0601_0001,
             Abort::ReadOnly => 0x0601_0002,
             Abort::NoObject => 0x0602_0000,
             Abort::TypeLength => 0x0607_0010,
             Abort::TooLong => 0x0607_0012,
             Abort::TooShort => 0x0607_0013,
+            Abort::CannotMap => 0x0604_0041,
+            Abort::MapLength => 0x0604_0042,
             Abort::NoSubIndex => 0x0609_0011,
             Abort::InvalidValue => 0x0609_0030,
             Abort::TooHigh => 0x0609_0031,
@@ -67,7 +76,7 @@ impl Abort {
 
     /// The abort for a code, if it is one of ours.
     pub fn from_code(code: u32) -> Option<Abort> {
-        const ALL: [Abort; 16] = [
+        const ALL: [Abort; 19] = [
             Abort::Toggle,
             Abort::Timeout,
             Abort::Command,
@@ -77,6 +86,9 @@ impl Abort {
             Abort::TypeLength,
             Abort::TooLong,
             Abort::TooShort,
+            Abort::Unsupported,
+            Abort::CannotMap,
+            Abort::MapLength,
             Abort::NoSubIndex,
             Abort::InvalidValue,
             Abort::TooHigh,
@@ -100,6 +112,9 @@ impl Abort {
             Abort::TypeLength => "data type does not match, length of service parameter does not match",
             Abort::TooLong => "data type does not match, length of service parameter too high",
             Abort::TooShort => "data type does not match, length of service parameter too low",
+            Abort::Unsupported => "unsupported access to an object",
+            Abort::CannotMap => "object cannot be mapped to the PDO",
+            Abort::MapLength => "the number and length of the objects to be mapped would exceed the PDO length",
             Abort::NoSubIndex => "sub-index does not exist",
             Abort::InvalidValue => "invalid value for parameter",
             Abort::TooHigh => "value of parameter written too high",

@@ -16,6 +16,10 @@ pub struct EdsArgs {
     /// named in the EDS's product number and name
     #[arg(long, value_enum, default_value = "f32")]
     pub step: Step,
+    /// A node on a CAN FD bus: TPDO3 (the whole state in REAL32, 32 bytes) valid by default,
+    /// the classic TPDO1/2 invalid
+    #[arg(long)]
+    pub fd: bool,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -28,10 +32,11 @@ pub fn run(a: &EdsArgs) -> anyhow::Result<()> {
     let mut plan = Plan::new();
     let out = plan.file("--out", a.out.as_deref().unwrap_or(Path::new(STDOUT)));
     let outs = plan.check()?;
+    let fd = a.fd;
     let a = match a.step {
         Step::F32 => joint_core::fixed::Arithmetic::F32,
         Step::Q16 => joint_core::fixed::Arithmetic::Q16,
     };
-    outs.write(out, joint_can::eds::generate_for(a).as_bytes())?;
+    outs.write(out, joint_can::eds::generate_for_bus(a, fd).as_bytes())?;
     Ok(())
 }

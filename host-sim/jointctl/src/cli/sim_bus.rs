@@ -6,7 +6,7 @@ use crate::sim_joint::{JointSim, SimStorage};
 use clap::Args;
 use host_sim::plant::PlantFile;
 use joint_can::BusSpec;
-use joint_core::canopen::node::MemoryStorage;
+use joint_core::canopen::node::{MemoryStorage, NodeConfig};
 use joint_core::canopen::CanFrame;
 use joint_formats::output::Plan;
 use std::path::PathBuf;
@@ -44,6 +44,15 @@ pub struct SimArgs {
     /// Print a JSON summary at the end
     #[arg(long)]
     pub json: bool,
+    /// CAN FD: the joints are FD nodes (TPDO3, the whole state in 32 bytes of REAL32, FD
+    /// frames with bit-rate switch; RPDO1 from the host's shared command frame 0x200), and an
+    /// slcan adapter is opened with its data bit rate (`Yn`; frames `b`/`d`)
+    #[arg(long)]
+    pub fd: bool,
+    /// Data-phase bit rate with --fd, bit/s (10000..=8000000; slcan adapters take 1, 2, 4, 5
+    /// or 8 Mbit/s; default 5000000)
+    #[arg(long, value_name = "BIT/S", value_parser = num::bitrate(num::CAN_FD_DATA_BITRATE))]
+    pub data_bitrate: Option<u32>,
 }
 
 pub fn run(a: &SimArgs) -> anyhow::Result<()> {
@@ -69,7 +78,11 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     }
     plan.check()?;
     let plant = a.plant.as_ref().map(|p| PlantFile::read_file(p)).transpose()?;
-    let mut bus = joint_can::open(&a.bus)?;
+    if a.data_bitrate.is_some() && !a.fd {
+        anyhow::bail!("--data-bitrate is the CAN FD data phase: give --fd too");
+    }
+    let mut bus =
+        if a.fd { joint_can::open_fd(&a.bus, a.data_bitrate.unwrap_or(5_000_000))? } else { joint_can::open(&a.bus)? };
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -84,7 +97,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
                 Some(d) => SimStorage::file(store_file(d, n)),
                 None => SimStorage::Memory(MemoryStorage::default()),
             };
-            JointSim::new(n, plant.as_ref(), storage, now0)
+            JointSim::with_config(NodeConfig::new(n).with_fd(a.fd), plant.as_ref(), storage, now0)
         })
         .collect();
     eprintln!("serving joint node(s) {:?} on {} (Ctrl-C to stop)", a.nodes, bus.describe());
