@@ -63,6 +63,7 @@ macro_rules! param_table {
                 min: $min,
                 max: $max,
                 default: $default,
+                #[cfg(feature = "param-docs")]
                 doc: $doc,
                 safety: $safety,
             },)*
@@ -211,6 +212,9 @@ pub struct ParamDesc {
     pub min: f32,
     pub max: f32,
     pub default: f32,
+    /// what the parameter means (the EDS's description); host builds only (feature
+    /// `param-docs`): the strings are 4 KiB of flash the joint never reads
+    #[cfg(feature = "param-docs")]
     pub doc: &'static str,
     /// safety-relevant: may only change while the node is pre-operational
     pub safety: bool,
