@@ -29,6 +29,8 @@
 //! Nothing here panics or allocates, whatever the frames: the fuzz tests throw random frames
 //! at it.
 
+mod block;
+
 use super::frame::CanFrame;
 use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
@@ -354,6 +356,8 @@ enum Transfer {
     Idle,
     Download { info: SubInfo, toggle: bool, len: usize, expected: Option<usize>, last_us: u64 },
     Upload { index: u16, sub: u8, src: Big, toggle: bool, offset: usize, total: usize, last_us: u64 },
+    BlockDownload(block::Down),
+    BlockUpload(block::Up),
 }
 
 /// The joint's CANopen node. See the module documentation.
@@ -673,8 +677,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             return;
         }
         if id == sdo::RX_BASE + me {
-            if let Some(resp) = self.sdo_request(now_us, d) {
-                tx(frame(sdo::TX_BASE + me, resp, 8));
+            let cob = sdo::TX_BASE + me;
+            if !self.block_request(now_us, d, cob, tx) {
+                if let Some(resp) = self.sdo_request(now_us, d) {
+                    tx(frame(cob, resp, 8));
+                }
             }
             return;
         }
@@ -788,6 +795,17 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 self.transfer = Transfer::Idle;
                 tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
             }
+            Transfer::BlockDownload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                let (index, sub) = b.index_sub();
+                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+            }
+            Transfer::BlockUpload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                let (index, sub) = b.index_sub();
+                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+            }
+            Transfer::BlockUpload(_) => self.block_pump(sdo::TX_BASE + me, tx),
             _ => {}
         }
 
