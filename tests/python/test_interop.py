@@ -274,6 +274,41 @@ def test_gravity_table_by_block_transfer_with_crc(rig):
     assert node.sdo["params_pending"].raw == 0
 
 
+def test_a_second_sdo_channel_serves_another_master_mid_transfer(rig):
+    """0x1201 configured through the EDS, then a second python-canopen SdoClient on it reads and
+    block-writes while the first channel is in the middle of a segmented upload."""
+    network, node, _ = rig
+    preop(node)
+    assert node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw & 0x80000000
+    node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw = 0x640 + NODE
+    node.sdo["sdo_server_parameter_2"]["cob_id_server_to_client"].raw = 0x5C0 + NODE
+    node.sdo["sdo_server_parameter_2"]["node_id_of_the_sdo_client"].raw = 0x7E
+    assert node.sdo["sdo_server_parameter"]["cob_id_client_to_server"].raw == 0x600 + NODE
+    sdo2 = node.add_sdo(0x640 + NODE, 0x5C0 + NODE)
+    sdo2.network = network  # python-canopen 2.4's add_sdo subscribes but does not attach it
+    sdo2.RESPONSE_TIMEOUT = 1.0
+    node.sdo["gravity_table_shape"]["n_axes"].raw = 1
+    node.sdo["gravity_table_shape"]["points_0"].raw = 9
+    # channel 1: a segmented upload of the device name, left open after its first segment
+    name = node.object_dictionary["manufacturer_device_name"].index
+    stream = node.sdo.open(name, 0, "rb", buffering=0)
+    first = stream.read(7)
+    # channel 2: a whole expedited read and a block download while channel 1 waits
+    product = sdo2.upload(0x1018, 2)
+    sigma = node.object_dictionary["gravity_table_sigma"].index
+    data = struct.pack("<9f", *[0.125 * k for k in range(9)])
+    with sdo2.open(sigma, 0, "wb", size=len(data), block_transfer=True) as f:
+        f.write(data)
+    # channel 1 carries on where it was
+    rest = stream.read()
+    stream.close()
+    assert first + rest == b"joint-node"
+    assert product == node.sdo.upload(0x1018, 2)
+    assert node.sdo.upload(sigma, 0) == data
+    node.sdo["params_commit"].raw = 0
+    node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw = 0x80000000
+
+
 def test_aborts_keep_the_old_value(rig):
     _, node, _ = rig
     preop(node)

@@ -30,6 +30,7 @@
 //! at it.
 
 mod block;
+mod channel;
 
 use super::frame::CanFrame;
 use super::od::{self, Access, DataType, Key, SubInfo};
@@ -385,6 +386,10 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     state: JointState,
     transfer: Transfer,
     buf: [u8; SDO_BUFFER],
+    /// the second SDO server channel (0x1201)
+    sdo2: channel::Server2,
+    /// the SDO channel being served: 0 default, 1 the second (selects the buffer)
+    chan: u8,
     last_faults: Faults,
     /// 0x1003: the last EMCY codes (code | error register << 16), newest first
     error_history: [u32; od::ERROR_HISTORY_LEN],
@@ -473,6 +478,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             state: JointState::default(),
             transfer: Transfer::Idle,
             buf: [0; SDO_BUFFER],
+            sdo2: channel::Server2::new(),
+            chan: 0,
             last_faults: Faults::NONE,
             pending_commit_emcy: false,
             now_us,
@@ -528,6 +535,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         self.sync_cob = DEFAULT_SYNC_COB;
         self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
+        self.sdo2.reset();
         self.nmt = NmtState::Initialising;
         self.boot_sent = false;
         self.next_heartbeat_us = now_us;
@@ -677,12 +685,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             return;
         }
         if id == sdo::RX_BASE + me {
-            let cob = sdo::TX_BASE + me;
-            if !self.block_request(now_us, d, cob, tx) {
-                if let Some(resp) = self.sdo_request(now_us, d) {
-                    tx(frame(cob, resp, 8));
-                }
-            }
+            self.sdo_serve(now_us, d, sdo::TX_BASE + me, tx);
+            return;
+        }
+        if self.sdo2_frame(now_us, f, tx) {
             return;
         }
         if self.nmt == NmtState::Operational {
@@ -786,33 +792,39 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             self.emcy(EMCY_PARAMS, [code, p[0], p[1], f[0], f[1]], tx);
         }
 
-        match self.transfer {
-            Transfer::Download { info, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(info.index, info.sub, Abort::Timeout), 8));
-            }
-            Transfer::Upload { index, sub, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockDownload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                let (index, sub) = b.index_sub();
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockUpload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                let (index, sub) = b.index_sub();
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockUpload(_) => self.block_pump(sdo::TX_BASE + me, tx),
-            _ => {}
-        }
+        self.sdo_timers(now_us, sdo::TX_BASE + me, tx);
+        self.sdo2_poll(now_us, tx);
 
         if self.nmt == NmtState::Operational {
             for n in 0..od::TPDO_COUNT {
                 self.tpdo_timer(n, now_us, tx);
             }
+        }
+    }
+
+    /// The SDO transfer's timeout (0x05040000 to `cob`) and a block upload's next burst.
+    fn sdo_timers(&mut self, now_us: u64, cob: u16, tx: &mut impl FnMut(CanFrame)) {
+        match self.transfer {
+            Transfer::Download { info, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                tx(frame(cob, sdo::abort_payload(info.index, info.sub, Abort::Timeout), 8));
+            }
+            Transfer::Upload { index, sub, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+            }
+            Transfer::BlockDownload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                let (index, sub) = b.index_sub();
+                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+            }
+            Transfer::BlockUpload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
+                self.transfer = Transfer::Idle;
+                let (index, sub) = b.index_sub();
+                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+            }
+            Transfer::BlockUpload(_) => self.block_pump(cob, tx),
+            _ => {}
         }
     }
 
@@ -985,7 +997,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let n = ((cmd >> 1) & 0x07) as usize;
         let seg = d.get(1..8 - n).unwrap_or(&[]);
         let end = len + seg.len();
-        let Some(dst) = self.buf.get_mut(len..end) else {
+        let Some(dst) = self.sdo_buf().get_mut(len..end) else {
             return abort(self, Abort::TooLong);
         };
         dst.copy_from_slice(seg);
@@ -1002,7 +1014,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             return abort(self, Abort::TypeLength);
         }
         // Copy out so the write can borrow self mutably; the buffer is the node's own.
-        let tmp = self.buf;
+        let tmp = *self.sdo_buf();
         let Some(data) = tmp.get(..end) else {
             return abort(self, Abort::TooLong);
         };
@@ -1120,6 +1132,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             Key::StoreAll | Key::RestoreAll => put_u32(1),
             Key::ConsumerHeartbeat => put_u32((u32::from(self.host_id) << 16) | self.heartbeat_timeout_ms()),
             Key::ProducerHeartbeat => put_u16(self.heartbeat_ms),
+            Key::SdoServer(c, s) => self.sdo_server_value(c, s),
             Key::Identity(s) => put_u32(match s {
                 1 => self.cfg.identity.vendor_id,
                 2 => self.cfg.identity.product_code,
@@ -1203,6 +1216,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             | Key::TpdoEvent(_)
             | Key::SyncCobId
             | Key::ErrorBehaviour => self.write_comm(info.key, u),
+            Key::SdoServer(c, s) => self.write_sdo_server(c, s, u),
             Key::ErrorHistoryCount => {
                 // CiA 301: only 0 may be written, and it clears the history
                 if u != 0 {

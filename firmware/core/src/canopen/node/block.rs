@@ -199,7 +199,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             }
             // the last segment's padding past the buffer is not kept
             let end = (off + 7).min(super::SDO_BUFFER);
-            if let (Some(dst), Some(src)) = (self.buf.get_mut(off..end), d.get(1..1 + end - off)) {
+            if let (Some(dst), Some(src)) = (self.sdo_buf().get_mut(off..end), d.get(1..1 + end - off)) {
                 dst.copy_from_slice(src);
             }
             st.seq = seqno;
@@ -224,7 +224,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if st.expected.is_some_and(|e| e != len) {
             return Err(Abort::TypeLength);
         }
-        let tmp = self.buf;
+        let tmp = *self.sdo_buf();
         let data = tmp.get(..len).ok_or(Abort::TooLong)?;
         if st.crc
             && sdo::crc16(data) != u16::from_le_bytes([d.get(1).copied().unwrap_or(0), d.get(2).copied().unwrap_or(0)])
