@@ -482,3 +482,79 @@ def test_sync_triggered_tpdo_and_the_error_history(rig):
     assert node.sdo["controller_accel_cutoff"].raw == old
     node.sdo[0x1003][0].raw = 0
     assert node.sdo[0x1003][0].raw == 0
+
+
+@pytest.fixture()
+def lss_rig():
+    """A second bus with one joint started unconfigured (LSS): serial number 42, no node id."""
+    tmp = Path(tempfile.mkdtemp(prefix="joint-lss-"))
+    a, b = tmp / "canA", tmp / "canB"
+    socat = subprocess.Popen(
+        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
+    eds = tmp / "joint.eds"
+    subprocess.run([jointctl(), "eds", "--out", str(eds)], check=True)
+    sim = subprocess.Popen(
+        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", "42", "--lss-unconfigured"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    network = canopen.Network()
+    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
+    try:
+        yield network, eds
+    finally:
+        network.disconnect()
+        sim.terminate()
+        try:
+            rc = sim.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            sim.kill()
+            rc = "hung"
+        socat.terminate()
+        socat.wait(timeout=5)
+        shutil.rmtree(tmp, ignore_errors=True)
+        assert rc == 0, f"jointctl sim did not stop cleanly: {rc} {sim.stderr.read()!r}"
+
+
+def test_lss_fast_scan_gives_an_unconfigured_joint_its_node_id(lss_rig):
+    """python-canopen's LssMaster: fast scan finds the silent joint, configures and stores its
+    node id; back in the waiting state it boots up under that id, the EDS-driven SDO works on
+    it, and after an NMT reset node it comes back with the stored id."""
+    network, eds = lss_rig
+    new_id = 21
+    seen = []
+    network.subscribe(0x700 + new_id, lambda cob, data, ts: seen.append(bytes(data)))
+    time.sleep(0.3)
+    assert not seen, "an unconfigured joint sends nothing"
+    lss = network.lss
+    lss.RESPONSE_TIMEOUT = 0.2
+    found, ident = lss.fast_scan()
+    assert found, "fast scan found no unconfigured slave"
+    cfg = configparser.ConfigParser()
+    cfg.read(eds)
+    product = int(cfg["DeviceInfo"]["ProductNumber"], 0)
+    assert ident == [0, product, int(cfg["DeviceInfo"]["RevisionNumber"], 0), 42]
+    # fast scan left it in the configuration state
+    assert lss.inquire_node_id() == 0xFF
+    lss.configure_node_id(new_id)
+    lss.store_configuration()
+    node = network.add_node(new_id, str(eds))
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    lss.send_switch_state_global(lss.WAITING_STATE)
+    wait_for(lambda: b"\x00" in seen, 2, "boot-up under the new node id")
+    assert node.sdo["identity"]["serial_number"].raw == 42
+    assert node.sdo["identity"]["product_code"].raw == product
+    node.sdo["friction_a"].raw = 0.25
+    assert node.sdo["friction_a"].raw == 0.25
+    # reset node: the stored id, not unconfigured again
+    seen.clear()
+    node.nmt.send_command(0x81)
+    wait_for(lambda: b"\x00" in seen, 2, "boot-up after reset node")
+    assert node.sdo["identity"]["serial_number"].raw == 42
+    # the configured joint takes no part in another fast scan
+    found, _ = lss.fast_scan()
+    assert not found

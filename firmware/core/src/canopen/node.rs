@@ -31,8 +31,11 @@
 
 mod block;
 mod channel;
+#[cfg(feature = "lss")]
+mod lss_slave;
 
 use super::frame::CanFrame;
+use super::lss::LssConfig;
 use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::sdo::{self, Abort};
@@ -256,6 +259,15 @@ pub trait ParamStorage {
     }
     /// Forget the stored set, so the next reset runs the table defaults (0x1011 "load").
     fn restore_defaults(&mut self) -> Result<(), StorageError>;
+    /// LSS: the stored node id and bit timing, read at power-on and on reset node; none by
+    /// default.
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        None
+    }
+    /// LSS store configuration; not supported by default (the master gets error 1).
+    fn save_lss(&mut self, _c: LssConfig) -> Result<(), StorageError> {
+        Err(StorageError::Unsupported)
+    }
 }
 
 /// A node without persistent storage: `save` and `load` are refused with 0x08000020.
@@ -279,6 +291,8 @@ impl ParamStorage for NoStorage {
 pub struct MemoryStorage {
     pub stored: Option<RawParams>,
     pub saves: u32,
+    /// the LSS configuration stored
+    pub lss: Option<LssConfig>,
 }
 
 impl ParamStorage for MemoryStorage {
@@ -292,6 +306,13 @@ impl ParamStorage for MemoryStorage {
     }
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         self.stored = None;
+        Ok(())
+    }
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        self.lss
+    }
+    fn save_lss(&mut self, c: LssConfig) -> Result<(), StorageError> {
+        self.lss = Some(c);
         Ok(())
     }
 }
@@ -368,6 +389,11 @@ enum Transfer {
 /// 64 KiB cost it 10 KiB of flash).
 pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     cfg: NodeConfig,
+    /// the node id given at construction: in force after reset node unless LSS stored one
+    #[cfg_attr(not(feature = "lss"), allow(dead_code))]
+    boot_id: u8,
+    #[cfg(feature = "lss")]
+    lss: super::lss::Lss,
     storage: S,
     nmt: NmtState,
     boot_sent: bool,
@@ -452,9 +478,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     pub fn with_step(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
         // The identity names the step the node really runs, whatever the config said.
         let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
-        cfg.node_id = cfg.node_id.clamp(1, 127);
+        // with LSS, 0xFF is a node waiting for its id (CiA 305)
+        if !(cfg!(feature = "lss") && cfg.node_id == super::lss::UNCONFIGURED) {
+            cfg.node_id = cfg.node_id.clamp(1, 127);
+        }
         let mut node = Node {
             cfg,
+            boot_id: cfg.node_id,
+            #[cfg(feature = "lss")]
+            lss: super::lss::Lss::new(LssConfig { node_id: cfg.node_id, bit_timing: 0 }),
             storage,
             nmt: NmtState::Initialising,
             boot_sent: false,
@@ -493,6 +525,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// watchdog (soft start), boot-up on the next `process`.
     fn reset_node(&mut self, now_us: u64) {
         // In place throughout: a parameter set is ~2.9 KiB and this runs at boot on the MCU.
+        #[cfg(feature = "lss")]
+        self.lss_boot();
         let mut faults = Faults::NONE;
         match self.storage.load() {
             Some(raw) => {
@@ -517,6 +551,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// NMT reset communication: COB-IDs, timers and the SDO server to defaults.
     fn reset_communication(&mut self, now_us: u64) {
+        // CiA 305: the node id configured by LSS goes live here
+        #[cfg(feature = "lss")]
+        {
+            self.cfg.node_id = self.lss.pending.node_id;
+        }
         let id = u16::from(self.cfg.node_id);
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
@@ -543,8 +582,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     // ---- accessors for the control loop and the host ------------------------------------
 
+    /// The node id in force (0xFF: unconfigured, waiting for LSS).
     pub fn node_id(&self) -> u8 {
         self.cfg.node_id
+    }
+    /// The node's fixed facts (identity, names) with the node id in force.
+    pub fn config(&self) -> &NodeConfig {
+        &self.cfg
     }
     pub fn nmt_state(&self) -> NmtState {
         self.nmt
@@ -637,7 +681,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     }
 
     fn boot_up(&mut self, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
-        if !self.boot_sent {
+        // an unconfigured node (LSS) stays silent: no boot-up, no heartbeat, until it has an id
+        if !self.boot_sent && self.cfg.node_id != super::lss::UNCONFIGURED {
             self.boot_sent = true;
             self.nmt = NmtState::PreOperational;
             tx(frame(HEARTBEAT_BASE + u16::from(self.cfg.node_id), [0; 8], 1));
@@ -649,6 +694,14 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let id = f.id();
         let me = u16::from(self.cfg.node_id);
         let d = f.data();
+        #[cfg(feature = "lss")]
+        if id == super::lss::LSS_MASTER {
+            self.lss_frame(now_us, d, tx);
+            return;
+        }
+        if self.cfg.node_id == super::lss::UNCONFIGURED {
+            return;
+        }
         if id == 0 {
             // NMT: exactly 2 bytes, addressed to us or to all (0).
             if let [cs, target] = *d {
