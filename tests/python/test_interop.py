@@ -279,11 +279,11 @@ def test_a_second_sdo_channel_serves_another_master_mid_transfer(rig):
     block-writes while the first channel is in the middle of a segmented upload."""
     network, node, _ = rig
     preop(node)
-    assert node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw & 0x80000000
-    node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw = 0x640 + NODE
-    node.sdo["sdo_server_parameter_2"]["cob_id_server_to_client"].raw = 0x5C0 + NODE
-    node.sdo["sdo_server_parameter_2"]["node_id_of_the_sdo_client"].raw = 0x7E
-    assert node.sdo["sdo_server_parameter"]["cob_id_client_to_server"].raw == 0x600 + NODE
+    assert node.sdo["sdo_server_2"]["cob_id_rx"].raw & 0x80000000
+    node.sdo["sdo_server_2"]["cob_id_rx"].raw = 0x640 + NODE
+    node.sdo["sdo_server_2"]["cob_id_tx"].raw = 0x5C0 + NODE
+    node.sdo["sdo_server_2"]["client_node_id"].raw = 0x7E
+    assert node.sdo["sdo_server_1"]["cob_id_rx"].raw == 0x600 + NODE
     sdo2 = node.add_sdo(0x640 + NODE, 0x5C0 + NODE)
     sdo2.network = network  # python-canopen 2.4's add_sdo subscribes but does not attach it
     sdo2.RESPONSE_TIMEOUT = 1.0
@@ -306,7 +306,7 @@ def test_a_second_sdo_channel_serves_another_master_mid_transfer(rig):
     assert product == node.sdo.upload(0x1018, 2)
     assert node.sdo.upload(sigma, 0) == data
     node.sdo["params_commit"].raw = 0
-    node.sdo["sdo_server_parameter_2"]["cob_id_client_to_server"].raw = 0x80000000
+    node.sdo["sdo_server_2"]["cob_id_rx"].raw = 0x80000000
 
 
 def test_aborts_keep_the_old_value(rig):

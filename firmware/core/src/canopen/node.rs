@@ -17,6 +17,9 @@
 //! [`ParamStorage`] the firmware's flash task (or host-sim) implements; `load` (0x1011) makes
 //! the stored set the defaults (CiA 301: in force after the next reset) and stages them.
 //!
+//! A staged set belongs to the SDO channel that wrote it and is discarded (0x2201 code 8,
+//! EMCY 0x6320) when that channel carries nothing for 3 s: see `node/stage_owner.rs`.
+//!
 //! Safety-relevant parameters (`ParamDesc::safety`) are writable, and a commit that changes
 //! them is accepted, only in pre-operational (abort 0x08000022 otherwise).
 //!
@@ -33,6 +36,7 @@ mod block;
 mod channel;
 #[cfg(feature = "lss")]
 mod lss_slave;
+mod stage_owner;
 
 use super::frame::CanFrame;
 use super::lss::LssConfig;
@@ -322,7 +326,8 @@ impl ParamStorage for MemoryStorage {
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
     /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
-    /// set's
+    /// set's, 8 the staged set was discarded because its master stopped (not a refused
+    /// commit: the node says so the same way, 0x2201 and EMCY 0x6320)
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -426,6 +431,10 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     error_behaviour: u8,
     /// a refused commit waits for its EMCY
     pending_commit_emcy: bool,
+    /// the SDO channel whose master wrote to the staged set since the last commit or discard
+    staged_by: Option<u8>,
+    /// when that channel last carried a request
+    stage_seen_us: u64,
     now_us: u64,
     /// frames ignored because they were malformed (wrong length), for diagnostics
     pub dropped: u32,
@@ -514,6 +523,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             chan: 0,
             last_faults: Faults::NONE,
             pending_commit_emcy: false,
+            staged_by: None,
+            stage_seen_us: now_us,
             now_us,
             dropped: 0,
         };
@@ -539,6 +550,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         faults.insert(self.storage.load_fault());
         self.staged.clone_from(self.active.current().raw());
+        self.staged_by = None;
         self.safety = Safety::new(SafetyConfig::from_params(self.active.current()), now_us);
         self.safety.raise(faults);
         self.commit_error = None;
@@ -682,7 +694,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     fn boot_up(&mut self, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
         // an unconfigured node (LSS) stays silent: no boot-up, no heartbeat, until it has an id
-        if !self.boot_sent && self.cfg.node_id != super::lss::UNCONFIGURED {
+        let unconfigured = cfg!(feature = "lss") && self.cfg.node_id == super::lss::UNCONFIGURED;
+        if !self.boot_sent && !unconfigured {
             self.boot_sent = true;
             self.nmt = NmtState::PreOperational;
             tx(frame(HEARTBEAT_BASE + u16::from(self.cfg.node_id), [0; 8], 1));
@@ -699,6 +712,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             self.lss_frame(now_us, d, tx);
             return;
         }
+        #[cfg(feature = "lss")]
         if self.cfg.node_id == super::lss::UNCONFIGURED {
             return;
         }
@@ -818,6 +832,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         // Advance the watchdog clock so a lost heartbeat is noticed even without control steps.
         let faults = self.safety.faults();
         let new = self.safety.take_new_faults();
+        self.stage_watch(now_us);
         if self.nmt != NmtState::Stopped {
             if !new.is_empty() {
                 let b = faults.bits().to_le_bytes();
@@ -857,27 +872,18 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// The SDO transfer's timeout (0x05040000 to `cob`) and a block upload's next burst.
     fn sdo_timers(&mut self, now_us: u64, cob: u16, tx: &mut impl FnMut(CanFrame)) {
-        match self.transfer {
-            Transfer::Download { info, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(cob, sdo::abort_payload(info.index, info.sub, Abort::Timeout), 8));
-            }
-            Transfer::Upload { index, sub, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockDownload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                let (index, sub) = b.index_sub();
-                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockUpload(b) if now_us.saturating_sub(b.last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                let (index, sub) = b.index_sub();
-                tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            Transfer::BlockUpload(_) => self.block_pump(cob, tx),
-            _ => {}
+        let (index, sub, last_us) = match self.transfer {
+            Transfer::Idle => return,
+            Transfer::Download { info, last_us, .. } => (info.index, info.sub, last_us),
+            Transfer::Upload { index, sub, last_us, .. } => (index, sub, last_us),
+            Transfer::BlockDownload(b) => b.timer(),
+            Transfer::BlockUpload(b) => b.timer(),
+        };
+        if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US {
+            self.transfer = Transfer::Idle;
+            tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+        } else {
+            self.block_pump(cob, tx);
         }
     }
 
@@ -1258,7 +1264,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         check_len(info, data.len())?;
         let u = le_u32(data);
-        match info.key {
+        // a staged set belongs to the master (channel) that wrote to it: see stage_owner.rs
+        // (the parameters, the gravity table and series: 0x2000..=0x2105)
+        let staging = (od::PARAM_BASE..=od::SERIES_TERMS).contains(&info.index);
+        let r = match info.key {
             Key::StoreAll | Key::RestoreAll => self.write_store(info.key, u),
             Key::ConsumerHeartbeat
             | Key::ProducerHeartbeat
@@ -1301,6 +1310,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 1 => self.commit(),
                 0 => {
                     self.staged = self.active.current().raw().clone();
+                    self.staged_by = None;
                     Ok(())
                 }
                 _ => Err(Abort::InvalidValue),
@@ -1327,7 +1337,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 Ok(())
             }
             _ => Err(Abort::ReadOnly),
+        };
+        if staging && r.is_ok() {
+            self.stage_touched();
         }
+        r
     }
 
     /// 0x1010 save / 0x1011 restore, each behind its signature.
@@ -1543,6 +1557,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         match self.active.replace(&self.staged) {
             Ok(()) => {
+                self.staged_by = None;
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
                 // The Dahl friction state belongs to the set that made it (its σ and level).
                 self.controller.configure(self.active.current());

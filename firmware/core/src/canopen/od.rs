@@ -399,8 +399,8 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         CONSUMER_HEARTBEAT => o("consumer_heartbeat_time", Array, SUBS_1),
         PRODUCER_HEARTBEAT => o("producer_heartbeat_time", Var, SUB0),
         IDENTITY => o("identity", Record, SUBS_4),
-        SDO_SERVER1 => o("sdo_server_parameter", Record, SUBS_2),
-        SDO_SERVER2 => o("sdo_server_parameter_2", Record, SUBS_3),
+        SDO_SERVER1 => o("sdo_server_1", Record, SUBS_2),
+        SDO_SERVER2 => o("sdo_server_2", Record, SUBS_3),
         i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
             o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
         }
@@ -493,15 +493,9 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
             let ch = u8::from(index == SDO_SERVER2);
             let access = if ch == 0 { Ro } else { Rw };
             match sub {
-                1 => SubInfo {
-                    node_relative: ch == 0,
-                    ..mk("cob_id_client_to_server", Unsigned32, access, Key::SdoServer(ch, 1))
-                },
-                2 => SubInfo {
-                    node_relative: ch == 0,
-                    ..mk("cob_id_server_to_client", Unsigned32, access, Key::SdoServer(ch, 2))
-                },
-                _ => mk("node_id_of_the_sdo_client", Unsigned8, Rw, Key::SdoServer(ch, 3)),
+                1 => SubInfo { node_relative: ch == 0, ..mk("cob_id_rx", Unsigned32, access, Key::SdoServer(ch, 1)) },
+                2 => SubInfo { node_relative: ch == 0, ..mk("cob_id_tx", Unsigned32, access, Key::SdoServer(ch, 2)) },
+                _ => mk("client_node_id", Unsigned8, Rw, Key::SdoServer(ch, 3)),
             }
         }
         i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {

@@ -7,13 +7,14 @@
 //! Nothing is written to the object before the end frame's CRC (when both sides asked for it)
 //! and length check pass, so a damaged transfer leaves the old value in force.
 //!
-//! An upload reads the object where it lives, segment by segment ([`Node::big_byte`]), so a
-//! retransmission is just reading again from the last acknowledged segment. Its segments go
+//! An upload copies the object into the same buffer at its initiate (the channel has one
+//! transfer at a time, so the buffer is free), so every segment, a retransmitted one too, and
+//! the CRC come from one consistent snapshot. Its segments go
 //! out at most [`UPLOAD_BURST`] per `process`/`poll` call: the board's outbox holds 16 frames
 //! and the heartbeat and TPDOs share it. The protocol switch threshold is ignored (CiA 301
 //! allows it): every block upload is answered in block mode, a 1-byte object too.
 
-use super::{le_u32, Big, ControlStep, Node, ParamStorage, Transfer, Value};
+use super::{le_u32, ControlStep, Node, ParamStorage, Transfer, SDO_BUFFER};
 use crate::canopen::frame::CanFrame;
 use crate::canopen::od::{self, SubInfo};
 use crate::canopen::sdo::{self, Abort, BLOCK_SEGMENTS_MAX};
@@ -38,20 +39,14 @@ pub(super) struct Down {
     /// all blocks acknowledged: waiting for the end frame
     ending: bool,
     expected: Option<usize>,
-    pub(super) last_us: u64,
+    last_us: u64,
 }
 
 impl Down {
-    pub(super) fn index_sub(&self) -> (u16, u8) {
-        (self.info.index, self.info.sub)
+    /// (index, sub-index, time of the last request) for the SDO timeout
+    pub(super) fn timer(&self) -> (u16, u8, u64) {
+        (self.info.index, self.info.sub, self.last_us)
     }
-}
-
-/// Where an upload's bytes come from.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Src {
-    Small([u8; 4]),
-    Big(Big),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -71,7 +66,6 @@ enum UpPhase {
 pub(super) struct Up {
     index: u16,
     sub: u8,
-    src: Src,
     crc: bool,
     total: usize,
     /// segments acknowledged in earlier blocks
@@ -80,12 +74,13 @@ pub(super) struct Up {
     sent: u8,
     blksize: u8,
     phase: UpPhase,
-    pub(super) last_us: u64,
+    last_us: u64,
 }
 
 impl Up {
-    pub(super) fn index_sub(&self) -> (u16, u8) {
-        (self.index, self.sub)
+    /// (index, sub-index, time of the last request) for the SDO timeout
+    pub(super) fn timer(&self) -> (u16, u8, u64) {
+        (self.index, self.sub, self.last_us)
     }
     /// Segments the object takes (an empty one still takes one, with no data).
     fn segments(&self) -> usize {
@@ -122,10 +117,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let index = u16::from_le_bytes([d.get(1).copied().unwrap_or(0), d.get(2).copied().unwrap_or(0)]);
         let sub = d.get(3).copied().unwrap_or(0);
         // an abort names the object of the transfer it ends (end frames carry no index)
-        let (ai, asub) = match self.transfer {
-            Transfer::BlockDownload(st) if b0 & 0x03 != 0 => st.index_sub(),
-            Transfer::BlockUpload(st) if b0 & 0x03 != 0 => st.index_sub(),
-            _ => (index, sub),
+        let (ai, asub, _) = match self.transfer {
+            Transfer::BlockDownload(st) if b0 & 0x03 != 0 => st.timer(),
+            Transfer::BlockUpload(st) if b0 & 0x03 != 0 => st.timer(),
+            _ => (index, sub, 0),
         };
         let r = match b0 >> 5 {
             sdo::CCS_BLOCK_DOWNLOAD => match self.transfer {
@@ -191,7 +186,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if !st.last && seqno == st.seq.wrapping_add(1) {
             let off = st.base + 7 * (seqno as usize - 1);
             // A segment starting past the object's room carries at least one byte too many.
-            let room = st.expected.unwrap_or(super::SDO_BUFFER).min(super::SDO_BUFFER);
+            // (an announced size is at most the object's, which is at most the buffer)
+            let room = st.expected.unwrap_or(SDO_BUFFER);
             if off >= room {
                 self.transfer = Transfer::Idle;
                 resp(cob, sdo::abort_payload(st.info.index, st.info.sub, Abort::TooLong), tx);
@@ -218,9 +214,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         self.transfer = Transfer::Idle;
         let n = ((cmd >> 2) & 0x07) as usize;
         let len = st.base.checked_sub(n).ok_or(Abort::TypeLength)?;
-        if len > super::SDO_BUFFER {
-            return Err(Abort::TooLong);
-        }
         if st.expected.is_some_and(|e| e != len) {
             return Err(Abort::TypeLength);
         }
@@ -293,21 +286,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     ) -> Result<Option<[u8; 8]>, Abort> {
         self.transfer = Transfer::Idle;
         let blksize = d.get(4).copied().unwrap_or(0);
-        let info = od::sub_info(index, sub)?;
-        if !info.access.readable() {
-            return Err(Abort::WriteOnly);
-        }
+        let mut snap = [0u8; SDO_BUFFER];
+        let total = self.read(index, sub, &mut snap)?;
         if blksize == 0 || blksize > BLOCK_SEGMENTS_MAX {
             return Err(Abort::BlockSize);
         }
-        let (src, total) = match self.read_value(&info)? {
-            Value::Small(v, n) => (Src::Small(v), n.min(4)),
-            Value::Big(b) => (Src::Big(b), self.big_len(b)),
-        };
+        *self.sdo_buf() = snap;
         self.transfer = Transfer::BlockUpload(Up {
             index,
             sub,
-            src,
             crc: cmd & 0x04 != 0,
             total,
             acked: 0,
@@ -322,17 +309,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         Ok(Some([0xC6, i[0], i[1], sub, s[0], s[1], s[2], s[3]]))
     }
 
-    fn up_byte(&self, st: &Up, i: usize) -> u8 {
-        match st.src {
-            Src::Small(v) => v.get(i).copied().unwrap_or(0),
-            Src::Big(b) => self.big_byte(b, i),
-        }
-    }
-
-    fn block_upload_end_frame(&self, st: &Up) -> [u8; 8] {
+    fn block_upload_end_frame(&mut self, st: &Up) -> [u8; 8] {
         // bytes of the last segment that carry no data (7 for an empty object)
         let n = (st.segments() * 7 - st.total) as u8;
-        let crc = if st.crc { (0..st.total).fold(0, |c, k| sdo::crc16_byte(c, self.up_byte(st, k))) } else { 0 };
+        let crc = if st.crc { sdo::crc16(self.sdo_buf().get(..st.total).unwrap_or(&[])) } else { 0 };
         let c = crc.to_le_bytes();
         [0xC1 | (n << 2), c[0], c[1], 0, 0, 0, 0, 0]
     }
@@ -349,11 +329,9 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             let mut p = [0u8; 8];
             st.sent += 1;
             p[0] = st.sent | if last { 0x80 } else { 0 };
-            for (k, x) in p.iter_mut().skip(1).enumerate() {
-                let i = seg * 7 + k;
-                if i < st.total {
-                    *x = self.up_byte(&st, i);
-                }
+            let data = self.sdo_buf().get(seg * 7..st.total.min(seg * 7 + 7)).unwrap_or(&[]);
+            for (x, b) in p.iter_mut().skip(1).zip(data) {
+                *x = *b;
             }
             resp(cob, p, tx);
             burst += 1;

@@ -78,7 +78,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// The second channel's timers (timeout, upload bursts), only while it has a transfer.
     pub(super) fn sdo2_poll(&mut self, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
-        if self.sdo2.transfer == Transfer::Idle {
+        if matches!(self.sdo2.transfer, Transfer::Idle) {
             return;
         }
         let cob = (self.sdo2.tx & 0x7FF) as u16;
@@ -87,10 +87,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     pub(super) fn sdo_server_value(&self, ch: u8, sub: u8) -> Value {
         let me = u32::from(self.cfg.node_id);
+        // (0x1200 has subs 1 and 2 only: the dictionary refuses the rest before)
         match (ch, sub) {
             (0, 1) => put_u32(u32::from(sdo::RX_BASE) + me),
-            (0, 2) => put_u32(u32::from(sdo::TX_BASE) + me),
-            (0, _) => put_u8(0),
+            (0, _) => put_u32(u32::from(sdo::TX_BASE) + me),
             (_, 1) => put_u32(self.sdo2.rx),
             (_, 2) => put_u32(self.sdo2.tx),
             _ => put_u8(self.sdo2.client),
@@ -101,9 +101,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// client's node id. An id the default channel or NMT uses is refused.
     pub(super) fn write_sdo_server(&mut self, ch: u8, sub: u8, u: u32) -> Result<(), Abort> {
         if ch == 0 {
-            if sub == 3 {
-                return Err(Abort::NoSubIndex);
-            }
+            // (0x1200 has no sub 3: the dictionary refuses it before)
             return Err(Abort::ReadOnly);
         }
         if sub == 3 {
@@ -140,6 +138,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// A frame on an SDO channel whose response COB-ID is `cob`: block traffic or the rest.
     pub(super) fn sdo_serve(&mut self, now_us: u64, d: &[u8], cob: u16, tx: &mut impl FnMut(CanFrame)) {
+        self.stage_seen(now_us);
         if !self.block_request(now_us, d, cob, tx) {
             if let Some(resp) = self.sdo_request(now_us, d) {
                 tx(frame(cob, resp, 8));
