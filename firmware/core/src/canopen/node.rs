@@ -419,7 +419,7 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     buf: [u8; SDO_BUFFER],
     /// the second SDO server channel (0x1201)
     sdo2: channel::Server2,
-    /// the SDO channel being served: 0 default, 1 the second (selects the buffer)
+    /// the SDO channel being served: 0 default, 1 the second
     chan: u8,
     last_faults: Faults,
     /// 0x1003: the last EMCY codes (code | error register << 16), newest first
@@ -1037,6 +1037,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if let Some(n) = expected {
             check_len(&info, n)?;
         }
+        self.buf_taken()?;
         self.transfer = Transfer::Download { info, toggle: false, len: 0, expected, last_us: now_us };
         Ok(ok)
     }
@@ -1072,15 +1073,21 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if expected.is_some_and(|e| end != e) {
             return abort(self, Abort::TypeLength);
         }
-        // Copy out so the write can borrow self mutably; the buffer is the node's own.
-        let tmp = *self.sdo_buf();
-        let Some(data) = tmp.get(..end) else {
-            return abort(self, Abort::TooLong);
-        };
-        match self.write_value(&info, data, true) {
+        match self.write_from_buf(&info, end) {
             Ok(()) => Some(resp),
             Err(a) => abort(self, a),
         }
+    }
+
+    /// Write the first `len` bytes of the channel's transfer buffer to the object: the end
+    /// of a segmented or block download. The buffer is copied out so the write can borrow
+    /// the node; out of line, so that copy is on the stack only during this call, not in
+    /// the frame of every SDO request (the QEMU image measures the node's peak stack).
+    #[inline(never)]
+    fn write_from_buf(&mut self, info: &SubInfo, len: usize) -> Result<(), Abort> {
+        let tmp = *self.sdo_buf();
+        let data = tmp.get(..len).ok_or(Abort::TooLong)?;
+        self.write_value(info, data, true)
     }
 
     fn initiate_upload(&mut self, now_us: u64, index: u16, sub: u8) -> Result<[u8; 8], Abort> {

@@ -14,7 +14,7 @@
 //! and the heartbeat and TPDOs share it. The protocol switch threshold is ignored (CiA 301
 //! allows it): every block upload is answered in block mode, a 1-byte object too.
 
-use super::{le_u32, ControlStep, Node, ParamStorage, Transfer, SDO_BUFFER};
+use super::{le_u32, ControlStep, Node, ParamStorage, Transfer, Value, SDO_BUFFER};
 use crate::canopen::frame::CanFrame;
 use crate::canopen::od::{self, SubInfo};
 use crate::canopen::sdo::{self, Abort, BLOCK_SEGMENTS_MAX};
@@ -159,6 +159,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if let Some(n) = expected {
             super::check_len(&info, n)?;
         }
+        self.buf_taken()?;
         let crc = cmd & 0x04 != 0;
         self.transfer = Transfer::BlockDownload(Down {
             info,
@@ -217,14 +218,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if st.expected.is_some_and(|e| e != len) {
             return Err(Abort::TypeLength);
         }
-        let tmp = *self.sdo_buf();
-        let data = tmp.get(..len).ok_or(Abort::TooLong)?;
+        let data = self.sdo_buf().get(..len).ok_or(Abort::TooLong)?;
         if st.crc
             && sdo::crc16(data) != u16::from_le_bytes([d.get(1).copied().unwrap_or(0), d.get(2).copied().unwrap_or(0)])
         {
             return Err(Abort::Crc);
         }
-        self.write_value(&st.info, data, true)?;
+        self.write_from_buf(&st.info, len)?;
         Ok(Some([0xA1, 0, 0, 0, 0, 0, 0, 0]))
     }
 
@@ -286,12 +286,33 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     ) -> Result<Option<[u8; 8]>, Abort> {
         self.transfer = Transfer::Idle;
         let blksize = d.get(4).copied().unwrap_or(0);
-        let mut snap = [0u8; SDO_BUFFER];
-        let total = self.read(index, sub, &mut snap)?;
+        let info = od::sub_info(index, sub)?;
+        if !info.access.readable() {
+            return Err(Abort::WriteOnly);
+        }
         if blksize == 0 || blksize > BLOCK_SEGMENTS_MAX {
             return Err(Abort::BlockSize);
         }
-        *self.sdo_buf() = snap;
+        self.buf_taken()?;
+        // the snapshot, byte by byte: no second buffer on the stack
+        let total = match self.read_value(&info)? {
+            Value::Small(v, n) => {
+                if let Some(dst) = self.sdo_buf().get_mut(..4) {
+                    dst.copy_from_slice(&v);
+                }
+                n.min(4)
+            }
+            Value::Big(b) => {
+                let n = self.big_len(b).min(SDO_BUFFER);
+                for k in 0..n {
+                    let x = self.big_byte(b, k);
+                    if let Some(dst) = self.sdo_buf().get_mut(k) {
+                        *dst = x;
+                    }
+                }
+                n
+            }
+        };
         self.transfer = Transfer::BlockUpload(Up {
             index,
             sub,

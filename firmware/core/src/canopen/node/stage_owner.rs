@@ -34,9 +34,16 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// From `poll`: discard the staged set if its master went quiet.
     pub(super) fn stage_watch(&mut self, now_us: u64) {
-        if self.staged_by.is_none() || now_us.saturating_sub(self.stage_seen_us) <= STAGE_IDLE_US {
-            return;
+        if self.staged_by.is_some() && now_us.saturating_sub(self.stage_seen_us) > STAGE_IDLE_US {
+            self.stage_discard();
         }
+    }
+
+    /// Out of line and cold: the copy of the set in force may take a set-sized temporary,
+    /// which must not sit in `poll`'s frame (the QEMU image measures the node's peak stack).
+    #[cold]
+    #[inline(never)]
+    fn stage_discard(&mut self) {
         self.staged_by = None;
         self.staged.clone_from(self.active.current().raw());
         let crc = crate::store::set_crc(self.active.current().raw());
