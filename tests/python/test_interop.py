@@ -246,6 +246,69 @@ def test_gravity_table_by_segmented_sdo_and_commit(rig):
     node.sdo["params_commit"].raw = 1
 
 
+def test_gravity_table_by_block_transfer_with_crc(rig):
+    """python-canopen's block download and upload (CRC requested) of a 512-byte table domain."""
+    _, node, _ = rig
+    preop(node)
+    index = node.object_dictionary["gravity_table_torque"].index
+    # 2 axes of 16 × 8 points: 128 cells, the largest table (its upload length follows the shape)
+    node.sdo["gravity_table_shape"]["n_axes"].raw = 2
+    node.sdo["gravity_table_shape"]["points_0"].raw = 16
+    node.sdo["gravity_table_shape"]["points_1"].raw = 8
+    torque = [0.01 * k - 0.5 for k in range(128)]
+    data = struct.pack("<128f", *torque)
+    with node.sdo.open(index, 0, "wb", size=len(data), block_transfer=True, request_crc_support=True) as f:
+        f.write(data)
+    with node.sdo.open(index, 0, "rb", block_transfer=True, request_crc_support=True) as f:
+        back = f.read()
+    assert back == data
+    # the segmented protocol reads the same bytes
+    assert node.sdo["gravity_table_torque"].raw == data
+    # a block download without CRC, shorter: 9 values
+    short = struct.pack("<9f", *torque[:9])
+    with node.sdo.open(index, 0, "wb", size=len(short), block_transfer=True, request_crc_support=False) as f:
+        f.write(short)
+    assert node.sdo["gravity_table_torque"].raw[:36] == short
+    # discard the staged changes: nothing of this goes live
+    node.sdo["params_commit"].raw = 0
+    assert node.sdo["params_pending"].raw == 0
+
+
+def test_a_second_sdo_channel_serves_another_master_mid_transfer(rig):
+    """0x1201 configured through the EDS, then a second python-canopen SdoClient on it reads and
+    block-writes while the first channel is in the middle of a segmented upload."""
+    network, node, _ = rig
+    preop(node)
+    assert node.sdo["sdo_server_2"]["cob_id_rx"].raw & 0x80000000
+    node.sdo["sdo_server_2"]["cob_id_rx"].raw = 0x640 + NODE
+    node.sdo["sdo_server_2"]["cob_id_tx"].raw = 0x5C0 + NODE
+    node.sdo["sdo_server_2"]["client_node_id"].raw = 0x7E
+    assert node.sdo["sdo_server_1"]["cob_id_rx"].raw == 0x600 + NODE
+    sdo2 = node.add_sdo(0x640 + NODE, 0x5C0 + NODE)
+    sdo2.network = network  # python-canopen 2.4's add_sdo subscribes but does not attach it
+    sdo2.RESPONSE_TIMEOUT = 1.0
+    node.sdo["gravity_table_shape"]["n_axes"].raw = 1
+    node.sdo["gravity_table_shape"]["points_0"].raw = 9
+    # channel 1: a segmented upload of the device name, left open after its first segment
+    name = node.object_dictionary["manufacturer_device_name"].index
+    stream = node.sdo.open(name, 0, "rb", buffering=0)
+    first = stream.read(7)
+    # channel 2: a whole expedited read and a block download while channel 1 waits
+    product = sdo2.upload(0x1018, 2)
+    sigma = node.object_dictionary["gravity_table_sigma"].index
+    data = struct.pack("<9f", *[0.125 * k for k in range(9)])
+    with sdo2.open(sigma, 0, "wb", size=len(data), block_transfer=True) as f:
+        f.write(data)
+    # channel 1 carries on where it was
+    rest = stream.read()
+    stream.close()
+    assert first + rest == b"joint-node"
+    assert product == node.sdo.upload(0x1018, 2)
+    assert node.sdo.upload(sigma, 0) == data
+    node.sdo["params_commit"].raw = 0
+    node.sdo["sdo_server_2"]["cob_id_rx"].raw = 0x80000000
+
+
 def test_aborts_keep_the_old_value(rig):
     _, node, _ = rig
     preop(node)
@@ -589,3 +652,79 @@ def test_fd_shared_command_frame_and_sdo_in_fd_frames(fd_rig):
     assert reply.data[:4] == bytes([0x43, 0x18, 0x10, 2])
     assert struct.unpack_from("<I", reply.data, 4)[0] == node.sdo[0x1018][2].raw
     preop(node)
+
+
+@pytest.fixture()
+def lss_rig():
+    """A second bus with one joint started unconfigured (LSS): serial number 42, no node id."""
+    tmp = Path(tempfile.mkdtemp(prefix="joint-lss-"))
+    a, b = tmp / "canA", tmp / "canB"
+    socat = subprocess.Popen(
+        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
+    eds = tmp / "joint.eds"
+    subprocess.run([jointctl(), "eds", "--out", str(eds)], check=True)
+    sim = subprocess.Popen(
+        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", "42", "--lss-unconfigured"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    network = canopen.Network()
+    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
+    try:
+        yield network, eds
+    finally:
+        network.disconnect()
+        sim.terminate()
+        try:
+            rc = sim.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            sim.kill()
+            rc = "hung"
+        socat.terminate()
+        socat.wait(timeout=5)
+        shutil.rmtree(tmp, ignore_errors=True)
+        assert rc == 0, f"jointctl sim did not stop cleanly: {rc} {sim.stderr.read()!r}"
+
+
+def test_lss_fast_scan_gives_an_unconfigured_joint_its_node_id(lss_rig):
+    """python-canopen's LssMaster: fast scan finds the silent joint, configures and stores its
+    node id; back in the waiting state it boots up under that id, the EDS-driven SDO works on
+    it, and after an NMT reset node it comes back with the stored id."""
+    network, eds = lss_rig
+    new_id = 21
+    seen = []
+    network.subscribe(0x700 + new_id, lambda cob, data, ts: seen.append(bytes(data)))
+    time.sleep(0.3)
+    assert not seen, "an unconfigured joint sends nothing"
+    lss = network.lss
+    lss.RESPONSE_TIMEOUT = 0.2
+    found, ident = lss.fast_scan()
+    assert found, "fast scan found no unconfigured slave"
+    cfg = configparser.ConfigParser()
+    cfg.read(eds)
+    product = int(cfg["DeviceInfo"]["ProductNumber"], 0)
+    assert ident == [0, product, int(cfg["DeviceInfo"]["RevisionNumber"], 0), 42]
+    # fast scan left it in the configuration state
+    assert lss.inquire_node_id() == 0xFF
+    lss.configure_node_id(new_id)
+    lss.store_configuration()
+    node = network.add_node(new_id, str(eds))
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    lss.send_switch_state_global(lss.WAITING_STATE)
+    wait_for(lambda: b"\x00" in seen, 2, "boot-up under the new node id")
+    assert node.sdo["identity"]["serial_number"].raw == 42
+    assert node.sdo["identity"]["product_code"].raw == product
+    node.sdo["friction_a"].raw = 0.25
+    assert node.sdo["friction_a"].raw == 0.25
+    # reset node: the stored id, not unconfigured again
+    seen.clear()
+    node.nmt.send_command(0x81)
+    wait_for(lambda: b"\x00" in seen, 2, "boot-up after reset node")
+    assert node.sdo["identity"]["serial_number"].raw == 42
+    # the configured joint takes no part in another fast scan
+    found, _ = lss.fast_scan()
+    assert not found

@@ -147,7 +147,7 @@ mod tests {
 
     /// A node on the trunk-paper set, operational.
     fn node() -> Node<MemoryStorage> {
-        let storage = MemoryStorage { stored: Some(trunk_right()), saves: 0, pdo: None };
+        let storage = MemoryStorage { stored: Some(trunk_right()), saves: 0, pdo: None, lss: None };
         let mut n = Node::new(NodeConfig::new(NODE), storage, 0);
         let mut sink = |_f: CanFrame| {};
         n.process(0, Some(&frame(0x000, &[0x01, NODE])), &mut sink);
@@ -191,8 +191,11 @@ mod tests {
 
     #[test]
     fn no_torque_outside_operational() {
-        let mut n =
-            Node::new(NodeConfig::new(NODE), MemoryStorage { stored: Some(trunk_right()), saves: 0, pdo: None }, 0);
+        let mut n = Node::new(
+            NodeConfig::new(NODE),
+            MemoryStorage { stored: Some(trunk_right()), saves: 0, pdo: None, lss: None },
+            0,
+        );
         let mut l = ControlLoop::new(n.params());
         let (_, r) = run(&mut l, &mut n, 0, 1000, true);
         assert_eq!(n.nmt_state(), NmtState::PreOperational);
@@ -238,7 +241,8 @@ mod tests {
         raw.set(ParamId::ControlRateHz, 100.0);
         assert_eq!(ControlLoop::period_us(&check(&raw).unwrap()), 10_000);
         // Through the node: a committed rate change is picked up at the next tick.
-        let mut n = Node::new(NodeConfig::new(NODE), MemoryStorage { stored: Some(raw), saves: 0, pdo: None }, 0);
+        let mut n =
+            Node::new(NodeConfig::new(NODE), MemoryStorage { stored: Some(raw), saves: 0, pdo: None, lss: None }, 0);
         let mut l = ControlLoop::new(&ParamSet::defaults());
         l.tick(&mut n, 0, Ok(0.0));
         assert_eq!(l.nominal_period_us(), 10_000);

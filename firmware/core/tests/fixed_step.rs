@@ -16,7 +16,7 @@ type Q16Node = Node<MemoryStorage, ControllerFx>;
 
 fn node<C: ControlStep>(stored: Option<RawParams>) -> Node<MemoryStorage, C> {
     // The config says f32: the node's step type decides (and names itself in the identity).
-    Node::with_step(NodeConfig::new(5), MemoryStorage { stored, saves: 0, pdo: None }, 0)
+    Node::with_step(NodeConfig::new(5), MemoryStorage { stored, saves: 0, pdo: None, lss: None }, 0)
 }
 
 fn param_index(id: ParamId) -> u16 {

@@ -196,7 +196,13 @@ fn generate_with<C: ControlStep>(fd: bool) -> String {
     let _ = writeln!(out, "GroupMessaging=0");
     let _ = writeln!(out, "NrOfRXPDO={}", od::RPDO_COUNT);
     let _ = writeln!(out, "NrOfTXPDO={}", od::TPDO_COUNT);
-    let _ = writeln!(out, "LSS_Supported=0");
+    // CiA 305 LSS slave: in `jointctl sim`, the G0B1 and the QEMU images; the G431 image
+    // leaves it out (its flash is full: docs/canopen.md), so there the id is set at build time
+    let lss = joint_core::canopen::lss::SERVED;
+    if lss {
+        let _ = writeln!(out, "; LSS: not in the G431 image (flash); node id set at build time there");
+    }
+    let _ = writeln!(out, "LSS_Supported={}", u8::from(lss));
     out.push('\n');
     let _ = writeln!(out, "[DummyUsage]");
     for d in 1..=7 {

@@ -10,6 +10,7 @@
 
 use host_sim::plant::{Operator, Plant, PlantFile, State};
 use joint_can::sim_bus::SimDevice;
+use joint_core::canopen::lss::LssConfig;
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
 use joint_core::canopen::pdo_map::PDO_MAPS_BYTES;
 use joint_core::canopen::CanFrame;
@@ -114,6 +115,29 @@ impl ParamStorage for SimStorage {
             _ => joint_core::safety::Faults::NONE,
         }
     }
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        match self {
+            SimStorage::Memory(m) => m.load_lss(),
+            SimStorage::File { path, .. } => {
+                let text = std::fs::read_to_string(lss_file(path)).ok()?;
+                let field = |k: &str| {
+                    text.lines().find_map(|l| l.strip_prefix(k)?.trim().strip_prefix('=')?.trim().parse::<u8>().ok())
+                };
+                Some(LssConfig { node_id: field("node_id")?, bit_timing: field("bit_timing")? })
+            }
+        }
+    }
+    fn save_lss(&mut self, c: LssConfig) -> Result<(), StorageError> {
+        match self {
+            SimStorage::Memory(m) => m.save_lss(c),
+            SimStorage::File { path, .. } => {
+                let text =
+                    format!("# LSS configuration (CiA 305)\nnode_id = {}\nbit_timing = {}\n", c.node_id, c.bit_timing);
+                joint_formats::output::write_file(&lss_file(path), |w| w.write_all(text.as_bytes()))
+                    .map_err(|_| StorageError::Failed)
+            }
+        }
+    }
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
         match self {
             SimStorage::Memory(m) => m.restore_defaults(),
@@ -136,6 +160,11 @@ fn pdo_path(p: &std::path::Path) -> PathBuf {
     p.with_extension("pdo")
 }
 
+/// Where a file-stored joint keeps its LSS configuration: beside its parameters (`.lss`).
+fn lss_file(params: &std::path::Path) -> PathBuf {
+    params.with_extension("lss")
+}
+
 /// First line of a store file the simulated joint wrote: its CRC-32 over the rest follows.
 const STORE_HEADER: &str = "# joint parameter store, crc32 ";
 
@@ -156,7 +185,8 @@ impl JointSim {
         Self::with_config(NodeConfig::new(node_id), plant, storage, now_us)
     }
 
-    /// A joint whose node has `cfg` (a CAN FD node: `NodeConfig::new(id).with_fd(true)`).
+    /// A joint whose node is built from `cfg` (a CAN FD node: `NodeConfig::new(id).with_fd(true)`;
+    /// an unconfigured LSS node: id 0xFF, told apart by its serial number).
     pub fn with_config(cfg: NodeConfig, plant: Option<&PlantFile>, storage: SimStorage, now_us: u64) -> JointSim {
         let node = Node::new(cfg, storage, now_us);
         let plant = plant.map(|pf| {

@@ -159,3 +159,66 @@ fn sim_keeps_serving_when_the_master_stops_reading() {
     assert!(v["frames_dropped"].as_u64().unwrap() > 0, "the buffers never filled: {v}");
     assert!(v["seconds"].as_f64().unwrap() >= 7.9, "{v}");
 }
+
+/// A push killed mid-transfer (SIGKILL: no Ctrl-C handler runs, nothing is discarded by the
+/// tool) used to leave its values staged on the joint, waiting for anyone's next commit. Now
+/// the joint discards a staged set whose master went quiet (3 s, firmware/core
+/// canopen/node/stage_owner.rs), says so in 0x2201, and the set in force never changed.
+#[test]
+fn a_killed_push_leaves_nothing_staged_and_the_set_in_force_unchanged() {
+    let (dir, _socat, a, b) = pty_pair();
+    let _sim = Kill(
+        Command::new(env!("CARGO_BIN_EXE_jointctl"))
+            .current_dir(ROOT)
+            .args(["sim", "--bus", &format!("slcan:{}", b.display()), "--node", "5", "--seconds", "60"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let bus = format!("slcan:{}", a.display());
+    let st = || {
+        let o = jointctl(&["status", "--node", "5", "--bus", &bus, "--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    // two models, pushed in turn, so every push changes the set
+    let model = Path::new(ROOT).join("examples/models/trunk-right.toml");
+    let other = dir.path().join("other.toml");
+    let text = std::fs::read_to_string(&model).unwrap();
+    std::fs::write(&other, text.replace("fraction = 0.7", "fraction = 0.65")).unwrap();
+    assert_ne!(std::fs::read_to_string(&other).unwrap(), text);
+    // A push over a pty is done some 15 ms after it starts (measured; ~10 ms of it staging):
+    // kill it after a delay stepped across that, until a kill lands while it stages.
+    let mut staged = None;
+    for k in 0..100u64 {
+        let before = st()["active_crc"].as_str().unwrap().to_string();
+        let m = if k % 2 == 0 { &other } else { &model };
+        let mut push = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+            .current_dir(ROOT)
+            .args(["push", m.to_str().unwrap(), "--node", "5", "--bus", &bus, "--pre-operational"])
+            .stderr(Stdio::null())
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_micros(500 * (k % 50)));
+        push.kill().unwrap(); // SIGKILL
+        push.wait().unwrap();
+        let v = st();
+        if v["staged_pending"] == true {
+            assert_eq!(v["active_crc"].as_str().unwrap(), before, "staged and committed? {v}");
+            staged = Some((v, before, k));
+            break;
+        }
+    }
+    let (v, before, k) = staged.expect("no kill landed while the push was staging");
+    println!("right after the kill (attempt {k}): {v}");
+    std::thread::sleep(Duration::from_millis(3500));
+    let v = st();
+    assert_eq!(v["staged_pending"], false, "the killed push's values are still staged: {v}");
+    assert_eq!(v["active_crc"].as_str().unwrap(), before, "{v}");
+    let spec: joint_can::BusSpec = bus.parse().unwrap();
+    let mut m = joint_can::master::Master::new(joint_can::open(&spec).unwrap());
+    assert_eq!(m.read(5, 0x2201, 1).unwrap(), vec![8], "commit error code 8: staged set discarded");
+    let why = m.read_string(5, 0x2201, 3).unwrap();
+    assert!(why.contains("discarded") && why.contains(&before), "{why}");
+}

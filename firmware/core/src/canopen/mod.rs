@@ -4,6 +4,7 @@
 //! - [`od`]: the object dictionary, derived from [`crate::params::PARAMS`];
 //! - [`sdo`]: abort codes and SDO frame layouts (server here, client in host-sim);
 //! - [`pdo`]: the scaling of the process data;
+//! - [`lss`]: the LSS slave (CiA 305), served by the node with the `lss` feature;
 //! - [`node`]: the node itself — NMT, heartbeat, SDO, EMCY, PDOs, staged/committed parameters.
 //!
 //! We implement the subset ourselves rather than use zencan: zencan generates its object
@@ -11,6 +12,7 @@
 //! the core, with a staged/committed split and device-state checks it does not model.
 
 pub mod frame;
+pub mod lss;
 pub mod node;
 pub mod od;
 pub mod pdo;

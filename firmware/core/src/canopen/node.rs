@@ -17,6 +17,9 @@
 //! [`ParamStorage`] the firmware's flash task (or host-sim) implements; `load` (0x1011) makes
 //! the stored set the defaults (CiA 301: in force after the next reset) and stages them.
 //!
+//! A staged set belongs to the SDO channel that wrote it and is discarded (0x2201 code 8,
+//! EMCY 0x6320) when that channel carries nothing for 3 s: see `node/stage_owner.rs`.
+//!
 //! Safety-relevant parameters (`ParamDesc::safety`) are writable, and a commit that changes
 //! them is accepted, only in pre-operational (abort 0x08000022 otherwise).
 //!
@@ -29,7 +32,14 @@
 //! Nothing here panics or allocates, whatever the frames: the fuzz tests throw random frames
 //! at it.
 
+mod block;
+mod channel;
+#[cfg(feature = "lss")]
+mod lss_slave;
+mod stage_owner;
+
 use super::frame::CanFrame;
+use super::lss::LssConfig;
 use super::od::{self, Access, DataType, Key, SubInfo};
 use super::pdo::{self, from_i16, to_i16};
 use super::pdo_map::{PdoMaps, PDO_MAPS_BYTES};
@@ -277,6 +287,15 @@ pub trait ParamStorage {
     }
     /// Forget the stored set, so the next reset runs the table defaults (0x1011 "load").
     fn restore_defaults(&mut self) -> Result<(), StorageError>;
+    /// LSS: the stored node id and bit timing, read at power-on and on reset node; none by
+    /// default.
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        None
+    }
+    /// LSS store configuration; not supported by default (the master gets error 1).
+    fn save_lss(&mut self, _c: LssConfig) -> Result<(), StorageError> {
+        Err(StorageError::Unsupported)
+    }
 }
 
 /// A node without persistent storage: `save` and `load` are refused with 0x08000020.
@@ -302,6 +321,8 @@ pub struct MemoryStorage {
     pub saves: u32,
     /// the PDO mappings saved with the set
     pub pdo: Option<[u8; PDO_MAPS_BYTES]>,
+    /// the LSS configuration stored
+    pub lss: Option<LssConfig>,
 }
 
 impl ParamStorage for MemoryStorage {
@@ -325,6 +346,13 @@ impl ParamStorage for MemoryStorage {
         self.pdo = None;
         Ok(())
     }
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        self.lss
+    }
+    fn save_lss(&mut self, c: LssConfig) -> Result<(), StorageError> {
+        self.lss = Some(c);
+        Ok(())
+    }
 }
 
 /// The last refused commit, readable at 0x2201.
@@ -332,7 +360,8 @@ impl ParamStorage for MemoryStorage {
 pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
     /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
-    /// set's
+    /// set's, 8 the staged set was discarded because its master stopped (not a refused
+    /// commit: the node says so the same way, 0x2201 and EMCY 0x6320)
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -388,6 +417,8 @@ enum Transfer {
     Idle,
     Download { info: SubInfo, toggle: bool, len: usize, expected: Option<usize>, last_us: u64 },
     Upload { index: u16, sub: u8, src: Big, toggle: bool, offset: usize, total: usize, last_us: u64 },
+    BlockDownload(block::Down),
+    BlockUpload(block::Up),
 }
 
 /// The joint's CANopen node. See the module documentation.
@@ -397,6 +428,11 @@ enum Transfer {
 /// 64 KiB cost it 10 KiB of flash).
 pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     cfg: NodeConfig,
+    /// the node id given at construction: in force after reset node unless LSS stored one
+    #[cfg_attr(not(feature = "lss"), allow(dead_code))]
+    boot_id: u8,
+    #[cfg(feature = "lss")]
+    lss: super::lss::Lss,
     storage: S,
     nmt: NmtState,
     boot_sent: bool,
@@ -417,6 +453,10 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     state: JointState,
     transfer: Transfer,
     buf: [u8; SDO_BUFFER],
+    /// the second SDO server channel (0x1201)
+    sdo2: channel::Server2,
+    /// the SDO channel being served: 0 default, 1 the second
+    chan: u8,
     last_faults: Faults,
     /// 0x1003: the last EMCY codes (code | error register << 16), newest first
     error_history: [u32; od::ERROR_HISTORY_LEN],
@@ -427,6 +467,10 @@ pub struct Node<S: ParamStorage, C: ControlStep = Controller> {
     error_behaviour: u8,
     /// a refused commit waits for its EMCY
     pending_commit_emcy: bool,
+    /// the SDO channel whose master wrote to the staged set since the last commit or discard
+    staged_by: Option<u8>,
+    /// when that channel last carried a request
+    stage_seen_us: u64,
     now_us: u64,
     /// frames ignored because they were malformed (wrong length), for diagnostics
     pub dropped: u32,
@@ -479,9 +523,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     pub fn with_step(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
         // The identity names the step the node really runs, whatever the config said.
         let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
-        cfg.node_id = cfg.node_id.clamp(1, 127);
+        // with LSS, 0xFF is a node waiting for its id (CiA 305)
+        if !(cfg!(feature = "lss") && cfg.node_id == super::lss::UNCONFIGURED) {
+            cfg.node_id = cfg.node_id.clamp(1, 127);
+        }
         let mut node = Node {
             cfg,
+            boot_id: cfg.node_id,
+            #[cfg(feature = "lss")]
+            lss: super::lss::Lss::new(LssConfig { node_id: cfg.node_id, bit_timing: 0 }),
             storage,
             nmt: NmtState::Initialising,
             boot_sent: false,
@@ -506,8 +556,12 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             state: JointState::default(),
             transfer: Transfer::Idle,
             buf: [0; SDO_BUFFER],
+            sdo2: channel::Server2::new(),
+            chan: 0,
             last_faults: Faults::NONE,
             pending_commit_emcy: false,
+            staged_by: None,
+            stage_seen_us: now_us,
             now_us,
             dropped: 0,
         };
@@ -519,6 +573,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// watchdog (soft start), boot-up on the next `process`.
     fn reset_node(&mut self, now_us: u64) {
         // In place throughout: a parameter set is ~2.9 KiB and this runs at boot on the MCU.
+        #[cfg(feature = "lss")]
+        self.lss_boot();
         let mut faults = Faults::NONE;
         match self.storage.load() {
             Some(raw) => {
@@ -531,6 +587,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         faults.insert(self.storage.load_fault());
         self.staged.clone_from(self.active.current().raw());
+        self.staged_by = None;
         self.safety = Safety::new(SafetyConfig::from_params(self.active.current()), now_us);
         self.safety.raise(faults);
         self.commit_error = None;
@@ -543,6 +600,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     /// NMT reset communication: COB-IDs, timers and the SDO server to defaults.
     fn reset_communication(&mut self, now_us: u64) {
+        // CiA 305: the node id configured by LSS goes live here
+        #[cfg(feature = "lss")]
+        {
+            self.cfg.node_id = self.lss.pending.node_id;
+        }
         let id = u16::from(self.cfg.node_id);
         self.heartbeat_ms = DEFAULT_HEARTBEAT_MS;
         self.host_id = DEFAULT_HOST_ID;
@@ -570,6 +632,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         self.sync_cob = DEFAULT_SYNC_COB;
         self.error_behaviour = DEFAULT_ERROR_BEHAVIOUR;
         self.transfer = Transfer::Idle;
+        self.sdo2.reset();
         self.nmt = NmtState::Initialising;
         self.boot_sent = false;
         self.next_heartbeat_us = now_us;
@@ -577,8 +640,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
 
     // ---- accessors for the control loop and the host ------------------------------------
 
+    /// The node id in force (0xFF: unconfigured, waiting for LSS).
     pub fn node_id(&self) -> u8 {
         self.cfg.node_id
+    }
+    /// The node's fixed facts (identity, names) with the node id in force.
+    pub fn config(&self) -> &NodeConfig {
+        &self.cfg
     }
     pub fn nmt_state(&self) -> NmtState {
         self.nmt
@@ -671,7 +739,9 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     }
 
     fn boot_up(&mut self, now_us: u64, tx: &mut impl FnMut(CanFrame)) {
-        if !self.boot_sent {
+        // an unconfigured node (LSS) stays silent: no boot-up, no heartbeat, until it has an id
+        let unconfigured = cfg!(feature = "lss") && self.cfg.node_id == super::lss::UNCONFIGURED;
+        if !self.boot_sent && !unconfigured {
             self.boot_sent = true;
             self.nmt = NmtState::PreOperational;
             tx(frame(HEARTBEAT_BASE + u16::from(self.cfg.node_id), [0; 8], 1));
@@ -683,6 +753,15 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let id = f.id();
         let me = u16::from(self.cfg.node_id);
         let d = f.data();
+        #[cfg(feature = "lss")]
+        if id == super::lss::LSS_MASTER {
+            self.lss_frame(now_us, d, tx);
+            return;
+        }
+        #[cfg(feature = "lss")]
+        if self.cfg.node_id == super::lss::UNCONFIGURED {
+            return;
+        }
         if id == 0 {
             // NMT: exactly 2 bytes, addressed to us or to all (0).
             if let [cs, target] = *d {
@@ -719,12 +798,17 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             return;
         }
         if id == sdo::RX_BASE + me {
-            if let Some(resp) = self.sdo_request(now_us, d) {
-                // classic SDO in FD frames too (no CiA 1301 USDO): the reply takes the
-                // request's format
-                let r = frame(sdo::TX_BASE + me, resp, 8);
-                tx(if f.is_fd() { r.into_fd(f.brs()) } else { r });
-            }
+            // classic SDO in FD frames too (no CiA 1301 USDO): a reply takes its request's format
+            let brs = f.is_fd().then(|| f.brs());
+            self.sdo_serve(now_us, d, sdo::TX_BASE + me, &mut |r: CanFrame| {
+                tx(match brs {
+                    Some(b) => r.into_fd(b),
+                    None => r,
+                })
+            });
+            return;
+        }
+        if self.sdo2_frame(now_us, f, tx) {
             return;
         }
         if self.nmt == NmtState::Operational {
@@ -809,6 +893,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         // Advance the watchdog clock so a lost heartbeat is noticed even without control steps.
         let faults = self.safety.faults();
         let new = self.safety.take_new_faults();
+        self.stage_watch(now_us);
         if self.nmt != NmtState::Stopped {
             if !new.is_empty() {
                 let b = faults.bits().to_le_bytes();
@@ -836,22 +921,30 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             self.emcy(EMCY_PARAMS, [code, p[0], p[1], f[0], f[1]], tx);
         }
 
-        match self.transfer {
-            Transfer::Download { info, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(info.index, info.sub, Abort::Timeout), 8));
-            }
-            Transfer::Upload { index, sub, last_us, .. } if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US => {
-                self.transfer = Transfer::Idle;
-                tx(frame(sdo::TX_BASE + me, sdo::abort_payload(index, sub, Abort::Timeout), 8));
-            }
-            _ => {}
-        }
+        self.sdo_timers(now_us, sdo::TX_BASE + me, tx);
+        self.sdo2_poll(now_us, tx);
 
         if self.nmt == NmtState::Operational {
             for n in 0..od::TPDO_COUNT {
                 self.tpdo_timer(n, now_us, tx);
             }
+        }
+    }
+
+    /// The SDO transfer's timeout (0x05040000 to `cob`) and a block upload's next burst.
+    fn sdo_timers(&mut self, now_us: u64, cob: u16, tx: &mut impl FnMut(CanFrame)) {
+        let (index, sub, last_us) = match self.transfer {
+            Transfer::Idle => return,
+            Transfer::Download { info, last_us, .. } => (info.index, info.sub, last_us),
+            Transfer::Upload { index, sub, last_us, .. } => (index, sub, last_us),
+            Transfer::BlockDownload(b) => b.timer(),
+            Transfer::BlockUpload(b) => b.timer(),
+        };
+        if now_us.saturating_sub(last_us) > SDO_TIMEOUT_US {
+            self.transfer = Transfer::Idle;
+            tx(frame(cob, sdo::abort_payload(index, sub, Abort::Timeout), 8));
+        } else {
+            self.block_pump(cob, tx);
         }
     }
 
@@ -1013,6 +1106,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if let Some(n) = expected {
             check_len(&info, n)?;
         }
+        self.buf_taken()?;
         self.transfer = Transfer::Download { info, toggle: false, len: 0, expected, last_us: now_us };
         Ok(ok)
     }
@@ -1032,7 +1126,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         let n = ((cmd >> 1) & 0x07) as usize;
         let seg = d.get(1..8 - n).unwrap_or(&[]);
         let end = len + seg.len();
-        let Some(dst) = self.buf.get_mut(len..end) else {
+        let Some(dst) = self.sdo_buf().get_mut(len..end) else {
             return abort(self, Abort::TooLong);
         };
         dst.copy_from_slice(seg);
@@ -1048,15 +1142,21 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if expected.is_some_and(|e| end != e) {
             return abort(self, Abort::TypeLength);
         }
-        // Copy out so the write can borrow self mutably; the buffer is the node's own.
-        let tmp = self.buf;
-        let Some(data) = tmp.get(..end) else {
-            return abort(self, Abort::TooLong);
-        };
-        match self.write_value(&info, data, true) {
+        match self.write_from_buf(&info, end) {
             Ok(()) => Some(resp),
             Err(a) => abort(self, a),
         }
+    }
+
+    /// Write the first `len` bytes of the channel's transfer buffer to the object: the end
+    /// of a segmented or block download. The buffer is copied out so the write can borrow
+    /// the node; out of line, so that copy is on the stack only during this call, not in
+    /// the frame of every SDO request (the QEMU image measures the node's peak stack).
+    #[inline(never)]
+    fn write_from_buf(&mut self, info: &SubInfo, len: usize) -> Result<(), Abort> {
+        let tmp = *self.sdo_buf();
+        let data = tmp.get(..len).ok_or(Abort::TooLong)?;
+        self.write_value(info, data, true)
     }
 
     fn initiate_upload(&mut self, now_us: u64, index: u16, sub: u8) -> Result<[u8; 8], Abort> {
@@ -1167,6 +1267,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             Key::StoreAll | Key::RestoreAll => put_u32(1),
             Key::ConsumerHeartbeat => put_u32((u32::from(self.host_id) << 16) | self.heartbeat_timeout_ms()),
             Key::ProducerHeartbeat => put_u16(self.heartbeat_ms),
+            Key::SdoServer(c, s) => self.sdo_server_value(c, s),
             Key::Identity(s) => put_u32(match s {
                 1 => self.cfg.identity.vendor_id,
                 2 => self.cfg.identity.product_code,
@@ -1256,7 +1357,10 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         check_len(info, data.len())?;
         let u = le_u32(data);
-        match info.key {
+        // a staged set belongs to the master (channel) that wrote to it: see stage_owner.rs
+        // (the parameters, the gravity table and series: 0x2000..=0x2105)
+        let staging = (od::PARAM_BASE..=od::SERIES_TERMS).contains(&info.index);
+        let r = match info.key {
             Key::StoreAll | Key::RestoreAll => self.write_store(info.key, u),
             Key::ConsumerHeartbeat
             | Key::ProducerHeartbeat
@@ -1268,6 +1372,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             | Key::SyncCobId
             | Key::ErrorBehaviour => self.write_comm(info.key, u),
             Key::MapCount(..) | Key::RpdoMap(..) | Key::TpdoMap(..) => self.write_map(info.key, u),
+            Key::SdoServer(c, s) => self.write_sdo_server(c, s, u),
             Key::ErrorHistoryCount => {
                 // CiA 301: only 0 may be written, and it clears the history
                 if u != 0 {
@@ -1299,6 +1404,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 1 => self.commit(),
                 0 => {
                     self.staged = self.active.current().raw().clone();
+                    self.staged_by = None;
                     Ok(())
                 }
                 _ => Err(Abort::InvalidValue),
@@ -1325,7 +1431,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 Ok(())
             }
             _ => Err(Abort::ReadOnly),
+        };
+        if staging && r.is_ok() {
+            self.stage_touched();
         }
+        r
     }
 
     /// 0x1010 save / 0x1011 restore, each behind its signature.
@@ -1580,6 +1690,7 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         }
         match self.active.replace(&self.staged) {
             Ok(()) => {
+                self.staged_by = None;
                 self.safety.configure(SafetyConfig::from_params(self.active.current()));
                 // The Dahl friction state belongs to the set that made it (its σ and level).
                 self.controller.configure(self.active.current());

@@ -6,6 +6,8 @@
 //! object the node does not serve, or miss one it does.
 //!
 //! Layout (CiA 301 communication area, then manufacturer objects from 0x2000):
+//! - `0x1200`/`0x1201`: the SDO server channels, the default one and a second one a master
+//!   configures (its COB-IDs are "not valid" until written), each with its own transfer;
 //! - `0x2000 + i`: scalar parameter `PARAMS[i]` (`friction_a` = 0x2000 …), REAL32, read/write
 //!   into the **staged** set; the range and safety flag come from the table;
 //! - `0x2100` gravity table shape (record of U8, sub 11: the table is the model's residual),
@@ -112,6 +114,9 @@ pub enum Key {
     ErrorBehaviour,
     /// 1 vendor, 2 product, 3 revision, 4 serial
     Identity(u8),
+    /// SDO server parameter (channel 0 = 0x1200, 1 = 0x1201; sub 1 COB-ID client → server,
+    /// 2 server → client, 3 the client's node id)
+    SdoServer(u8, u8),
     RpdoCobId(u8),
     RpdoType(u8),
     /// (pdo, sub 1..)
@@ -195,6 +200,10 @@ pub const PRODUCER_HEARTBEAT: u16 = 0x1017;
 pub const IDENTITY: u16 = 0x1018;
 pub const COB_ID_EMCY: u16 = 0x1014;
 pub const ERROR_BEHAVIOUR: u16 = 0x1029;
+/// SDO server parameter of the default channel (0x600/0x580 + id, read-only)
+pub const SDO_SERVER1: u16 = 0x1200;
+/// the second SDO server channel: COB-IDs and client set by the master, not valid until then
+pub const SDO_SERVER2: u16 = 0x1201;
 /// Entries the error history keeps.
 pub const ERROR_HISTORY_LEN: usize = 8;
 pub const RPDO_COMM: u16 = 0x1400;
@@ -409,7 +418,7 @@ const fn map_entry(index: u16, sub: u8, bits: u8) -> u32 {
 
 /// Every index of the dictionary, ascending.
 pub fn indices() -> impl Iterator<Item = u16> {
-    const LOW: [u16; 13] = [
+    const LOW: [u16; 15] = [
         DEVICE_TYPE,
         ERROR_REGISTER,
         ERROR_HISTORY,
@@ -423,6 +432,8 @@ pub fn indices() -> impl Iterator<Item = u16> {
         PRODUCER_HEARTBEAT,
         IDENTITY,
         ERROR_BEHAVIOUR,
+        SDO_SERVER1,
+        SDO_SERVER2,
     ];
     const HIGH: [u16; 16] = [
         TABLE_SHAPE,
@@ -490,6 +501,8 @@ pub fn object_info(index: u16) -> Option<ObjectInfo> {
         CONSUMER_HEARTBEAT => o("consumer_heartbeat_time", Array, SUBS_1),
         PRODUCER_HEARTBEAT => o("producer_heartbeat_time", Var, SUB0),
         IDENTITY => o("identity", Record, SUBS_4),
+        SDO_SERVER1 => o("sdo_server_1", Record, SUBS_2),
+        SDO_SERVER2 => o("sdo_server_2", Record, SUBS_3),
         i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
             o(RPDO_NAMES.get((i - RPDO_COMM) as usize).copied().unwrap_or(""), Record, SUBS_2)
         }
@@ -583,6 +596,15 @@ pub fn sub_info(index: u16, sub: u8) -> Result<SubInfo, Abort> {
         IDENTITY => {
             let name = IDENTITY_NAMES.get((sub as usize).wrapping_sub(1)).copied().unwrap_or("");
             mk(name, Unsigned32, Ro, Key::Identity(sub))
+        }
+        SDO_SERVER1 | SDO_SERVER2 => {
+            let ch = u8::from(index == SDO_SERVER2);
+            let access = if ch == 0 { Ro } else { Rw };
+            match sub {
+                1 => SubInfo { node_relative: ch == 0, ..mk("cob_id_rx", Unsigned32, access, Key::SdoServer(ch, 1)) },
+                2 => SubInfo { node_relative: ch == 0, ..mk("cob_id_tx", Unsigned32, access, Key::SdoServer(ch, 2)) },
+                _ => mk("client_node_id", Unsigned8, Rw, Key::SdoServer(ch, 3)),
+            }
         }
         i if (RPDO_COMM..RPDO_COMM + RPDO_COUNT as u16).contains(&i) => {
             let n = idx_in(RPDO_COMM);

@@ -6,6 +6,7 @@ use crate::sim_joint::{JointSim, SimStorage};
 use clap::Args;
 use host_sim::plant::PlantFile;
 use joint_can::BusSpec;
+use joint_core::canopen::lss::UNCONFIGURED;
 use joint_core::canopen::node::{MemoryStorage, NodeConfig};
 use joint_core::canopen::CanFrame;
 use joint_formats::output::Plan;
@@ -41,6 +42,12 @@ pub struct SimArgs {
     /// atomically on save), the stand-in for flash; default: in memory
     #[arg(long, value_name = "DIR")]
     pub store_dir: Option<PathBuf>,
+    /// Start the joints unconfigured (node id 0xFF), silent until an LSS master (CiA 305:
+    /// fast scan, configure node id) gives each its id; each --node is then the joint's
+    /// serial number (0x1018 sub 4), not its id. A joint whose --store-dir holds a stored
+    /// LSS configuration boots with that id.
+    #[arg(long)]
+    pub lss_unconfigured: bool,
     /// Print a JSON summary at the end
     #[arg(long)]
     pub json: bool,
@@ -97,10 +104,25 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
                 Some(d) => SimStorage::file(store_file(d, n)),
                 None => SimStorage::Memory(MemoryStorage::default()),
             };
-            JointSim::with_config(NodeConfig::new(n).with_fd(a.fd), plant.as_ref(), storage, now0)
+            if a.lss_unconfigured {
+                let mut cfg = NodeConfig::new(UNCONFIGURED).with_fd(a.fd);
+                cfg.identity.serial = u32::from(n);
+                JointSim::with_config(cfg, plant.as_ref(), storage, now0)
+            } else {
+                JointSim::with_config(NodeConfig::new(n).with_fd(a.fd), plant.as_ref(), storage, now0)
+            }
         })
         .collect();
-    eprintln!("serving joint node(s) {:?} on {} (Ctrl-C to stop)", a.nodes, bus.describe());
+    if a.lss_unconfigured {
+        let ids: Vec<u8> = joints.iter().map(|j| j.node.node_id()).collect();
+        eprintln!(
+            "serving joints with serial(s) {:?}, node ids {ids:?} (255: unconfigured, LSS) on {} (Ctrl-C to stop)",
+            a.nodes,
+            bus.describe()
+        );
+    } else {
+        eprintln!("serving joint node(s) {:?} on {} (Ctrl-C to stop)", a.nodes, bus.describe());
+    }
     let end_us = a.seconds.map(|s| now0 + (s * 1e6) as u64);
     let mut next_tick = now0;
     let (mut rx_frames, mut tx_frames, mut dropped) = (0u64, 0u64, 0u64);
