@@ -8,54 +8,11 @@
 //! is generic over `embedded_can::Frame`, so it is unit-tested on the host with a plain
 //! frame type and used on the board with embassy-stm32's `can::Frame`.
 
-use embedded_can::{Frame, Id, StandardId};
 use joint_core::canopen::CanFrame;
 
-/// Why a received frame was not handed to the node. None of these is CANopen traffic the
-/// node serves; they are counted ([`BusStats::rx_rejected`]), never a panic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rejected {
-    /// 29-bit identifier: CANopen (CiA 301) uses 11-bit ids only.
-    Extended,
-    /// Remote frame: the node implements no RTR services (node guarding is not served).
-    Remote,
-    /// More than 8 data bytes (an FD frame on a classic node).
-    TooLong,
-}
-
-/// A received HAL frame as the node's frame.
-pub fn to_core<F: Frame>(f: &F) -> Result<CanFrame, Rejected> {
-    let Id::Standard(id) = f.id() else {
-        return Err(Rejected::Extended);
-    };
-    if f.is_remote_frame() {
-        return Err(Rejected::Remote);
-    }
-    CanFrame::new(id.as_raw(), f.data()).ok_or(Rejected::TooLong)
-}
-
-/// A received frame of a controller in CAN FD mode as the node's frame: `fd` and `brs` are
-/// what the HAL's header says (embassy-stm32's `FdFrame::header()`), which `embedded_can`
-/// does not carry.
-pub fn to_core_fd<F: Frame>(f: &F, fd: bool, brs: bool) -> Result<CanFrame, Rejected> {
-    let Id::Standard(id) = f.id() else {
-        return Err(Rejected::Extended);
-    };
-    if f.is_remote_frame() {
-        return Err(Rejected::Remote);
-    }
-    if fd {
-        CanFrame::new_fd(id.as_raw(), f.data(), brs).ok_or(Rejected::TooLong)
-    } else {
-        CanFrame::new(id.as_raw(), f.data()).ok_or(Rejected::TooLong)
-    }
-}
-
-/// A frame of the node as the HAL's frame. The node only makes frames with an 11-bit id and
-/// at most 8 bytes, so `None` means the HAL refused a valid classic frame.
-pub fn to_hal<F: Frame>(f: &CanFrame) -> Option<F> {
-    F::new(StandardId::new(f.id())?, f.data())
-}
+// The conversion between any HAL's `embedded_can::Frame` and the core's frame is the core's
+// (feature `embedded-can`), so another board or a host driver takes it as is.
+pub use joint_core::canopen::hal::{to_core, to_core_fd, to_hal, Rejected};
 
 /// Frames the node emitted while its lock was held, waiting to be written to the
 /// controller once the lock is released (writing may wait for a free TX buffer, which must
@@ -199,6 +156,7 @@ impl BusStats {
 mod tests {
     use super::*;
     use embedded_can::ExtendedId;
+    use embedded_can::{Frame, Id, StandardId};
 
     /// A plain classic frame for host tests.
     #[derive(Debug, Clone, PartialEq)]

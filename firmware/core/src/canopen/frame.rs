@@ -2,24 +2,10 @@
 //! (ISO 11898-1:2015: 0..=8, 12, 16, 20, 24, 32, 48 or 64 bytes, with or without bit-rate
 //! switch).
 //!
-//! The core has no CAN driver dependency. Firmware converts to and from its HAL's frame type
-//! through `embedded_can::Frame` (embassy-stm32's `can::Frame` implements it; its FD frame
-//! type `can::frame::FdFrame` is converted by the board's `can_link`):
-//!
-//! ```ignore
-//! use embedded_can::{Frame as _, Id, StandardId};
-//! // HAL → core: extended ids and remote frames are not CANopen traffic we serve; drop them.
-//! fn to_core(f: &impl embedded_can::Frame) -> Option<CanFrame> {
-//!     match f.id() {
-//!         Id::Standard(id) if !f.is_remote_frame() => CanFrame::new(id.as_raw(), f.data()),
-//!         _ => None,
-//!     }
-//! }
-//! // core → HAL: the id is ≤ 0x7FF and the length ≤ 8 by construction, so both succeed.
-//! fn to_hal<F: embedded_can::Frame>(f: &CanFrame) -> Option<F> {
-//!     F::new(StandardId::new(f.id())?, f.data())
-//! }
-//! ```
+//! The core has no CAN driver dependency. Its `hal` module (feature `embedded-can`) converts
+//! to and from any HAL's `embedded_can::Frame` (embassy-stm32's `can::Frame` implements it; the
+//! FD flags, which `embedded_can` does not carry, come from the HAL's frame header:
+//! `hal::to_core_fd`).
 //!
 //! One type for both formats keeps every queue and callback of the node as it was; the price
 //! is RAM: a frame is 68 bytes instead of 12 (an outbox of 16 frames: 1088 B instead of 192).

@@ -1,6 +1,7 @@
 //! A CiA 301 CANopen node for the joint, sans-IO: frames and time in, frames out.
 //!
-//! - [`frame`]: the classic CAN frame type (and how firmware converts from `embedded_can`);
+//! - [`frame`]: the CAN frame type (classic and FD);
+//! - `hal` (feature `embedded-can`): that frame to and from any HAL's `embedded_can::Frame`;
 //! - [`od`]: the object dictionary, derived from [`crate::params::PARAMS`];
 //! - [`sdo`]: abort codes and SDO frame layouts (server here, client in host-sim);
 //! - [`pdo`]: the scaling of the process data;
@@ -12,6 +13,8 @@
 //! the core, with a staged/committed split and device-state checks it does not model.
 
 pub mod frame;
+#[cfg(feature = "embedded-can")]
+pub mod hal;
 pub mod lss;
 pub mod node;
 pub mod od;
