@@ -13,7 +13,8 @@ pub fn run<C: joint_core::canopen::ControlStep>() -> i32 {
     let mut write_failed = false;
     let boot = stack::peak(|| {
         use joint_core::canopen::{MemoryStorage, Node, NodeConfig};
-        let storage = MemoryStorage { stored: Some(joint_core::vectors::trunk_right()), saves: 0, pdo: None, lss: None };
+        let storage =
+            MemoryStorage { stored: Some(joint_core::vectors::trunk_right()), saves: 0, pdo: None, lss: None };
         let node = Node::<_, C>::with_step(NodeConfig::new(canopen_session::NODE_ID), storage, 0);
         core::hint::black_box(&node);
     });
