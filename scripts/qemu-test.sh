@@ -24,14 +24,16 @@ cd "$(dirname "$0")/.."
 CORE=${1:-m4f}
 case "$CORE" in
     m4f) TARGET=thumbv7em-none-eabihf MACHINE=mps2-an386 CORE_NAME="Cortex-M4F"
-         # The G431 has 32 KiB of RAM: with the 12 KiB stretch budget for statics
-         # (scripts/fw-size.sh checks those), 20 KiB are left for the stack.
-         STACK_BUDGET=20480 ;;
+         # The G431 has 32 KiB of RAM: with the 16 KiB budget for statics (scripts/fw-size.sh
+         # checks those; the node is one of them, in a static cell), 16 KiB are left for the
+         # stack. Here the node is a local, so the stack beyond the node is what is checked.
+         STACK_BUDGET=16384 BEYOND_NODE=1 ;;
     m0)  TARGET=thumbv6m-none-eabi MACHINE=mps2-an385 CORE_NAME="Cortex-M0+ code on an FPU-less M3"
-         # The G0B1 has 144 KiB of RAM, plenty; the budget is the larger measured peak (Q16.16
-         # node 19.5 KiB, f32 node 17.1 KiB: Thumb-1 and soft-float take more stack than the
-         # M4F's 16.8 KiB) plus ~20 %, so a regression is noticed long before the RAM runs out.
-         STACK_BUDGET=24576 ;;
+         # The G0B1 has 144 KiB of RAM, plenty; the budget guards against regressions: the
+         # stack beyond the node (a static on the board, as on the G431) measured 16.1 KiB for
+         # the Q16.16 node after the CANopen services of issue 21 (Thumb-1 and soft-float take
+         # more than the M4F's 14.1 KiB), plus ~25 %.
+         STACK_BUDGET=20480 BEYOND_NODE=1 ;;
     *) echo "usage: qemu-test.sh [m4f|m0]" >&2; exit 2 ;;
 esac
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
@@ -89,10 +91,15 @@ canopen() { # IMAGE LOG_VAR TEST_FILTER LABEL
     echo "qemu-test: $img printed $(grep -c '^[TC] ' "$LOG_DIR/$img.out") lines; comparing with the host"
     # The node's peak stack (building it with a stored set, and the session) must fit the
     # board's RAM beside the static data (STACK_BUDGET above says why that much).
-    grep '^# stack ' "$LOG_DIR/$img.out" | sed 's/^# /qemu-test: CANopen node /'
+    grep '^# stack \|^# node ' "$LOG_DIR/$img.out" | sed 's/^# /qemu-test: CANopen node /'
     peak=$(grep '^# stack ' "$LOG_DIR/$img.out" | grep -o '[0-9]\+' | sort -n | tail -1)
+    node=$(grep '^# node size=' "$LOG_DIR/$img.out" | grep -o '[0-9]\+' | head -1)
+    what="node stack"
+    if [[ $BEYOND_NODE == 1 && -n "$peak" && -n "$node" ]]; then
+        peak=$((peak - node)) what="stack beyond the node (${node} B, a static on the board)"
+    fi
     [[ -n "$peak" && "$peak" -le $STACK_BUDGET ]]
-    result "$label node stack ${peak:-?} B within $((STACK_BUDGET / 1024)) KiB" $?
+    result "$label $what ${peak:-?} B within $((STACK_BUDGET / 1024)) KiB" $?
     env "$var=$LOG_DIR/$img.out" cargo test -p joint-tests --test qemu_parity -- --nocapture --exact "$filter"
     result "$label QEMU vs host, byte for byte" $?
 }

@@ -24,6 +24,7 @@ use firmware::can_link::{self, BusMode, BusStats, Outbox};
 use firmware::control_loop::ControlLoop;
 use firmware::io::{Encoder, TorqueOutput};
 use firmware::storage::{BoardStorage, EraseOrder, Job};
+use joint_core::canopen::storage::CommSettings;
 use joint_core::canopen::{CanFrame, Node, NodeConfig};
 use joint_core::params::{check, ParamId, ParamSet, RawParams};
 use joint_core::safety::Faults;
@@ -99,11 +100,12 @@ fn with_node<R>(f: impl FnOnce(&mut JointNode) -> R) -> Option<R> {
     NODE.lock(|n| n.borrow_mut().as_deref_mut().map(f))
 }
 
-/// The stored set as the store reads it at boot, and the fault to latch.
-fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, Faults) {
+/// The stored set as the store reads it at boot, its communication settings (LSS
+/// configuration, PDO mappings) and the fault to latch.
+fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, CommSettings, Faults) {
     let Some(store) = store else {
         error!("parameter region too small for two slots: defaults, nothing can be saved");
-        return (None, Faults::PARAMS_CORRUPT);
+        return (None, CommSettings::default(), Faults::PARAMS_CORRUPT);
     };
     match store.load() {
         Ok(l) => {
@@ -111,7 +113,8 @@ fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, Fau
                 "parameters: slot {=u8} seq {=u32} ({=u8} defaulted, {=u8} unknown)",
                 l.info.slot, l.info.seq, l.info.defaulted, l.info.unknown
             );
-            (Some(l.params.raw().clone()), l.info.fault())
+            let comm = CommSettings::decode(store.comm()).unwrap_or_default();
+            (Some(l.params.raw().clone()), comm, l.info.fault())
         }
         Err(e) => {
             let f = e.fault();
@@ -120,19 +123,23 @@ fn boot_params(store: Option<&mut Store<ParamFlash>>) -> (Option<RawParams>, Fau
             } else {
                 warn!("parameter store unreadable: defaults, fault {=u16:#x}", f.bits());
             }
-            (None, f)
+            (None, CommSettings::default(), f)
         }
     }
 }
 
-/// The node, built into its static cell. Out of line so that its temporaries (the core's
-/// `Node::new` holds several parameter sets on the stack) are not part of `main`'s frame.
+/// The node, built into its static cell, then reset there (its stored set, LSS configuration
+/// and PDO mappings read): the stack holds either the node being moved in or the reset's
+/// parameter-set temporaries, never both (`Node::with_step_cold`). Out of line so that
+/// neither is part of `main`'s frame.
 #[inline(never)]
-fn create_node(boot: Option<RawParams>, fault: Faults) -> &'static mut JointNode {
-    NODE_CELL.init_with(|| {
+fn create_node(boot: Option<RawParams>, comm: CommSettings, fault: Faults) -> &'static mut JointNode {
+    let node = NODE_CELL.init_with(|| {
         let cfg = NodeConfig::new(NODE_ID).with_fd(cfg!(feature = "fd"));
-        Node::with_step(cfg, BoardStorage::new(boot, fault, wake_params), now_us())
-    })
+        Node::with_step_cold(cfg, BoardStorage::new(boot, comm, fault, wake_params), now_us())
+    });
+    node.reset_in_place(now_us());
+    node
 }
 
 /// Reads the parameter store and builds the node (the first thing `main` does after the
@@ -149,10 +156,10 @@ pub fn boot(flash: Flash<'static, embassy_stm32::flash::Blocking>) -> (Option<St
     let (base, len) = flash.window();
     info!("parameter region {=u32:#x}, {=u32} bytes", crate::board::FLASH_BASE + base, len);
     let mut store = Store::new(flash).ok();
-    let (boot, fault) = boot_params(store.as_mut());
+    let (boot, comm, fault) = boot_params(store.as_mut());
     // The node latches `fault` (the storage's load fault) itself, and again after every
     // NMT reset-node.
-    let node = create_node(boot, fault);
+    let node = create_node(boot, comm, fault);
     let ratio = node.params().get(ParamId::Ratio);
     NODE.lock(|n| *n.borrow_mut() = Some(node));
     (store, ratio)
@@ -440,7 +447,7 @@ async fn erase(slot: &mut Option<Store<ParamFlash>>) -> Result<(), ()> {
 /// task's own storage; there is no allocator to box it into.
 #[allow(clippy::large_enum_variant)]
 enum Work {
-    Save(ParamSet),
+    Save(ParamSet, CommSettings),
     Erase,
 }
 
@@ -453,8 +460,8 @@ fn take_work() -> Option<Work> {
     // Only committed sets reach the storage, so the check passes; a set that did not
     // would be a core bug, reported as a failed write rather than stored.
     match job {
-        Job::Save(raw) => match check(&raw) {
-            Ok(set) => Some(Work::Save(set)),
+        Job::Save(raw, comm) => match check(&raw) {
+            Ok(set) => Some(Work::Save(set, comm)),
             Err(_) => {
                 job_done(Err(()), None);
                 None
@@ -462,6 +469,15 @@ fn take_work() -> Option<Work> {
         },
         Job::Erase => Some(Work::Erase),
     }
+}
+
+/// The communication block the next save writes. Out of line: the encoded block lives on
+/// the stack only during this call.
+#[inline(never)]
+fn stage_comm(store: &mut Store<ParamFlash>, comm: &CommSettings) -> Result<(), ()> {
+    let mut b = [0u8; CommSettings::MAX_BYTES];
+    let n = comm.encode(&mut b);
+    store.set_comm(b.get(..n).unwrap_or(&[])).map_err(|_| ())
 }
 
 /// Reports the end of a job to the node; on failure, re-reads what the flash holds.
@@ -491,7 +507,10 @@ async fn params_task(mut store: Option<Store<ParamFlash>>) {
             continue;
         };
         let result = match (work, store.as_mut()) {
-            (Work::Save(set), Some(s)) => save(s, &set).await,
+            (Work::Save(set, comm), Some(s)) => match stage_comm(s, &comm) {
+                Ok(()) => save(s, &set).await,
+                Err(()) => Err(()),
+            },
             (Work::Erase, Some(_)) => erase(&mut store).await,
             _ => Err(()),
         };

@@ -15,10 +15,18 @@
 //! cleared by restore. When a job fails, the params task re-reads the flash and puts what it
 //! really holds back into the mirror, and latches `STORE_WRITE`.
 //!
+//! The node's communication settings (the LSS configuration, the PDO mappings) ride in the
+//! set's record ([`CommSettings`], the store's communication block): mirrored here like the
+//! set, handed to the params task with every save. An LSS "store configuration" is a save of
+//! the stored set with the new configuration.
+//!
 //! "Restore defaults" erases the two record slots ([`EraseOrder`]); the slot holding the
 //! older record goes first, so a power cut during the erase boots either the stored set
 //! (first slot cut) or the defaults (second slot cut), never an older calibration.
 
+use joint_core::canopen::lss::LssConfig;
+use joint_core::canopen::pdo_map::PDO_MAPS_BYTES;
+use joint_core::canopen::storage::CommSettings;
 use joint_core::canopen::{ParamStorage, StorageError};
 use joint_core::params::{ParamSet, RawParams};
 use joint_core::safety::Faults;
@@ -29,8 +37,8 @@ use joint_core::store::SlotState;
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Job {
-    /// Persist this (committed, validated) set.
-    Save(RawParams),
+    /// Persist this (committed, validated) set, with these communication settings.
+    Save(RawParams, CommSettings),
     /// Erase the stored set: the next boot runs the table defaults.
     Erase,
 }
@@ -48,6 +56,8 @@ enum State {
 pub struct BoardStorage {
     /// What `load` returns: the flash's set as of the last completed or accepted job.
     mirror: Option<RawParams>,
+    /// The communication settings the flash holds (or will once the job in flight completes).
+    comm: CommSettings,
     /// What reading the flash found (boot, or the re-read after a failed job): the node
     /// latches it again after every NMT reset-node.
     load_fault: Faults,
@@ -60,14 +70,14 @@ pub struct BoardStorage {
 impl BoardStorage {
     /// `boot`: the set the store read at boot (`None` when blank, corrupt or refused) and
     /// the fault that read found.
-    pub fn new(boot: Option<RawParams>, load_fault: Faults, wake: fn()) -> Self {
-        BoardStorage { mirror: boot, load_fault, state: State::Idle, wake }
+    pub fn new(boot: Option<RawParams>, comm: CommSettings, load_fault: Faults, wake: fn()) -> Self {
+        BoardStorage { mirror: boot, comm, load_fault, state: State::Idle, wake }
     }
 
     /// The params task takes the queued job (a copy of the set to save), marking it running.
     pub fn take_job(&mut self) -> Option<Job> {
         let job = match self.state {
-            State::SaveQueued => Job::Save(self.mirror.clone()?),
+            State::SaveQueued => Job::Save(self.mirror.clone()?, self.comm),
             State::EraseQueued => Job::Erase,
             State::Idle | State::Running => return None,
         };
@@ -78,11 +88,12 @@ impl BoardStorage {
     /// The running job ended. `Ok`: the flash now holds what the mirror says (and whatever
     /// was wrong with it before is gone). `Err((actual, fault))`: it failed; `actual` is what
     /// a re-read of the flash found (`None`: nothing usable) and `fault` what that read found.
-    pub fn finish(&mut self, result: Result<(), (Option<RawParams>, Faults)>) {
+    pub fn finish(&mut self, result: Result<(), (Option<RawParams>, CommSettings, Faults)>) {
         match result {
             Ok(()) => self.load_fault = Faults::NONE,
-            Err((actual, fault)) => {
+            Err((actual, comm, fault)) => {
                 self.mirror = actual;
+                self.comm = comm;
                 self.load_fault = fault;
             }
         }
@@ -119,9 +130,47 @@ impl ParamStorage for BoardStorage {
         self.load_fault
     }
 
+    /// Erase: the defaults and the default PDO mappings at the next boot. A stored LSS
+    /// configuration stays (it is CiA 305's, not the application's): then a record of the
+    /// defaults carrying it is saved instead of the erase.
     fn restore_defaults(&mut self) -> Result<(), StorageError> {
+        if let Some(lss) = self.comm.lss {
+            self.request(State::SaveQueued)?;
+            self.mirror = Some(RawParams::defaults());
+            self.comm = CommSettings { lss: Some(lss), pdo: None };
+            return Ok(());
+        }
         self.request(State::EraseQueued)?;
         self.mirror = None;
+        self.comm = CommSettings::default();
+        Ok(())
+    }
+
+    /// Kept for the save of the set that follows (the node saves the mappings first).
+    fn save_pdo(&mut self, maps: &[u8; PDO_MAPS_BYTES]) -> Result<(), StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
+        self.comm.pdo = Some(*maps);
+        Ok(())
+    }
+
+    fn load_pdo(&mut self) -> Option<[u8; PDO_MAPS_BYTES]> {
+        self.comm.pdo
+    }
+
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        self.comm.lss
+    }
+
+    /// LSS store configuration: the stored set saved again with it (the defaults when none is
+    /// stored: what the node runs then anyway).
+    fn save_lss(&mut self, c: LssConfig) -> Result<(), StorageError> {
+        self.request(State::SaveQueued)?;
+        if self.mirror.is_none() {
+            self.mirror = Some(RawParams::defaults());
+        }
+        self.comm.lss = Some(c);
         Ok(())
     }
 }
@@ -193,7 +242,7 @@ mod tests {
 
     #[test]
     fn save_hands_the_set_to_the_params_task_once_and_refuses_while_busy() {
-        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        let mut s = BoardStorage::new(Some(set(0.5)), CommSettings::default(), Faults::NONE, wake);
         assert_eq!(s.load(), Some(set(0.5)));
         assert_eq!(s.take_job(), None, "nothing asked yet");
         let w = WAKES.load(Ordering::Relaxed);
@@ -202,7 +251,7 @@ mod tests {
         assert_eq!(s.save(&checked(0.8)), Err(StorageError::Busy));
         assert_eq!(s.restore_defaults(), Err(StorageError::Busy));
         assert_eq!(s.load(), Some(set(0.7)), "a refused request changes nothing");
-        assert_eq!(s.take_job(), Some(Job::Save(set(0.7))));
+        assert_eq!(s.take_job(), Some(Job::Save(set(0.7), CommSettings::default())));
         assert_eq!(s.take_job(), None, "a job is handed out once");
         assert_eq!(s.save(&checked(0.8)), Err(StorageError::Busy), "busy while running");
         s.finish(Ok(()));
@@ -212,21 +261,48 @@ mod tests {
 
     #[test]
     fn a_failed_save_puts_what_the_flash_holds_back() {
-        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        let mut s = BoardStorage::new(Some(set(0.5)), CommSettings::default(), Faults::NONE, wake);
         s.save(&checked(0.7)).unwrap();
-        assert!(matches!(s.take_job(), Some(Job::Save(_))));
-        s.finish(Err((Some(set(0.5)), Faults::NONE)));
+        assert!(matches!(s.take_job(), Some(Job::Save(..))));
+        s.finish(Err((Some(set(0.5)), CommSettings::default(), Faults::NONE)));
         assert_eq!(s.load(), Some(set(0.5)));
         s.save(&checked(0.9)).unwrap();
         s.take_job();
-        s.finish(Err((None, Faults::PARAMS_CORRUPT)));
+        s.finish(Err((None, CommSettings::default(), Faults::PARAMS_CORRUPT)));
         assert_eq!(s.load(), None);
         assert_eq!(s.load_fault(), Faults::PARAMS_CORRUPT);
     }
 
+    /// The communication settings travel with the set: mappings saved with it, an LSS store
+    /// saves the stored set again with the new configuration, and a restore keeps the LSS
+    /// configuration in a record of the defaults instead of erasing it.
+    #[test]
+    fn mappings_and_lss_ride_with_the_set_to_the_params_task() {
+        use joint_core::canopen::lss::LssConfig;
+        let mut s = BoardStorage::new(Some(set(0.5)), CommSettings::default(), Faults::NONE, wake);
+        let maps = [7u8; PDO_MAPS_BYTES];
+        s.save_pdo(&maps).unwrap();
+        s.save(&checked(0.6)).unwrap();
+        assert_eq!(s.take_job(), Some(Job::Save(set(0.6), CommSettings { lss: None, pdo: Some(maps) })));
+        assert_eq!(s.save_pdo(&maps), Err(StorageError::Busy), "nothing changes while a job runs");
+        s.finish(Ok(()));
+        let id = LssConfig { node_id: 21, bit_timing: 0 };
+        s.save_lss(id).unwrap();
+        assert_eq!(s.take_job(), Some(Job::Save(set(0.6), CommSettings { lss: Some(id), pdo: Some(maps) })));
+        s.finish(Ok(()));
+        assert_eq!((s.load_lss(), s.load_pdo()), (Some(id), Some(maps)));
+        s.restore_defaults().unwrap();
+        assert_eq!(s.take_job(), Some(Job::Save(RawParams::defaults(), CommSettings { lss: Some(id), pdo: None })));
+        s.finish(Ok(()));
+        // without an LSS configuration, a restore is the erase it always was
+        let mut s = BoardStorage::new(Some(set(0.5)), CommSettings::default(), Faults::NONE, wake);
+        s.restore_defaults().unwrap();
+        assert_eq!(s.take_job(), Some(Job::Erase));
+    }
+
     #[test]
     fn restore_empties_the_mirror_and_queues_an_erase() {
-        let mut s = BoardStorage::new(Some(set(0.5)), Faults::NONE, wake);
+        let mut s = BoardStorage::new(Some(set(0.5)), CommSettings::default(), Faults::NONE, wake);
         s.restore_defaults().unwrap();
         assert_eq!(s.load(), None);
         assert_eq!(s.take_job(), Some(Job::Erase));
@@ -240,7 +316,11 @@ mod tests {
     #[test]
     fn the_node_hands_store_and_restore_to_the_params_task() {
         use joint_core::canopen::{od, Node, NodeConfig};
-        let mut n = Node::new(NodeConfig::new(5), BoardStorage::new(None, Faults::PARAMS_CORRUPT, wake), 0);
+        let mut n = Node::new(
+            NodeConfig::new(5),
+            BoardStorage::new(None, CommSettings::default(), Faults::PARAMS_CORRUPT, wake),
+            0,
+        );
         assert!(n.safety().faults().contains(Faults::PARAMS_CORRUPT));
         n.process(0, None, &mut |_| {});
         let fraction = 0x2000 + ParamId::Fraction.index() as u16;
@@ -250,7 +330,7 @@ mod tests {
         n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes()).unwrap();
         let again = n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes());
         assert_eq!(again.map_err(|a| a.code()), Err(0x0800_0020));
-        let Some(Job::Save(raw)) = n.storage_mut().take_job() else { panic!("no save job") };
+        let Some(Job::Save(raw, _)) = n.storage_mut().take_job() else { panic!("no save job") };
         assert_eq!(raw.get(ParamId::Fraction), 0.6);
         n.storage_mut().finish(Ok(()));
         // NMT reset-node: the committed-and-stored set comes back, the boot fault is gone.

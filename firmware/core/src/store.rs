@@ -27,12 +27,19 @@
 //!              u8 series terms n, u8 T, u8 term size (12), u8 flags (bit 0: table is residual),
 //!              T × { f32 amplitude, f32 phase, 4 × i8 multipliers }
 //!       (T = series::TERMS_MAX of the writer)
+//!       communication block, only when the record is longer than the above:
+//!              u8 kind (1), u8 reserved (0), u16 length L (≤ COMM_MAX), L opaque bytes
+//!              (the node's LSS configuration and PDO mappings: canopen::storage::CommSettings)
 //! ```
 //! The model block (arm gravity: the analytic series and the residual flag) was added inside
 //! version 1 in the word that read 0 before: a set without a series and without a residual
 //! table is written byte for byte as before, and an older firmware meets a record with the
 //! block as a length mismatch ([`LayoutError::Length`]) and refuses it rather than running a
 //! residual table as a torque of its own.
+//! The communication block came the same way: a record without one (no stored LSS configuration
+//! and default PDO mappings) is byte for byte what the store wrote before; an older firmware
+//! refuses a record with one as a length mismatch. It is outside the set's CRC ([`set_crc`],
+//! which names the parameter set on the bus): remapping a PDO does not rename the set.
 //! The CRC (CRC-32/ISO-HDLC) covers the payload followed by header bytes 0..16; the reserved
 //! word must read 0.
 //!
@@ -280,8 +287,49 @@ pub const PAYLOAD_LEN: usize = SIGMA_OFF + 4 * CELLS_MAX;
 pub const RECORD_LEN: usize = (HEADER_LEN + PAYLOAD_LEN).div_ceil(UNIT) * UNIT;
 /// Bytes of the model block (series and residual flag) when present.
 pub const MODEL_BLOCK_LEN: usize = 4 + TERM_BYTES * TERMS_MAX;
-/// The longest record (with the model block): what a slot must hold.
-pub const RECORD_MAX_LEN: usize = (HEADER_LEN + PAYLOAD_LEN + MODEL_BLOCK_LEN).div_ceil(UNIT) * UNIT;
+/// Most bytes of a communication block's contents.
+pub const COMM_MAX: usize = 512;
+/// The communication block's own header (kind, reserved, length).
+const COMM_HDR: usize = 4;
+/// The longest record (with the model and communication blocks): what a slot must hold.
+pub const RECORD_MAX_LEN: usize =
+    (HEADER_LEN + PAYLOAD_LEN + MODEL_BLOCK_LEN + COMM_HDR + COMM_MAX).div_ceil(UNIT) * UNIT;
+
+/// Byte `j` of the communication block holding `comm` (header, then the bytes).
+fn comm_byte(comm: &[u8], j: usize) -> u8 {
+    let l = comm.len() as u16;
+    match j {
+        0 => 1,
+        1 => 0,
+        2 => (l & 0xFF) as u8,
+        3 => (l >> 8) as u8,
+        _ => comm.get(j - COMM_HDR).copied().unwrap_or(0xFF),
+    }
+}
+
+/// Bytes of the communication block holding `comm` (none when `comm` is empty).
+fn comm_block_len(comm: &[u8]) -> usize {
+    if comm.is_empty() {
+        0
+    } else {
+        COMM_HDR + comm.len()
+    }
+}
+
+/// Byte `i` of the record payload of `raw` followed by the communication block of `comm`.
+fn record_byte(raw: &RawParams, comm: &[u8], i: usize) -> u8 {
+    let set = payload_len(raw);
+    if i < set {
+        payload_byte(raw, i)
+    } else {
+        comm_byte(comm, i - set)
+    }
+}
+
+/// The communication block given to [`Store::set_comm`] is longer than [`COMM_MAX`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CommTooLong;
 
 /// Model-block bytes of `raw`: present only when it has a series or a residual table.
 fn model_block_len(raw: &RawParams) -> usize {
@@ -593,7 +641,7 @@ struct Job {
     crc: u32,
     running: Crc32,
     done: u16,
-    /// payload bytes of the record being saved
+    /// payload bytes of the record being saved (the set's, then the communication block)
     payload: u32,
 }
 
@@ -605,6 +653,10 @@ pub struct Store<F: Flash> {
     newest: Newest,
     phase: Phase,
     job: Job,
+    /// the communication block: of the newest record after [`Store::load`], written with
+    /// every save (see [`Store::set_comm`])
+    comm: [u8; COMM_MAX],
+    comm_len: u16,
 }
 
 /// Bytes read per flash read while scanning.
@@ -641,7 +693,24 @@ impl<F: Flash> Store<F> {
             newest: Newest::Unknown,
             phase: Phase::Idle,
             job: Job { slot: 0, seq: 0, crc: 0, running: Crc32::new(), done: 0, payload: PAYLOAD_LEN as u32 },
+            comm: [0xFF; COMM_MAX],
+            comm_len: 0,
         })
+    }
+
+    /// The communication block every following save writes with its set (empty: none, and
+    /// the record is byte for byte a set-only one). Not part of the set's CRC.
+    pub fn set_comm(&mut self, bytes: &[u8]) -> Result<(), CommTooLong> {
+        let dst = self.comm.get_mut(..bytes.len()).ok_or(CommTooLong)?;
+        dst.copy_from_slice(bytes);
+        self.comm_len = bytes.len() as u16;
+        Ok(())
+    }
+
+    /// The communication block: the newest record's after [`Store::load`], or what
+    /// [`Store::set_comm`] gave since.
+    pub fn comm(&self) -> &[u8] {
+        self.comm.get(..usize::from(self.comm_len)).unwrap_or(&[])
     }
 
     /// Bytes of flash the two slots use (the region may be larger).
@@ -841,9 +910,25 @@ impl<F: Flash> Store<F> {
         let sigma_off = torque_off + 4 * c_max;
         let block_off = sigma_off + 4 * c_max;
         let expected = block_off.saturating_add(block);
-        if expected as u32 != len {
+        // A communication block after the set: its own header says how long it is.
+        let mut comm_len = 0usize;
+        if (expected + COMM_HDR) as u32 <= len {
+            let h = self.read_bytes::<4>(p + expected as u32)?;
+            let l = usize::from(u16::from_le_bytes([byte(&h, 2), byte(&h, 3)]));
+            if byte(&h, 0) == 1 && l <= COMM_MAX && (expected + COMM_HDR + l) as u32 == len {
+                comm_len = l;
+            }
+        }
+        let full = expected + if comm_len > 0 { COMM_HDR + comm_len } else { 0 };
+        if full as u32 != len {
             return Ok(Err(LayoutError::Length { expected: expected as u32, found: len }));
         }
+        if comm_len > 0 {
+            let at = p + (expected + COMM_HDR) as u32;
+            let dst = self.comm.get_mut(..comm_len).unwrap_or(&mut []);
+            self.flash.read(at, dst).map_err(LoadError::Flash)?;
+        }
+        self.comm_len = comm_len as u16;
         let mut stored_points = [0u8; 256];
         let mut src = [0u8; 256];
         for a in 0..a_max {
@@ -943,15 +1028,23 @@ impl<F: Flash> Store<F> {
             Newest::Some { slot, seq } => (1 - slot, seq.wrapping_add(1)),
             _ => (0, 1),
         };
-        let len = payload_len(raw);
+        let comm = self.comm();
+        let len = payload_len(raw) + comm_block_len(comm);
         let mut c = Crc32::new();
         for i in 0..len {
-            c.update_byte(payload_byte(raw, i));
+            c.update_byte(record_byte(raw, comm, i));
         }
         c.update(&header16(seq, len));
         self.job = Job { slot, seq, crc: c.finish(), running: Crc32::new(), done: 0, payload: len as u32 };
         self.phase = Phase::Erase { page: 0 };
         Ok(())
+    }
+
+    /// Pages the save in progress erases: those its record needs (a slot has room for the
+    /// longest record; what lies past a shorter one is never read).
+    fn job_pages(&self) -> u32 {
+        let record = HEADER_LEN + self.job.payload as usize;
+        (record.div_ceil(F::ERASE_SIZE) as u32).clamp(1, self.pages_per_slot)
     }
 
     /// A save is in progress.
@@ -969,7 +1062,7 @@ impl<F: Flash> Store<F> {
     /// record without a model block.
     pub fn ops_per_save(&self) -> u16 {
         let record = (HEADER_LEN + self.job.payload as usize).div_ceil(UNIT) * UNIT;
-        (self.pages_per_slot as usize + record / UNIT) as u16
+        (self.job_pages() as usize + record / UNIT) as u16
     }
 
     /// Do the next flash operation of the save started by `begin_save` (one page erase or one
@@ -1000,7 +1093,7 @@ impl<F: Flash> Store<F> {
                 let es = F::ERASE_SIZE as u32;
                 let from = base + page * es;
                 self.flash.erase(from, from + es).map_err(SaveError::Flash)?;
-                self.phase = if page + 1 < self.pages_per_slot {
+                self.phase = if page + 1 < self.job_pages() {
                     Phase::Erase { page: page + 1 }
                 } else {
                     Phase::Payload { off: 0 }
@@ -1014,7 +1107,8 @@ impl<F: Flash> Store<F> {
                     let i = off as usize + k;
                     // Past the job's length: padding, left erased (a set that grew a model
                     // block since begin_save fails the CRC check below anyway).
-                    *b = if i < len { payload_byte(raw, i) } else { 0xFF };
+                    let comm = self.comm.get(..usize::from(self.comm_len)).unwrap_or(&[]);
+                    *b = if i < len { record_byte(raw, comm, i) } else { 0xFF };
                     if i < len {
                         self.job.running.update_byte(*b);
                     }

@@ -186,11 +186,13 @@ fn geometry() {
     let s = store(blank());
     assert_eq!(s.used_len() as usize, REGION);
     assert_eq!(s.ops_per_save() as usize, expected.div_ceil(PAGE) + expected / 8);
+    // a slot holds the longest record: model block and communication block included
+    let slot_pages = joint_core::store::RECORD_MAX_LEN.div_ceil(PAGE);
     assert_eq!(
-        Store::new(MockFlash::from_mem(vec![0xFF; 2 * RECORD_LEN.div_ceil(PAGE) * PAGE - PAGE])).err(),
+        Store::new(MockFlash::from_mem(vec![0xFF; 2 * slot_pages * PAGE - PAGE])).err(),
         Some(GeometryError::RegionTooSmall {
-            need: (2 * RECORD_LEN.div_ceil(PAGE) * PAGE) as u32,
-            have: (2 * RECORD_LEN.div_ceil(PAGE) * PAGE - PAGE) as u32
+            need: (2 * slot_pages * PAGE) as u32,
+            have: (2 * slot_pages * PAGE - PAGE) as u32
         })
     );
 }
@@ -731,4 +733,71 @@ fn a_region_is_a_window_of_a_larger_flash() {
     assert!(chip.mem[..12 * PAGE].iter().all(|&x| x == 0x5A));
     let mut s = Store::new(Region::new(MockFlash::from_mem(chip.mem), 12 * PAGE as u32, REGION as u32)).unwrap();
     assert_eq!(s.load().unwrap().params.raw(), sample(3).raw());
+}
+
+/// The communication block (the node's LSS configuration and PDO mappings) rides with the set:
+/// read back as written, kept by a later save that does not change it, outside the set's CRC,
+/// documented byte for byte, and a power cut anywhere in a save boots the old set with the old
+/// block or the new set with the new one, never a mix.
+#[test]
+fn the_communication_block_rides_with_the_set_and_never_mixes() {
+    use joint_core::store::COMM_MAX;
+    let block_a: Vec<u8> = (0..459u32).map(|i| (i * 7 + 3) as u8).collect();
+    let block_b: Vec<u8> = vec![1, 0b01, 21, 0];
+    let mut s = store(blank());
+    s.set_comm(&block_a).unwrap();
+    s.save_blocking(&sample(1)).unwrap();
+    assert!(s.set_comm(&vec![0; COMM_MAX + 1]).is_err(), "longer than COMM_MAX is refused");
+    let mem = s.into_flash().mem;
+    let mut r = store(MockFlash::from_mem(mem.clone()));
+    assert_eq!(r.load().unwrap().params.raw(), sample(1).raw());
+    assert_eq!(r.comm(), &block_a[..]);
+    // the block sits after the set's payload: kind 1, reserved, u16 length, the bytes
+    let set_len = joint_core::store::PAYLOAD_LEN;
+    let p = HEADER_LEN + set_len;
+    assert_eq!(&mem[p..p + 4], &[1, 0, (459 & 0xFF) as u8, (459 >> 8) as u8]);
+    assert_eq!(&mem[p + 4..p + 4 + 459], &block_a[..]);
+    assert_eq!(u32::from_le_bytes(mem[12..16].try_into().unwrap()) as usize, set_len + 4 + 459);
+    // a later save without set_comm keeps the block (the set changed, the mappings did not)
+    r.save_blocking(&sample(2)).unwrap();
+    let mut r = store(MockFlash::from_mem(r.into_flash().mem));
+    assert_eq!(r.load().unwrap().params.raw(), sample(2).raw());
+    assert_eq!(r.comm(), &block_a[..]);
+    let plain = flash_with(&[sample(2)]).mem;
+    let with_block = {
+        let mut s = store(blank());
+        s.set_comm(&block_a).unwrap();
+        s.save_blocking(&sample(2)).unwrap();
+        s.into_flash().mem
+    };
+    // the set's bytes (what the set's CRC, its name on the bus, is over) are the same, block or not
+    assert_eq!(&plain[24..24 + set_len], &with_block[24..24 + set_len]);
+    drop(r);
+
+    // power cut at every 16th byte of a save that changes both
+    let old = {
+        let mut s = store(blank());
+        s.set_comm(&block_a).unwrap();
+        s.save_blocking(&sample(3)).unwrap();
+        s.into_flash().mem
+    };
+    let (mut saw_old, mut saw_new) = (false, false);
+    for cut in (0..8 * PAGE as u64).step_by(16) {
+        let mut s = store(MockFlash::from_mem(old.clone()).with_cut(cut, true));
+        s.load().unwrap();
+        s.set_comm(&block_b).unwrap();
+        let done = s.save_blocking(&sample(4)).is_ok();
+        let mut r = store(MockFlash::from_mem(s.into_flash().mem));
+        let l = r.load().expect("an intact record survives every cut");
+        if l.params.raw() == sample(4).raw() {
+            assert_eq!(r.comm(), &block_b[..], "cut {cut}: new set with the old block");
+            saw_new = true;
+        } else {
+            assert_eq!(l.params.raw(), sample(3).raw(), "cut {cut}");
+            assert_eq!(r.comm(), &block_a[..], "cut {cut}: old set with the new block");
+            assert!(!done, "cut {cut}: a completed save must load");
+            saw_old = true;
+        }
+    }
+    assert!(saw_old && saw_new);
 }

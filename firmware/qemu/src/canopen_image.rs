@@ -41,7 +41,10 @@ pub fn run<C: joint_core::canopen::ControlStep>() -> i32 {
     {
         use core::fmt::Write;
         let session = session.max(fd_session);
+        // the node itself (a local here; a static on the boards, counted in their static RAM)
+        let node = core::mem::size_of::<joint_core::canopen::Node<joint_core::canopen::MemoryStorage, C>>();
         write_failed |= writeln!(out, "# stack node_new={boot} session={session} bytes").is_err();
+        write_failed |= writeln!(out, "# node size={node} bytes").is_err();
     }
     if write_failed {
         return crate::EXIT_CHECK_FAILED;

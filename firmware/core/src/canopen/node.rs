@@ -521,13 +521,24 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// in the QEMU CANopen image, scripts/qemu-test.sh); inlined, it is built in place.
     #[inline(always)]
     pub fn with_step(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
+        let mut node = Self::with_step_cold(cfg, storage, now_us);
+        node.reset_node(now_us);
+        node
+    }
+
+    /// [`Node::with_step`] without its reset (reading the storage, building the set): for a
+    /// node constructed into a static, as the boards do, whose reset then runs in place
+    /// ([`Node::reset_in_place`]). The construction's stack then holds the node and nothing
+    /// else, the reset's the set's temporaries and not the node: the peak is the larger of
+    /// the two, not their sum (on the G431, 7.5 KiB against 19.5 KiB).
+    pub fn with_step_cold(cfg: NodeConfig, storage: S, now_us: u64) -> Self {
         // The identity names the step the node really runs, whatever the config said.
         let mut cfg = cfg.with_arithmetic(C::ARITHMETIC);
         // with LSS, 0xFF is a node waiting for its id (CiA 305)
         if !(cfg!(feature = "lss") && cfg.node_id == super::lss::UNCONFIGURED) {
             cfg.node_id = cfg.node_id.clamp(1, 127);
         }
-        let mut node = Node {
+        Node {
             cfg,
             boot_id: cfg.node_id,
             #[cfg(feature = "lss")]
@@ -564,9 +575,13 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             stage_seen_us: now_us,
             now_us,
             dropped: 0,
-        };
-        node.reset_node(now_us);
-        node
+        }
+    }
+
+    /// The reset [`Node::with_step`] ends with, for a node built by [`Node::with_step_cold`]:
+    /// an NMT reset node (stored set, LSS configuration and mappings read, boot-up next).
+    pub fn reset_in_place(&mut self, now_us: u64) {
+        self.reset_node(now_us);
     }
 
     /// NMT reset node: parameters from storage, communication objects to defaults, a fresh
@@ -1444,10 +1459,11 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
             if u != od::SAVE_SIGNATURE {
                 return Err(Abort::CannotStore);
             }
-            let set = self.active.current();
-            let mut r = self.storage.save(set);
+            // the mappings first: a storage that keeps them in the set's record (the flash
+            // store) writes both with the set
+            let mut r = self.save_maps();
             if r.is_ok() {
-                r = self.save_maps();
+                r = self.storage.save(self.active.current());
             }
             if r == Err(StorageError::Failed) {
                 self.safety.raise(Faults::STORE_WRITE);
