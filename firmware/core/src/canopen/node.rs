@@ -1121,7 +1121,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if let Some(n) = expected {
             check_len(&info, n)?;
         }
-        self.buf_taken()?;
         self.transfer = Transfer::Download { info, toggle: false, len: 0, expected, last_us: now_us };
         Ok(ok)
     }

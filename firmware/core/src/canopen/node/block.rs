@@ -159,7 +159,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if let Some(n) = expected {
             super::check_len(&info, n)?;
         }
-        self.buf_taken()?;
         let crc = cmd & 0x04 != 0;
         self.transfer = Transfer::BlockDownload(Down {
             info,
@@ -293,7 +292,6 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
         if blksize == 0 || blksize > BLOCK_SEGMENTS_MAX {
             return Err(Abort::BlockSize);
         }
-        self.buf_taken()?;
         // the snapshot, byte by byte: no second buffer on the stack
         let total = match self.read_value(&info)? {
             Value::Small(v, n) => {

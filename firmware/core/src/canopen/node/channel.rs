@@ -2,13 +2,13 @@
 //! transfer: two masters on the default channel would have one's segments acknowledged into
 //! the other's transfer, since CiA 301 SDO frames carry no client address.
 //!
-//! The channel has its own transfer state. A request on it runs the same server code as the
-//! default channel: its transfer is swapped into [`Node::transfer`] for the request (a few
-//! dozen bytes), so neither channel ever sees the other's state. The 512-byte transfer
-//! buffer (segmented and block downloads, block uploads) is one for both: a second buffer
-//! put the QEMU image's node over its 20 KiB stack budget. While one channel's transfer
-//! holds it, such a transfer on the other is refused with 0x08000022 (device state), never
-//! mixed; expedited transfers and segmented uploads need no buffer and always run. Its COB-IDs are "not valid" (bit 31) after
+//! The channel has its own transfer state and its own 512-byte transfer buffer. A request on
+//! it runs the same server code as the default channel: its transfer is swapped into
+//! [`Node::transfer`] for the request (a few dozen bytes) and `chan` selects its buffer, so
+//! neither channel ever sees the other's state, and a tool and a controller each run a
+//! download of their own at once. (The buffer was shared for a while, to keep the QEMU image's
+//! stack check under 20 KiB; that check now counts the stack beyond the node, which the
+//! boards keep in static RAM, where the G431 has room for it.) Its COB-IDs are "not valid" (bit 31) after
 //! every reset communication, as CiA 301 has it for additional server channels, until a
 //! master writes them; the id bits of a valid COB-ID cannot change (write bit 31 first).
 
@@ -26,11 +26,12 @@ pub(super) struct Server2 {
     /// 0x1201 sub 3
     client: u8,
     transfer: Transfer,
+    buf: [u8; SDO_BUFFER],
 }
 
 impl Server2 {
     pub(super) const fn new() -> Server2 {
-        Server2 { rx: COB_INVALID, tx: COB_INVALID, client: 0, transfer: Transfer::Idle }
+        Server2 { rx: COB_INVALID, tx: COB_INVALID, client: 0, transfer: Transfer::Idle, buf: [0; SDO_BUFFER] }
     }
 
     /// Reset communication: not valid again, no transfer.
@@ -49,24 +50,16 @@ impl Server2 {
 }
 
 impl<S: ParamStorage, C: ControlStep> Node<S, C> {
-    /// The transfer buffer.
+    /// The transfer buffer of the channel being served.
     pub(super) fn sdo_buf(&mut self) -> &mut [u8; SDO_BUFFER] {
-        &mut self.buf
-    }
-
-    /// During a request: the other channel's transfer holds the buffer (its transfer is the
-    /// one in `sdo2` then, whichever channel is served). A transfer that needs the buffer
-    /// checks this at its initiate.
-    pub(super) fn buf_taken(&self) -> Result<(), Abort> {
-        match self.sdo2.transfer {
-            Transfer::Download { .. } | Transfer::BlockDownload(_) | Transfer::BlockUpload(_) => {
-                Err(Abort::DeviceState)
-            }
-            _ => Ok(()),
+        if self.chan == 1 {
+            &mut self.sdo2.buf
+        } else {
+            &mut self.buf
         }
     }
 
-    /// Run `f` with the second channel's transfer in [`Node::transfer`].
+    /// Run `f` with the second channel's transfer in [`Node::transfer`] and its buffer selected.
     fn on_channel2<R>(&mut self, f: impl FnOnce(&mut Self) -> R) -> R {
         core::mem::swap(&mut self.transfer, &mut self.sdo2.transfer);
         self.chan = 1;
