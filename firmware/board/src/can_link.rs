@@ -8,65 +8,12 @@
 //! is generic over `embedded_can::Frame`, so it is unit-tested on the host with a plain
 //! frame type and used on the board with embassy-stm32's `can::Frame`.
 
-use joint_core::canopen::CanFrame;
-
 // The conversion between any HAL's `embedded_can::Frame` and the core's frame is the core's
 // (feature `embedded-can`), so another board or a host driver takes it as is.
 pub use joint_core::canopen::hal::{to_core, to_core_fd, to_hal, Rejected};
 
-/// Frames the node emitted while its lock was held, waiting to be written to the
-/// controller once the lock is released (writing may wait for a free TX buffer, which must
-/// never happen inside a critical section). Frames beyond `N` are counted, not kept.
-#[derive(Debug, Clone)]
-pub struct Outbox<const N: usize> {
-    frames: [CanFrame; N],
-    len: usize,
-    /// Frames that did not fit since the last [`Outbox::take_overflow`].
-    overflow: u32,
-}
-
-impl<const N: usize> Default for Outbox<N> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl<const N: usize> Outbox<N> {
-    pub fn new() -> Self {
-        Outbox { frames: [CanFrame::default(); N], len: 0, overflow: 0 }
-    }
-
-    /// The callback the node's `process`/`poll` send through.
-    pub fn push(&mut self, f: CanFrame) {
-        match self.frames.get_mut(self.len) {
-            Some(slot) => {
-                *slot = f;
-                self.len += 1;
-            }
-            None => self.overflow = self.overflow.saturating_add(1),
-        }
-    }
-
-    /// The callback to hand the node, as one concrete type: the node's `process` and `poll`
-    /// are generic over their callback, and every distinct closure type would instantiate
-    /// (and put in flash) another copy of the node's sending code.
-    pub fn sink(&mut self) -> impl FnMut(CanFrame) + '_ {
-        move |f| self.push(f)
-    }
-
-    /// The frames in the order the node sent them.
-    pub fn frames(&self) -> &[CanFrame] {
-        self.frames.get(..self.len).unwrap_or(&[])
-    }
-
-    pub fn clear(&mut self) {
-        self.len = 0;
-    }
-
-    pub fn take_overflow(&mut self) -> u32 {
-        core::mem::take(&mut self.overflow)
-    }
-}
+// The outbox the node's frames wait in is the core's: one loop body for every firmware.
+pub use joint_core::canopen::outbox::Outbox;
 
 /// Error state of the controller as the FDCAN reports it (PSR.EP / PSR.BO).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -157,6 +104,7 @@ mod tests {
     use super::*;
     use embedded_can::ExtendedId;
     use embedded_can::{Frame, Id, StandardId};
+    use joint_core::canopen::CanFrame;
 
     /// A plain classic frame for host tests.
     #[derive(Debug, Clone, PartialEq)]

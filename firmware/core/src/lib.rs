@@ -13,6 +13,7 @@
 
 pub mod canopen;
 pub mod control;
+pub mod control_loop;
 pub mod fixed;
 pub mod fixed_gravity;
 pub mod math;

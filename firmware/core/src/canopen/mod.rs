@@ -18,6 +18,7 @@ pub mod hal;
 pub mod lss;
 pub mod node;
 pub mod od;
+pub mod outbox;
 pub mod pdo;
 pub mod pdo_map;
 pub mod sdo;

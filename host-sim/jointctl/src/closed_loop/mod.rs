@@ -8,9 +8,9 @@
 //!    ([`transfer::push`]: stage, read back, commit, in pre-operational because `fraction` is a
 //!    safety parameter), then starts the node (NMT operational) and keeps its heartbeat going;
 //! 3. the joint runs its control step at the committed rate (1 kHz): the angle is sensed like
-//!    the board's encoder (the plant's `[delay]`, `q_noise`, `q_resolution`), q̇ and q̈ come from
-//!    two of the core's `Differentiator`s at the board's cut-offs (`velocity_cutoff_hz(rate)`,
-//!    `controller.accel_cutoff`), and the node's output torque is held on the plant for the
+//!    the board's encoder (the plant's `[delay]`, `q_noise`, `q_resolution`), the board's own
+//!    loop (the core's `ControlLoop`: q̇ and q̈ from two `Differentiator`s at the board's
+//!    cut-offs, the node's step) gives the torque, which is held on the plant for the
 //!    period while the plant is integrated by RK4 at 10 kHz;
 //! 4. an operator (the `hand` scenario's impedance `K_h·(q_ref − q) + B_h·(q̇_ref − q̇)`) pulls
 //!    the rod toward a smooth random reference ([`RandomPath`]: minimum-jerk segments of
@@ -31,7 +31,7 @@ use std::time::Duration;
 
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, NMT_START};
 use joint_core::canopen::{CanFrame, NmtState};
-use joint_core::control::Differentiator;
+use joint_core::control_loop::ControlLoop;
 use joint_core::params::{ParamId, RawParams};
 use joint_core::vectors::velocity_cutoff_hz;
 use rand::SeedableRng;
@@ -250,8 +250,8 @@ pub struct LoopJoint {
     x: State,
     hist: VecDeque<Rec>,
     delay_steps: usize,
-    dq: Differentiator,
-    dqd: Differentiator,
+    /// the board's loop (the core's): q̇, q̈ estimates, overrun check, the node's step
+    ctl: ControlLoop,
     q_noise: f64,
     q_res: f64,
     sensors: host_sim::plant::Sensors,
@@ -264,7 +264,6 @@ pub struct LoopJoint {
     rng: ChaCha8Rng,
     noise: ChaCha8Rng,
     record_from_us: Option<u64>,
-    last_us: Option<u64>,
     diverged: bool,
     keep_log: bool,
     trace: Trace,
@@ -276,14 +275,14 @@ impl LoopJoint {
         let u_max = f64::from(s.raw.get(ParamId::TorqueLimit)).max(1.0);
         let dt = 1.0e-3 / SUBSTEPS as f64;
         let node = Node::new(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0);
+        let ctl = ControlLoop::new(node.params());
         LoopJoint {
             node,
             plant: Plant::new(pf, dt, u_max),
             x: State::at_rest(hold),
             hist: VecDeque::new(),
             delay_steps: (s.delay / dt).round() as usize,
-            dq: Differentiator::new(),
-            dqd: Differentiator::new(),
+            ctl,
             q_noise: pf.sensors.q_noise,
             q_res: pf.sensors.q_resolution,
             sensors: pf.sensors.clone(),
@@ -294,7 +293,6 @@ impl LoopJoint {
             rng: ChaCha8Rng::seed_from_u64(seed),
             noise: ChaCha8Rng::seed_from_u64(seed ^ 0x9E37_79B9_7F4A_7C15),
             record_from_us: None,
-            last_us: None,
             diverged: false,
             keep_log,
             trace: Trace::default(),
@@ -322,8 +320,6 @@ impl LoopJoint {
     }
 
     fn control_tick(&mut self, now_us: u64) {
-        let dt_ctrl = self.last_us.map_or(1.0e-3, |l| now_us.saturating_sub(l).max(1) as f64 * 1e-6);
-        self.last_us = Some(now_us);
         let t = now_us as f64 * 1e-6;
         // 1. the encoder reads the state of `t − delay`
         let past = if self.delay_steps > 0 {
@@ -338,14 +334,9 @@ impl LoopJoint {
         };
         let sensed = past.unwrap_or(Rec { t, x: self.x, u: 0.0, op: Operator::default() });
         let q_s = quantise(sensed.x.q + gauss(self.q_noise, &mut self.noise), self.q_res);
-        // 2. the board's estimates and the node's control step
-        let p = self.node.params();
-        let rate = f64::from(p.get(ParamId::ControlRateHz));
-        let (vc, ac) = (velocity_cutoff_hz(rate as f32), p.get(ParamId::AccelCutoff));
-        let _ = rate;
-        let qd_e = self.dq.update(q_s as f32, dt_ctrl as f32, vc);
-        let qdd_e = self.dqd.update(qd_e, dt_ctrl as f32, ac);
-        let out = self.node.control(now_us, q_s as f32, qd_e, qdd_e, dt_ctrl as f32);
+        // 2. the board's loop: its estimates and the node's control step (the core's
+        // `ControlLoop`, what the G431 and G0B1 tasks run)
+        let out = self.ctl.tick(&mut self.node, now_us, Ok::<f32, ()>(q_s as f32)).out;
         let u = f64::from(out.tau_out);
         let op = self.operator(t);
         // 3. what the operator feels now, and the log row of the sensed instant
