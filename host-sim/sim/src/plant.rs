@@ -34,6 +34,7 @@
 //! never pulling), `k_c`, `c_c` chosen for a 0.7-damped contact mode at plant_rate/40 so RK4
 //! resolves it. The logged q is the output side.
 
+use joint_formats::vocab::Effect;
 use std::path::Path;
 
 use serde::Deserialize;
@@ -117,21 +118,13 @@ struct PlantToml {
     operator: Option<OperatorCfg>,
 }
 
-/// The sections [`PlantToml`] reads (the rest of a plant file is its model).
-const PLANT_SECTIONS: [&str; 12] = [
-    "stribeck",
-    "asymmetric_friction",
-    "load_dependent_friction",
-    "thermal_drift",
-    "position_ripple",
-    "cable_spring",
-    "backlash",
-    "delay",
-    "dry_friction",
-    "sensors",
-    "joint_range",
-    "operator",
-];
+/// The sections [`PlantToml`] reads (the rest of a plant file is its model): every effect term
+/// of the vocabulary but the pre-sliding state (a model section the plant runs through the
+/// model), and the plant's own sensors, range and operator.
+fn plant_section(s: &str) -> bool {
+    matches!(s, "sensors" | "joint_range" | "operator")
+        || Effect::from_section(s).is_some_and(|e| e != Effect::PreslidingHysteresis)
+}
 
 /// A parsed plant file.
 #[derive(Clone, Debug, PartialEq)]
@@ -152,7 +145,7 @@ impl PlantFile {
     }
 
     pub fn parse(text: &str, file: &str) -> Result<PlantFile, ModelError> {
-        let model = ModelFile::parse_except(text, file, &|s| PLANT_SECTIONS.contains(&s))?;
+        let model = ModelFile::parse_except(text, file, &plant_section)?;
         let t: PlantToml =
             toml::from_str(text).map_err(|e| ModelError::Toml { file: file.to_string(), msg: e.to_string() })?;
         if model.series.is_some() {
