@@ -9,9 +9,11 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 echo "== format (cargo fmt --check; rustfmt.toml)"
 cargo fmt --all -- --check
-# The G0B1 and the QEMU images are workspaces of their own: --all above does not reach them.
+# The G0B1 and QEMU images and the porting example are workspaces of their own: --all above
+# does not reach them.
 cargo fmt --manifest-path firmware/board-g0b1/Cargo.toml -- --check
 cargo fmt --manifest-path firmware/qemu/Cargo.toml -- --check
+cargo fmt --manifest-path firmware/port-f4/Cargo.toml -- --check
 echo "== host crates keep their dependency rules (cargo tree)"
 bash scripts/check-deps.sh --self-test
 bash scripts/check-deps.sh
@@ -19,6 +21,8 @@ echo "== firmware image size, STM32G431 (budget: flash ≤ 96 KiB, RAM ≤ 16 Ki
 bash scripts/fw-size.sh g431
 echo "== firmware image size, STM32G0B1, Q16.16 step (budget: flash ≤ 120 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh g0b1
+echo "== porting example: the core on an STM32F405 through stm32f4xx-hal, a HAL our boards do not use (docs/porting.md)"
+cargo build -q --release --manifest-path firmware/port-f4/Cargo.toml --target thumbv7em-none-eabihf
 echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
 bash scripts/qemu-test.sh m4f
 echo "== firmware on QEMU (mps2-an385: the M0+ instruction set without FPU; f32 soft-float and Q16.16)"
