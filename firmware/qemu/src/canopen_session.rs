@@ -26,6 +26,7 @@ use core::fmt::{self, Write};
 
 use joint_core::canopen::{od, CanFrame, ControlStep, MemoryStorage, Node, NodeConfig};
 use joint_core::control::Output;
+use joint_core::control_loop::ControlLoop;
 use joint_core::math;
 use joint_core::params::{ParamId, RawParams, PARAMS};
 use joint_core::vectors::trunk_right;
@@ -191,6 +192,8 @@ fn record<E: FnMut(&Line)>(
 
 struct Run<'a, E: FnMut(&Line), C: ControlStep> {
     node: Node<MemoryStorage, C>,
+    /// the boards' loop (the core's): q̇, q̈ from the angle, the node's step
+    ctl: ControlLoop,
     emit: &'a mut E,
     s: Summary,
     step: u32,
@@ -222,13 +225,12 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
             let Run { node, emit, s, .. } = self;
             node.poll(now, &mut |o| record(s, &mut **emit, step, "poll", None, &o));
         }
-        // A joint swinging ±0.6 rad at 0.5 Hz, with its exact derivatives.
+        // A joint swinging ±0.6 rad at 0.5 Hz, through the boards' own loop (its estimates of
+        // q̇ and q̈, its overrun check, the node's step).
         let t = self.step as f32 * (PERIOD_US as f32 * 1.0e-6);
         let w = 2.0 * core::f32::consts::PI * 0.5;
         let q = 0.6 * math::sin(w * t);
-        let qd = 0.6 * w * math::cos(w * t);
-        let qdd = -w * w * q;
-        let out = self.node.control(now, q, qd, qdd, PERIOD_US as f32 * 1.0e-6);
+        let out = self.ctl.tick(&mut self.node, now, Ok::<f32, ()>(q)).out;
         if self.step < T_HOST_SILENT {
             self.s.max_tau = self.s.max_tau.max(math::abs(out.tau_out));
         }
@@ -344,6 +346,7 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
 pub fn run_fd_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
     let mut r = Run {
         node: Node::<MemoryStorage, C>::with_step(NodeConfig::new(NODE_ID).with_fd(true), MemoryStorage::default(), 0),
+        ctl: ControlLoop::new(&joint_core::params::ParamSet::defaults()),
         emit,
         s: Summary::default(),
         step: 0,
@@ -366,6 +369,7 @@ pub fn run_fd_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
 pub fn run_with<C: ControlStep>(emit: &mut impl FnMut(&Line)) -> Summary {
     let mut r = Run {
         node: Node::<MemoryStorage, C>::with_step(NodeConfig::new(NODE_ID), MemoryStorage::default(), 0),
+        ctl: ControlLoop::new(&joint_core::params::ParamSet::defaults()),
         emit,
         s: Summary::default(),
         step: 0,
