@@ -14,6 +14,7 @@ use joint_core::canopen::lss::LssConfig;
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, ParamStorage, StorageError};
 use joint_core::canopen::pdo_map::PDO_MAPS_BYTES;
 use joint_core::canopen::CanFrame;
+use joint_core::control_loop::ControlLoop;
 use joint_core::params::{ParamId, ParamSet, RawParams};
 use joint_formats::model_file::ModelFile;
 use std::io::Write as _;
@@ -168,7 +169,7 @@ fn lss_file(params: &std::path::Path) -> PathBuf {
 /// First line of a store file the simulated joint wrote: its CRC-32 over the rest follows.
 const STORE_HEADER: &str = "# joint parameter store, crc32 ";
 
-const TICK_US: u64 = 1000;
+/// Plant integration steps per millisecond (RK4 at 10 kHz).
 const PLANT_SUBSTEPS: u32 = 10;
 
 /// See the module documentation.
@@ -176,8 +177,9 @@ pub struct JointSim {
     pub node: Node<SimStorage>,
     plant: Option<(Plant, State)>,
     op: Operator,
-    last_us: Option<u64>,
-    qd_prev: f64,
+    /// the boards' loop (the core's `ControlLoop`): q̇, q̈ estimated from the encoder's angle,
+    /// the node's step, the period of the committed `controller_rate_hz`
+    ctl: ControlLoop,
 }
 
 impl JointSim {
@@ -193,24 +195,28 @@ impl JointSim {
             let limit = f64::from(node.params().get(ParamId::TorqueLimit));
             (Plant::new(pf, 1.0e-3 / f64::from(PLANT_SUBSTEPS), limit.max(1.0)), State::default())
         });
-        JointSim { node, plant, op: Operator { k: 20.0, b: 2.0, q_ref: 0.0, qd_ref: 0.0 }, last_us: None, qd_prev: 0.0 }
+        let ctl = ControlLoop::new(node.params());
+        JointSim { node, plant, op: Operator { k: 20.0, b: 2.0, q_ref: 0.0, qd_ref: 0.0 }, ctl }
     }
 
-    /// One control period at `now_us`: control step, plant, node timers.
+    /// One control period at `now_us`: the board's loop (encoder angle in, the node's step),
+    /// the plant over the period, the node's timers.
     pub fn step(&mut self, now_us: u64, out: &mut Vec<CanFrame>) {
-        let dt = self.last_us.map_or(TICK_US, |l| now_us.saturating_sub(l)).max(1) as f64 * 1e-6;
-        self.last_us = Some(now_us);
-        let (q, qd) = self.plant.as_ref().map_or((0.0, 0.0), |(_, x)| (x.q, x.qd));
-        let qdd = (qd - self.qd_prev) / dt;
-        self.qd_prev = qd;
-        let o = self.node.control(now_us, q as f32, qd as f32, qdd as f32, dt as f32);
+        let q = self.plant.as_ref().map_or(0.0, |(_, x)| x.q);
+        // A late tick here is the host's scheduler (a busy machine running `jointctl sim`), not
+        // the joint's: it is not latched as the board's LOOP_OVERRUN would be.
+        self.ctl.excuse_gap();
+        let o = self.ctl.tick(&mut self.node, now_us, Ok::<f32, ()>(q as f32)).out;
+        let period_us = self.ctl.nominal_period_us();
         if let Some((plant, x)) = self.plant.as_mut() {
             let t = now_us as f64 * 1e-6;
             let w = 2.0 * std::f64::consts::PI * 0.25;
             self.op.q_ref = 0.4 * (w * t).sin();
             self.op.qd_ref = 0.4 * w * (w * t).cos();
-            for k in 0..PLANT_SUBSTEPS {
-                *x = plant.step(t + f64::from(k) * plant.dt, x, f64::from(o.tau_out), &self.op, &[]);
+            // the plant over one period of the committed rate, in steps of 0.1 ms
+            let n = ((period_us * u64::from(PLANT_SUBSTEPS) + 500) / 1000).max(1);
+            for k in 0..n {
+                *x = plant.step(t + k as f64 * plant.dt, x, f64::from(o.tau_out), &self.op, &[]);
             }
             if !x.q.is_finite() || !x.qd.is_finite() {
                 *x = State::default();
@@ -219,6 +225,11 @@ impl JointSim {
             self.node.set_measurements(tau_meas as f32, 30.0);
         }
         self.node.process(now_us, None, &mut |f| out.push(f));
+    }
+
+    /// The control period of the committed `controller_rate_hz`, µs.
+    pub fn control_period_us(&self) -> u64 {
+        self.ctl.nominal_period_us()
     }
 
     pub fn receive(&mut self, now_us: u64, f: &CanFrame, out: &mut Vec<CanFrame>) {
@@ -234,6 +245,6 @@ impl SimDevice for JointSim {
         self.step(t_us, out);
     }
     fn period_us(&self) -> u64 {
-        TICK_US
+        self.control_period_us()
     }
 }

@@ -138,10 +138,12 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
                 j.step(now, &mut buf);
                 out.extend(buf.drain(..).map(|f| (i, f)));
             }
-            next_tick += 1000;
+            // the period of the committed controller_rate_hz (the joints' loops; 1 ms by default)
+            let period = joints.iter().map(|j| j.control_period_us()).min().unwrap_or(1000);
+            next_tick += period;
             if next_tick + 100_000 < now {
                 // fell far behind (suspended?): do not replay the backlog
-                next_tick = now + 1000;
+                next_tick = now + period;
             }
         } else if let Some(f) = bus.recv(Duration::from_micros(next_tick - now))? {
             rx_frames += 1;
