@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import configparser
+import contextlib
 
 import can
 import canopen
@@ -49,10 +50,13 @@ def wait_for(pred, timeout, what):
     raise AssertionError(f"timed out waiting for {what}")
 
 
-@pytest.fixture(scope="module")
-def rig():
+@contextlib.contextmanager
+def served(prefix, eds_args, sim_args):
+    """A socat pty pair with `jointctl sim SIM_ARGS` on one end and python-canopen's network
+    (python-can's slcan) on the other, and the EDS `jointctl eds EDS_ARGS` writes. Yields
+    (network, eds); at the end the sim must stop cleanly on SIGTERM (exit 0)."""
     assert shutil.which("socat"), "socat is needed (apt-get install socat)"
-    tmp = Path(tempfile.mkdtemp(prefix="joint-interop-"))
+    tmp = Path(tempfile.mkdtemp(prefix=prefix))
     a, b = tmp / "canA", tmp / "canB"
     socat = subprocess.Popen(
         ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
@@ -61,28 +65,17 @@ def rig():
     )
     wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
     eds = tmp / "joint.eds"
-    subprocess.run([jointctl(), "eds", "--out", str(eds)], check=True)
+    subprocess.run([jointctl(), "eds", *eds_args, "--out", str(eds)], check=True)
     sim = subprocess.Popen(
-        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", str(NODE),
-         "--plant", str(ROOT / "examples/plants/trunk-right.toml")],
+        [jointctl(), "sim", "--bus", f"slcan:{b}", *sim_args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
     network = canopen.Network()
     network.connect(interface="slcan", channel=str(a), bitrate=1000000)
-    node = network.add_node(NODE, str(eds))
-    node.sdo.RESPONSE_TIMEOUT = 1.0
-    # our heartbeat: the joint's watchdog (consumer 0x1016) listens for node 0x7F
-    hb = network.send_periodic(0x700 + HOST_ID, bytes([0x05]), 0.05)
-    # The joint booted before our heartbeat started, so its watchdog latched heartbeat_lost
-    # (by design it stays latched until the host acknowledges): acknowledge it now.
-    node.nmt.wait_for_heartbeat(timeout=2)
-    time.sleep(0.1)
-    node.sdo["clear_faults"].raw = 1
     try:
-        yield network, node, eds
+        yield network, eds
     finally:
-        hb.stop()
         network.disconnect()
         # SIGTERM stops `jointctl sim` cleanly (exit 0, summary on stderr)
         sim.terminate()
@@ -94,7 +87,31 @@ def rig():
         socat.terminate()
         socat.wait(timeout=5)
         shutil.rmtree(tmp, ignore_errors=True)
-        assert rc == 0, f"jointctl sim did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
+        assert rc == 0, f"jointctl sim {sim_args} did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
+
+
+def joined(network, node_id, eds):
+    """The node through its EDS, our heartbeat running, its latched heartbeat_lost cleared:
+    the joint booted before our heartbeat started, so its watchdog (consumer 0x1016, node
+    0x7F) latched heartbeat_lost, which by design stays until the host acknowledges it."""
+    node = network.add_node(node_id, str(eds))
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    hb = network.send_periodic(0x700 + HOST_ID, bytes([0x05]), 0.05)
+    node.nmt.wait_for_heartbeat(timeout=2)
+    time.sleep(0.1)
+    node.sdo["clear_faults"].raw = 1
+    return node, hb
+
+
+@pytest.fixture(scope="module")
+def rig():
+    plant = ["--plant", str(ROOT / "examples/plants/trunk-right.toml")]
+    with served("joint-interop-", [], ["--node", str(NODE), *plant]) as (network, eds):
+        node, hb = joined(network, NODE, eds)
+        try:
+            yield network, node, eds
+        finally:
+            hb.stop()
 
 
 def abort_code(exc_info):
@@ -551,47 +568,15 @@ FD_NODE = 6
 
 @pytest.fixture(scope="module")
 def fd_rig():
-    tmp = Path(tempfile.mkdtemp(prefix="joint-interop-fd-"))
-    a, b = tmp / "canA", tmp / "canB"
-    socat = subprocess.Popen(
-        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
-    eds = tmp / "joint-fd.eds"
-    subprocess.run([jointctl(), "eds", "--fd", "--out", str(eds)], check=True)
-    sim = subprocess.Popen(
-        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", str(FD_NODE), "--fd",
-         "--plant", str(ROOT / "examples/plants/trunk-right.toml")],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    network = canopen.Network()
-    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
-    frames = can.BufferedReader()
-    network.notifier.add_listener(frames)
-    node = network.add_node(FD_NODE, str(eds))
-    node.sdo.RESPONSE_TIMEOUT = 1.0
-    hb = network.send_periodic(0x700 + HOST_ID, bytes([0x05]), 0.05)
-    node.nmt.wait_for_heartbeat(timeout=2)
-    time.sleep(0.1)
-    node.sdo["clear_faults"].raw = 1
-    try:
-        yield network, node, frames
-    finally:
-        hb.stop()
-        network.disconnect()
-        sim.terminate()
+    plant = ["--plant", str(ROOT / "examples/plants/trunk-right.toml")]
+    with served("joint-interop-fd-", ["--fd"], ["--node", str(FD_NODE), "--fd", *plant]) as (network, eds):
+        frames = can.BufferedReader()
+        network.notifier.add_listener(frames)
+        node, hb = joined(network, FD_NODE, eds)
         try:
-            rc = sim.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            sim.kill()
-            rc = "hung"
-        socat.terminate()
-        socat.wait(timeout=5)
-        shutil.rmtree(tmp, ignore_errors=True)
-        assert rc == 0, f"jointctl sim --fd did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
+            yield network, node, frames
+        finally:
+            hb.stop()
 
 
 def test_fd_tpdo_carries_the_whole_state_decoded_through_the_eds(fd_rig):
@@ -657,37 +642,8 @@ def test_fd_shared_command_frame_and_sdo_in_fd_frames(fd_rig):
 @pytest.fixture()
 def lss_rig():
     """A second bus with one joint started unconfigured (LSS): serial number 42, no node id."""
-    tmp = Path(tempfile.mkdtemp(prefix="joint-lss-"))
-    a, b = tmp / "canA", tmp / "canB"
-    socat = subprocess.Popen(
-        ["socat", "-d", "-d", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    wait_for(lambda: a.exists() and b.exists(), 5, "socat ptys")
-    eds = tmp / "joint.eds"
-    subprocess.run([jointctl(), "eds", "--out", str(eds)], check=True)
-    sim = subprocess.Popen(
-        [jointctl(), "sim", "--bus", f"slcan:{b}", "--node", "42", "--lss-unconfigured"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    network = canopen.Network()
-    network.connect(interface="slcan", channel=str(a), bitrate=1000000)
-    try:
+    with served("joint-lss-", [], ["--node", "42", "--lss-unconfigured"]) as (network, eds):
         yield network, eds
-    finally:
-        network.disconnect()
-        sim.terminate()
-        try:
-            rc = sim.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            sim.kill()
-            rc = "hung"
-        socat.terminate()
-        socat.wait(timeout=5)
-        shutil.rmtree(tmp, ignore_errors=True)
-        assert rc == 0, f"jointctl sim did not stop cleanly: {rc} {sim.stderr.read()!r}"
 
 
 def test_lss_fast_scan_gives_an_unconfigured_joint_its_node_id(lss_rig):
