@@ -193,6 +193,11 @@ pub fn sections() -> impl Iterator<Item = &'static str> {
     })
 }
 
+/// The parameter at a TOML place (`friction`, `c`), if one lives there.
+pub fn param_at(section: &str, key: &str) -> Option<&'static ParamDesc> {
+    PARAMS.iter().find(|d| d.section == section && d.key == key)
+}
+
 /// The parameters of one TOML section, in table order.
 pub fn section_params(section: &str) -> impl Iterator<Item = &'static ParamDesc> + '_ {
     PARAMS.iter().filter(move |d| d.section == section)

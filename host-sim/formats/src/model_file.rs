@@ -196,7 +196,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 }
 
 fn known_keys(section: &str) -> String {
-    PARAMS.iter().filter(|d| d.section == section).map(|d| d.key).collect::<Vec<_>>().join(", ")
+    params::section_params(section).map(|d| d.key).collect::<Vec<_>>().join(", ")
 }
 
 impl ModelFile {
@@ -266,7 +266,7 @@ impl ModelFile {
             let Some(keys) = keys else { continue };
             for (key, value) in keys.iter() {
                 let line = line_of(text, value.span().start);
-                let Some(d) = PARAMS.iter().find(|d| d.section == *section && d.key == key) else {
+                let Some(d) = params::param_at(section, key) else {
                     return Err(ModelError::UnknownKey {
                         file: file.to_string(),
                         line,
@@ -318,7 +318,7 @@ impl ModelFile {
     /// The value at a TOML place (`"friction"`, `"c"`), file value or default; `None` if no
     /// parameter lives there.
     pub fn get(&self, section: &str, key: &str) -> Option<f64> {
-        PARAMS.iter().find(|d| d.section == section && d.key == key).map(|d| self.value(d.id))
+        params::param_at(section, key).map(|d| self.value(d.id))
     }
 
     /// Log columns feeding the core's `others[0..3]`, in slot order of first appearance: the
@@ -553,7 +553,7 @@ impl ModelFile {
         mf.name = name.map(str::to_string);
         let sections = section_order();
         for s in sections {
-            let descs: Vec<&ParamDesc> = PARAMS.iter().filter(|d| d.section == s).collect();
+            let descs: Vec<&ParamDesc> = params::section_params(s).collect();
             let differs = descs.iter().any(|d| raw.get(d.id).to_bits() != d.default.to_bits());
             let has_table = s == "gravity_table" && raw.table.n_axes > 0;
             if differs || has_table {
@@ -614,8 +614,7 @@ impl ModelFile {
             let _ = writeln!(out, "name = {}", toml_string(n));
         }
         for s in section_order() {
-            let descs: Vec<&ParamDesc> =
-                PARAMS.iter().filter(|d| d.section == s && self.explicit(d.id).is_some()).collect();
+            let descs: Vec<&ParamDesc> = params::section_params(s).filter(|d| self.explicit(d.id).is_some()).collect();
             let table = if s == "gravity_table" { self.table.as_ref() } else { None };
             if descs.is_empty() && table.is_none() {
                 continue;
@@ -658,12 +657,7 @@ impl ModelFile {
 
 /// TOML sections in `PARAMS` order (gravity_table included).
 fn section_order() -> Vec<&'static str> {
-    let mut v: Vec<&'static str> = Vec::new();
-    for d in PARAMS.iter() {
-        if !v.contains(&d.section) {
-            v.push(d.section);
-        }
-    }
+    let mut v: Vec<&'static str> = params::sections().collect();
     if !v.contains(&"gravity_table") {
         v.push("gravity_table");
     }

@@ -1236,7 +1236,7 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
     let vals = refit_values(model, fin);
     for (sec, kv) in &vals {
         for (k, v) in kv {
-            if let Some(desc) = joint_core::params::PARAMS.iter().find(|p| p.section == sec && p.key == k) {
+            if let Some(desc) = joint_core::params::param_at(sec, k) {
                 // Keep the file loadable: the table forbids negative coefficients.
                 let v = v.clamp(f64::from(desc.min), f64::from(desc.max));
                 mf.set(desc.id, v, None);
@@ -1269,7 +1269,7 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     // emitted file stays a loadable model (a negative Stribeck level, say, is not one).
     let g = |key: &str| {
         let v = p.get(key).copied().unwrap_or(0.0);
-        match joint_core::params::PARAMS.iter().find(|d| d.section == section && d.key == key) {
+        match joint_core::params::param_at(section, key) {
             Some(d) => v.clamp(f64::from(d.min), f64::from(d.max)),
             None => v,
         }

@@ -336,7 +336,7 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
     if refit_used {
         for (k, v) in refit_values(ctx.model, ctx.lay, final_fit.base(ctx.lay)) {
             if let Some((sec, key)) = k.split_once('.') {
-                if let Some(d) = joint_core::params::PARAMS.iter().find(|p| p.section == sec && p.key == key) {
+                if let Some(d) = joint_core::params::param_at(sec, key) {
                     mf.set(d.id, v.clamp(f64::from(d.min), f64::from(d.max)), None);
                 }
             }
