@@ -200,6 +200,8 @@ impl<F: Flash> ParamStorage for FlashStorage<F> {
         let erased = flash.erase(0, len).is_ok();
         // Same flash, same geometry: rebuilding cannot fail; if it did, saves report Failed.
         self.store = Store::new(flash).ok();
+        // what the mirrors said is gone (or, after a failed erase, unknown): read it again
+        self.scanned = false;
         if erased {
             Ok(())
         } else {
