@@ -746,15 +746,14 @@ fn try_kinds(
             return None;
         };
         let t1 = t0.elapsed().as_secs_f64();
-        if !chosen.is_empty() && grid.rss_effect(&e) > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
-            if trace() {
-                eprintln!(
-                    "[trace]   {} pruned: thinned training RSS {:.4e} of {cur_rss:.4e}",
-                    k.name(),
-                    grid.rss_effect(&e)
-                );
+        if !chosen.is_empty() {
+            let rss = grid.rss_effect(&e);
+            if rss > (1.0 - 0.5 * MIN_GAIN) * cur_rss {
+                if trace() {
+                    eprintln!("[trace]   {} pruned: thinned training RSS {rss:.4e} of {cur_rss:.4e}", k.name());
+                }
+                return None;
             }
-            return None;
         }
         let s = round.fit_and_score(e, split, bits, n_regimes);
         if timing {
