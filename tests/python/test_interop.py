@@ -29,6 +29,8 @@ from canopen.sdo.exceptions import SdoAbortedError
 ROOT = Path(__file__).resolve().parents[2]
 NODE = 5
 HOST_ID = 0x7F
+# the simulated joints move: a plant behind each node
+PLANT = ["--plant", str(ROOT / "examples/plants/trunk-right.toml")]
 
 
 def jointctl() -> str:
@@ -90,8 +92,10 @@ def served(prefix, eds_args, sim_args):
         assert rc == 0, f"jointctl sim {sim_args} did not stop cleanly on SIGTERM: {rc} {sim.stderr.read()!r}"
 
 
+@contextlib.contextmanager
 def joined(network, node_id, eds):
-    """The node through its EDS, our heartbeat running, its latched heartbeat_lost cleared:
+    """The node through its EDS, our heartbeat running (until the block ends), its latched
+    heartbeat_lost cleared:
     the joint booted before our heartbeat started, so its watchdog (consumer 0x1016, node
     0x7F) latched heartbeat_lost, which by design stays until the host acknowledges it."""
     node = network.add_node(node_id, str(eds))
@@ -100,18 +104,17 @@ def joined(network, node_id, eds):
     node.nmt.wait_for_heartbeat(timeout=2)
     time.sleep(0.1)
     node.sdo["clear_faults"].raw = 1
-    return node, hb
+    try:
+        yield node
+    finally:
+        hb.stop()
 
 
 @pytest.fixture(scope="module")
 def rig():
-    plant = ["--plant", str(ROOT / "examples/plants/trunk-right.toml")]
-    with served("joint-interop-", [], ["--node", str(NODE), *plant]) as (network, eds):
-        node, hb = joined(network, NODE, eds)
-        try:
+    with served("joint-interop-", [], ["--node", str(NODE), *PLANT]) as (network, eds):
+        with joined(network, NODE, eds) as node:
             yield network, node, eds
-        finally:
-            hb.stop()
 
 
 def abort_code(exc_info):
@@ -568,15 +571,11 @@ FD_NODE = 6
 
 @pytest.fixture(scope="module")
 def fd_rig():
-    plant = ["--plant", str(ROOT / "examples/plants/trunk-right.toml")]
-    with served("joint-interop-fd-", ["--fd"], ["--node", str(FD_NODE), "--fd", *plant]) as (network, eds):
+    with served("joint-interop-fd-", ["--fd"], ["--node", str(FD_NODE), "--fd", *PLANT]) as (network, eds):
         frames = can.BufferedReader()
         network.notifier.add_listener(frames)
-        node, hb = joined(network, FD_NODE, eds)
-        try:
+        with joined(network, FD_NODE, eds) as node:
             yield network, node, frames
-        finally:
-            hb.stop()
 
 
 def test_fd_tpdo_carries_the_whole_state_decoded_through_the_eds(fd_rig):
