@@ -471,15 +471,6 @@ fn take_work() -> Option<Work> {
     }
 }
 
-/// The communication block the next save writes. Out of line: the encoded block lives on
-/// the stack only during this call.
-#[inline(never)]
-fn stage_comm(store: &mut Store<ParamFlash>, comm: &CommSettings) -> Result<(), ()> {
-    let mut b = [0u8; CommSettings::MAX_BYTES];
-    let n = comm.encode(&mut b);
-    store.set_comm(b.get(..n).unwrap_or(&[])).map_err(|_| ())
-}
-
 /// Reports the end of a job to the node; on failure, re-reads what the flash holds.
 #[inline(never)]
 fn job_done(result: Result<(), ()>, store: Option<&mut Store<ParamFlash>>) {
@@ -507,9 +498,9 @@ async fn params_task(mut store: Option<Store<ParamFlash>>) {
             continue;
         };
         let result = match (work, store.as_mut()) {
-            (Work::Save(set, comm), Some(s)) => match stage_comm(s, &comm) {
+            (Work::Save(set, comm), Some(s)) => match comm.stage(s) {
                 Ok(()) => save(s, &set).await,
-                Err(()) => Err(()),
+                Err(_) => Err(()),
             },
             (Work::Erase, Some(_)) => erase(&mut store).await,
             _ => Err(()),

@@ -50,6 +50,15 @@ impl CommSettings {
         }
     }
 
+    /// Hands the block to `store` for its next save (`Store::set_comm`). Out of line: the
+    /// encoded block is on the stack only during this call.
+    #[inline(never)]
+    pub fn stage<F: Flash>(&self, store: &mut Store<F>) -> Result<(), crate::store::CommTooLong> {
+        let mut b = [0u8; Self::MAX_BYTES];
+        let n = self.encode(&mut b);
+        store.set_comm(b.get(..n).unwrap_or(&[]))
+    }
+
     /// A block as [`CommSettings::encode`] wrote it; `None` for anything else (another
     /// version, a wrong length), which the node then treats as nothing stored.
     pub fn decode(b: &[u8]) -> Option<CommSettings> {
@@ -131,10 +140,8 @@ impl<F: Flash> FlashStorage<F> {
 
     /// One record: `set` with the communication settings in force here.
     fn write(&mut self, set: &ParamSet) -> Result<(), StorageError> {
-        let mut b = [0u8; CommSettings::MAX_BYTES];
-        let n = self.comm.encode(&mut b);
         let store = self.store.as_mut().ok_or(StorageError::Failed)?;
-        store.set_comm(b.get(..n).unwrap_or(&[])).map_err(|_| StorageError::Failed)?;
+        self.comm.stage(store).map_err(|_| StorageError::Failed)?;
         store.save_blocking(set).map_err(|_| StorageError::Failed)?;
         self.stored = Some(set.raw().clone());
         Ok(())
