@@ -42,8 +42,14 @@ fn wrong_sign_effects_are_never_the_verdict_on_the_dfki_payload_run() {
     let r = &d.report;
     let by = |name: &str| r.effects.iter().find(|e| e.effect == name).unwrap_or_else(|| panic!("no {name} entry"));
 
+    // the data want a negative level: the bounded fit holds it at 0 (a candidate is fitted as
+    // its best physical self) and it is marked, never named
     let stribeck = by("stribeck");
-    assert!(stribeck.params["level"] < 0.0, "the data's best Stribeck fit is a negative level: {:?}", stribeck.params);
+    assert!(
+        stribeck.params["level"] <= 0.0,
+        "the data's best Stribeck fit is no positive level: {:?}",
+        stribeck.params
+    );
     assert!(stribeck.implausible.is_some() && !stribeck.significant);
     let thermal = by("thermal_drift");
     let (coef, t_ref) = (thermal.params["coefficient"], thermal.params["t_ref"]);
@@ -93,8 +99,9 @@ fn the_hand_moved_run_is_a_weight_refit_and_no_wrong_sign_term_is_kept() {
 /// and residual evidence that shows the structure left (autocorrelation far outside the band).
 /// The gap is 2.8× the floor (1.07 against 0.38 N·m) since the preparation models the angle's
 /// falling noise (3.2× before, with a white-noise floor of 0.33).
-/// A progressive "cable spring" scores best, with a negative linear stiffness: a double well no
-/// harness makes, so it is marked and not named.
+/// A cable spring fitted as a physical one (stiffness ≥ 0: unconstrained the best was a
+/// progressive spring with a negative linear stiffness, a double well no harness makes) does
+/// not explain it significantly and is not named.
 #[test]
 fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     let p = PathBuf::from(concat!(
@@ -112,7 +119,8 @@ fn panda_joint_1_coupling_is_not_blamed_on_a_single_joint_effect() {
     assert!(r.gap.holdout_rmse > 2.0 * r.gap.noise_floor, "{:?}", r.gap);
     assert_eq!(r.verdict.effect, "unexplained", "a coupling gap named: {:?}", r.verdict);
     let cable = r.effects.iter().find(|e| e.effect == "cable_spring").unwrap();
-    assert!(cable.implausible.is_some() && !cable.significant, "{:?}", cable.params);
+    assert!(!cable.significant, "{:?}", cable.params);
+    assert!(cable.params.get("k").or(cable.params.get("k3")).is_some_and(|k| *k >= 0.0), "{:?}", cable.params);
     assert!(r.effects.iter().all(|e| !e.significant), "nothing explains it");
     let p = &r.effects.iter().find(|e| e.effect == "parameters").unwrap().params;
     let (j, c) = (p["inertia.j"], p["friction.c"]);

@@ -147,6 +147,33 @@ impl Col {
         matches!(self, Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Stribeck(_) | Col::AbsSgn | Col::StribeckExp { .. })
     }
 
+    /// An amplitude no joint has negative: inertia, friction that dissipates (viscous,
+    /// Coulomb, a Dahl state's level, a Stribeck level, a load-dependent μ), a spring's
+    /// stiffness, a cable or harness that pulls back (either side, a progressive spring's k1 and
+    /// k3). Fits hold such a column at 0 rather than let it go negative, so a shape is searched,
+    /// and a candidate scored, as the best *physical* fit of its effect: a one-sided cable that
+    /// only fits pushing on one side is the same cable pulling on the other plus a linear term
+    /// the weight takes, and must be found as that.
+    pub fn nonneg(&self) -> bool {
+        matches!(
+            self,
+            Col::Qdd
+                | Col::QdAbsQd
+                | Col::Qd
+                | Col::Sgn
+                | Col::Q
+                | Col::DeadZone { .. }
+                | Col::Dahl { .. }
+                | Col::Stribeck(_)
+                | Col::StribeckExp { .. }
+                | Col::LoadSgn
+                | Col::Cable { .. }
+                | Col::CableBelow { .. }
+                | Col::Lin { .. }
+                | Col::Cubic { .. }
+        )
+    }
+
     #[inline]
     pub fn eval(&self, d: &Data, i: usize) -> f64 {
         let qd = d.qd[i];
@@ -354,6 +381,9 @@ impl Effect {
 pub struct Base {
     pub cols: Vec<Col>,
     pub beta0: Vec<f64>,
+    /// per column: held at its file value in every fit (the selection sets it for an inertia
+    /// the refit had to hold, so no candidate wins by freeing it)
+    pub fixed: Vec<bool>,
 }
 
 /// Which logged channel a delay shifts.
@@ -393,6 +423,8 @@ pub struct Design {
     /// per column, the value a fit keeps where the rows do not determine it: the file's value
     /// for the model's own terms (also where an effect replaced the column), 0 for an effect's
     pub prior: Vec<f64>,
+    /// per column, held at `prior` in every fit ([`Base::fixed`])
+    pub fixed: Vec<bool>,
 }
 
 impl Design {
@@ -433,7 +465,9 @@ impl Design {
         }
         let mut prior = base.beta0.clone();
         prior.resize(cols.len(), 0.0);
-        Design { cols, lag, channel, dahl, spans, prior }
+        let mut fixed = base.fixed.clone();
+        fixed.resize(cols.len(), false);
+        Design { cols, lag, channel, dahl, spans, prior, fixed }
     }
 
     /// Fills `x` with the row of sample `i` and returns its target.
@@ -520,6 +554,10 @@ pub struct GridCtx<'a> {
     /// grid searches evaluate the Dahl state from the compressed plan (equal to the sample-by-
     /// sample state but for rounding); fits and scores keep the exact state
     pub(crate) compose_dahl: bool,
+    /// per column of `des`: held ≥ 0 in every fit ([`crate::diagnose::select::physical_signs`])
+    signs: Vec<bool>,
+    /// per column of `des`: the value a term that would go negative is held at
+    holds: Vec<f64>,
 }
 
 /// The Dahl state's travel compressed for the rows `idx` (ascending): the starting state and
@@ -586,7 +624,9 @@ impl<'a> GridCtx<'a> {
             }
             y.push(yi);
         }
-        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false }
+        let signs = super::select::physical_signs(&des);
+        let holds = super::select::physical_holds(&des);
+        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false, signs, holds }
     }
 
     /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
@@ -721,9 +761,19 @@ impl<'a> GridCtx<'a> {
         self.idx.iter().map(|&i| c.eval(self.d, i as usize)).collect()
     }
 
-    /// RSS of the current design plus effect `e`.
+    /// RSS of the current design plus effect `e`, fitted with the sign bounds every final fit
+    /// keeps (a shape is chosen for its best physical fit, not for one its effect cannot have).
     pub fn rss_effect(&self, e: &Effect) -> f64 {
-        self.gram_with(&self.delta(e)).solve().1
+        let g = self.gram_with(&self.delta(e));
+        let extra = match e {
+            Effect::Backlash { .. } | Effect::Delay { .. } | Effect::Presliding { .. } => Vec::new(),
+            _ => e.cols(),
+        };
+        let mut signs = self.signs.clone();
+        signs.extend(extra.iter().map(Col::nonneg));
+        let mut holds = self.holds.clone();
+        holds.resize(g.p, 0.0);
+        g.solve_held(&signs, &holds, &[]).1
     }
 }
 
@@ -878,7 +928,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // An empty bin's sum is 0 and adds nothing.
             let h = range / nb as f64;
             let p_min = (8.0 * h).max(2e-3);
-            let p_max = range / 3.0;
+            // at least two periods over the angles travelled (one is a bump a smooth term can take)
+            let p_max = range / 2.0;
             if p_max <= p_min {
                 return None;
             }
@@ -1133,5 +1184,6 @@ pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
     if has(P::DryFrictionC) && !has(P::FrictionC) {
         push(Col::Sgn, v(P::DryFrictionC));
     }
-    Base { cols, beta0 }
+    let fixed = vec![false; cols.len()];
+    Base { cols, beta0, fixed }
 }

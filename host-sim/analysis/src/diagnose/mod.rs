@@ -627,7 +627,15 @@ fn torque_mode(
         None
     };
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
-    let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, opts.max_effects);
+    // the floor a fit's residual says (the selection reads it again where a fit shows structure)
+    let reread = |s: &Scored| {
+        let p = s.design.cols.len();
+        let r: Vec<f64> =
+            par::per_sample(n, |i| par::with_row(p, |x| select::residual_at(&data, &s.design, &s.beta, i, x)));
+        torque_floor(&r, &data, (&s.design.cols, &s.beta), prep, &split.holdout)
+    };
+    let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, &reread, opts.max_effects);
+    let floor = sel.floor;
     lap("candidates and forward selection");
     let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, log);
     lap("report");

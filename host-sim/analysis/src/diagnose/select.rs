@@ -20,7 +20,7 @@
 //! estimated and removed from the final fits' normal equations (corrected least squares), so
 //! the inertia is not shrunk, and the margin is 1.02 × floor.
 
-use super::candidates::{search, search_in, Base, Data, Delta, Design, Effect, GridCtx, Kind, ThermSrc};
+use super::candidates::{search, search_in, Base, Col, Data, Delta, Design, Effect, GridCtx, Kind, ThermSrc};
 use joint_formats::vocab::Effect as Vocab;
 
 /// How the samples were split.
@@ -132,6 +132,9 @@ pub struct Scored {
     pub unit_n: Vec<f64>,
     pub regime_sse: Vec<f64>,
     pub regime_n: Vec<f64>,
+    /// torque mode: the held-out residuals in the split's order (for the projection test of
+    /// [`compare`]); empty in trajectory mode
+    pub resid: std::sync::Arc<Vec<f64>>,
 }
 
 impl Scored {
@@ -173,6 +176,7 @@ pub(crate) struct Sums {
     unit_n: Vec<f64>,
     regime_sse: Vec<f64>,
     regime_n: Vec<f64>,
+    resid: Vec<f64>,
 }
 
 impl Sums {
@@ -185,6 +189,7 @@ impl Sums {
             unit_n: vec![0.0; units],
             regime_sse: vec![0.0; n_regimes],
             regime_n: vec![0.0; n_regimes],
+            resid: Vec::new(),
         }
     }
 
@@ -208,17 +213,20 @@ impl Sums {
     }
 
     pub(crate) fn into_scored(self, effects: Vec<Effect>, design: Design, beta: Vec<f64>) -> Scored {
-        let Sums { sse, n, unit_sse, unit_n, regime_sse, regime_n } = self;
-        Scored { effects, design, beta, sse, n, unit_sse, unit_n, regime_sse, regime_n }
+        let Sums { sse, n, unit_sse, unit_n, regime_sse, regime_n, resid } = self;
+        let resid = std::sync::Arc::new(resid);
+        Scored { effects, design, beta, sse, n, unit_sse, unit_n, regime_sse, regime_n, resid }
     }
 }
 
 /// Sums `resid(k, i)²` over the held-out samples (`k`-th held-out sample, log index `i`).
 fn accumulate(split: &Split, bits: &[u32], n_regimes: usize, mut resid: impl FnMut(usize, usize) -> f64) -> Sums {
     let mut s = Sums::new(split.holdout.len(), split.n_units, n_regimes);
+    s.resid.reserve_exact(split.holdout.len());
     for (k, &i) in split.holdout.iter().enumerate() {
         let r = resid(k, i as usize);
         s.add(r * r, split.unit[k] as usize, bits[i as usize]);
+        s.resid.push(r);
     }
     s
 }
@@ -317,23 +325,12 @@ pub fn fit_and_score(
     score(d, des, beta, effects.to_vec(), split, bits, n_regimes)
 }
 
-/// The model's own terms that no joint has negative (inertia, friction, a spring's stiffness,
-/// the Coulomb level a Dahl state carries): every final fit keeps them ≥ 0, so a fit that
-/// would need them negative is the best physical one instead, and scores what it scores.
+/// The terms no joint has negative ([`Col::nonneg`]: inertia, friction, a spring's stiffness,
+/// the Coulomb level a Dahl state carries, a Stribeck level, a cable's pull, a load-dependent
+/// μ): every fit keeps them ≥ 0, the model's own and an effect's alike, so a fit that would need
+/// one negative is the best physical one instead, and scores what it scores.
 pub fn physical_signs(des: &Design) -> Vec<bool> {
-    use super::candidates::Col;
-    let base_end = des.spans.first().map_or(des.cols.len(), |s| s.0);
-    des.cols
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            k < base_end
-                && matches!(
-                    c,
-                    Col::Qdd | Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Q | Col::DeadZone { .. } | Col::Dahl { .. }
-                )
-        })
-        .collect()
+    des.cols.iter().map(|c| c.nonneg()).collect()
 }
 
 /// Where a bounded fit holds a term that would go negative: the inertia at the file's value
@@ -425,7 +422,7 @@ pub fn undetermined(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
                 && prior > 0.0
                 && d.qdd_noise_var > 0.0
                 && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk);
-            noisy_qdd || structural.get(k).copied().unwrap_or(false)
+            noisy_qdd || structural.get(k).copied().unwrap_or(false) || des.fixed.get(k).copied().unwrap_or(false)
         })
         .collect()
 }
@@ -531,10 +528,12 @@ fn unit_t(diffs: &[f64]) -> (f64, f64) {
 }
 
 /// One-sided test that `cand` beats `reference` on held-out data: (t, p, relative MSE gain).
-/// Two unit-level t-tests, Bonferroni-combined (p = 2·min): on the log ratio of the units' mean
-/// squared residuals (scale-free, so a regime with a large residual cannot drown the others)
-/// and on their difference (powerful when the gain sits in a few units, e.g. a cable spring
-/// that only acts at one end of the range).
+/// Two tests, Bonferroni-combined (p = 2·min): a unit-level t-test on the log ratio of the
+/// units' mean squared residuals (scale-free, so a regime with a large residual cannot drown
+/// the others), and one for a gain that sits in a few units (a cable spring that only acts at
+/// one end of the range, friction at reversals): in torque mode the projection test
+/// ([`projection_test`]), in trajectory mode (no residual series kept) a t-test on the units'
+/// MSE differences.
 pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
     let units = || {
         reference
@@ -548,10 +547,58 @@ pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
     let logs: Vec<f64> = units().map(|(a, b, _)| (a / b).ln()).collect();
     let diffs: Vec<f64> = units().map(|(a, b, n)| (a - b) / n).collect();
     let gain = 1.0 - cand.mse() / reference.mse().max(1e-300);
-    let (t1, p1) = unit_t(&logs);
-    let (t2, p2) = unit_t(&diffs);
-    let (t, p) = if p1 <= p2 { (t1, p1) } else { (t2, p2) };
-    (t, (2.0 * p).min(1.0), gain)
+    // in torque mode the projection test takes the difference test's place: both look for a
+    // gain in a few units, and the projection's variance is the noise's, not the effect's
+    let tests = match projection_test(reference, cand) {
+        Some(t3) => vec![unit_t(&logs), t3],
+        None => vec![unit_t(&logs), unit_t(&diffs)],
+    };
+    let k = tests.len() as f64;
+    let (t, p) = tests.into_iter().fold((0.0, 1.0), |best, x| if x.1 < best.1 { x } else { best });
+    (t, (k * p).min(1.0), gain)
+}
+
+/// Whether the candidate's correction δ = r − e (`r`, `e` the reference's and the candidate's
+/// held-out residuals) lowers the squared residual: `D = Σ (r² − e²) = Σ δ·(r + e)`, whose
+/// expectation is `−‖δ‖² ≤ 0` when the reference is right (also where δ carries a channel's
+/// noise, as a delay's shift does) and `‖δ‖²` when the candidate is. Its variance comes from
+/// the units (batch means, as the t-tests), each unit's share `4·(Σ e·δ)²` read from the
+/// candidate's residual, which under the candidate is the noise and under the reference holds
+/// δ too (larger, so the test errs on the cautious side); a t-distribution with the units'
+/// effective count as degrees of freedom (Satterthwaite) keeps a gain in one or two units from
+/// passing on their noise alone. Unlike a t-test over the units' differences, an effect that
+/// acts in a few units (friction at reversals, a cable at one end of the range) is not
+/// measured against its own unevenness from unit to unit, only against the noise.
+/// `None` without the residuals (trajectory mode) or without a correction.
+fn projection_test(reference: &Scored, cand: &Scored) -> Option<(f64, f64)> {
+    let (r, e) = (reference.resid.as_slice(), cand.resid.as_slice());
+    if r.is_empty() || r.len() != e.len() || reference.unit_n.len() != cand.unit_n.len() {
+        return None;
+    }
+    let units = reference.unit_n.len();
+    let (mut t_u, mut w_u) = (vec![0.0; units], vec![0.0; units]);
+    // the held-out samples run unit by unit, in the order the counts give
+    let mut k = 0usize;
+    for (u, &n) in reference.unit_n.iter().enumerate() {
+        let end = (k + n as usize).min(r.len());
+        for (&ri, &ei) in r[k..end].iter().zip(&e[k..end]) {
+            let d = ri - ei;
+            t_u[u] += d * (ri + ei);
+            w_u[u] += ei * d;
+        }
+        k = end;
+    }
+    if k != r.len() {
+        return None;
+    }
+    let v: f64 = w_u.iter().map(|w| w * w).sum();
+    let v2: f64 = w_u.iter().map(|w| w.powi(4)).sum();
+    if !(v > 0.0 && v2 > 0.0) {
+        return None;
+    }
+    let t: f64 = t_u.iter().sum::<f64>() / (2.0 * v.sqrt());
+    let dof = (v * v / v2).max(1.0);
+    Some((t, super::fit::student_t_sf(t, dof)))
 }
 
 /// One candidate's outcome against its reference.
@@ -669,7 +716,9 @@ pub fn cancelling(s: &Scored, d: &Data) -> Option<&'static str> {
 /// where two explanations fit equally well, the one with fewer is the verdict.
 pub fn extra_params(e: &Effect) -> usize {
     match *e {
-        Effect::Asymmetric | Effect::Load | Effect::Delay { .. } | Effect::Dry | Effect::Presliding { .. } => 1,
+        Effect::Asymmetric | Effect::Load | Effect::Dry | Effect::Presliding { .. } => 1,
+        // the lag and the channel that lags (u, tau or the state): two choices the fit makes
+        Effect::Delay { .. } => 2,
         Effect::Backlash { offset, .. } => {
             if offset == 0.0 {
                 1
@@ -703,6 +752,9 @@ pub struct Selection {
     /// forward selection, in order
     pub chosen: Vec<Outcome>,
     pub alpha_each: f64,
+    /// the noise floor the selection ended with: the one it was given, or lower where a
+    /// significant fit's own residual showed part of it was structure ([`select`])
+    pub floor: f64,
 }
 
 /// The verdict among significant outcomes: the best held-out fit, unless one with fewer
@@ -804,6 +856,8 @@ fn trace_round(round: usize, outcomes: &[Outcome], reference_rmse: f64, floor: f
 }
 
 /// The whole torque-mode selection. `floor` = noise floor (N·m); selection stops there.
+/// `reread` gives the floor a fit's own residual says ([`Selection::floor`]).
+#[allow(clippy::too_many_arguments)] // the data, the model, the split and its tags, the floor twice
 pub fn select(
     d: &Data,
     base: &Base,
@@ -811,6 +865,7 @@ pub fn select(
     bits: &[u32],
     n_regimes: usize,
     floor: f64,
+    reread: &dyn Fn(&Scored) -> f64,
     max_effects: usize,
 ) -> Selection {
     // Fits read at most 150 000 training rows, grids 20 000 (every k-th sample).
@@ -821,9 +876,51 @@ pub fn select(
     let m_tests = (Kind::ALL.len() + 1) as f64;
     let alpha_each = ALPHA / m_tests;
     let refit_s = round0.refit(split, bits, n_regimes);
+    // An inertia the refit had to hold (the rows want none or a negative one: the logged torque
+    // is not what moved the joint) stays held in every candidate's fit: a candidate that lets
+    // it fall to the rows' value would win by that, not by its own term (a "delay" of 15 ms
+    // did so on the DFKI hand-moved run).
+    let held_base;
+    let (base, round0) = match base.cols.iter().position(|c| *c == Col::Qdd) {
+        Some(j) if inertia_held(&refit_s) => {
+            let mut b = base.clone();
+            if let Some(f) = b.fixed.get_mut(j) {
+                *f = true;
+            }
+            held_base = b;
+            drop(round0);
+            (&held_base, Round::new(d, &held_base, &[], &fit_idx, split))
+        }
+        _ => (base, round0),
+    };
+    let t0 = std::time::Instant::now();
+    let first = try_kinds(&Kind::ALL, &round0, &grid_idx, split, bits, n_regimes);
+    drop(round0);
+    if std::env::var_os("DIAG_TIMING").is_some() {
+        eprintln!("[diagnose] first round of candidates: {:.3} s", t0.elapsed().as_secs_f64());
+    }
+    // The floor read from the file's residual counts as noise whatever varies faster than its
+    // variogram's lags can tell from noise: a ripple of a short period crossed at speed, a
+    // delay's error. A candidate that explains such a part shows it: the floor is read again
+    // from the residual of every candidate that is significant but for the floor, and the
+    // lowest counts. (A log the model explains has no such candidate, and a fit of its noise
+    // leaves the same noise.)
+    let floor = first
+        .iter()
+        .filter(|s| {
+            let (_, p, g) = compare(&refit_s, s);
+            let (_, p0, g0) = compare(&m0, s);
+            p < alpha_each
+                && g >= MIN_GAIN
+                && p0 < ALPHA
+                && g0 >= MIN_GAIN
+                && implausible(s, d).or_else(|| unphysical(s)).or_else(|| cancelling(s, d)).is_none()
+        })
+        .map(reread)
+        .fold(floor, f64::min);
+    let open = |r: &Scored, floor: f64| r.rmse() > at_floor_factor(d) * floor;
+    let at_floor = !open(&m0, floor);
     let (t, p, gain) = compare(&m0, &refit_s);
-    let open = |r: &Scored| r.rmse() > at_floor_factor(d) * floor;
-    let at_floor = !open(&m0);
     let refit_unphysical = unphysical(&refit_s).or_else(|| cancelling(&refit_s, d));
     let refit = Outcome {
         name: Vocab::Parameters,
@@ -836,7 +933,6 @@ pub fn select(
         p,
         gain,
     };
-
     let outcome = |reference: &Scored, s: Scored| {
         let (t, p, gain) = compare(reference, &s);
         let name = s.effects.last().map(|e| e.kind().effect()).unwrap_or(Vocab::Parameters);
@@ -845,12 +941,6 @@ pub fn select(
             (!at_floor || gain >= CLEAR_GAIN) && p < alpha_each && gain >= MIN_GAIN && implausible.is_none();
         Outcome { name, scored: s, t, p, gain, significant, implausible }
     };
-    let t0 = std::time::Instant::now();
-    let first = try_kinds(&Kind::ALL, &round0, &grid_idx, split, bits, n_regimes);
-    drop(round0);
-    if std::env::var_os("DIAG_TIMING").is_some() {
-        eprintln!("[diagnose] first round of candidates: {:.3} s", t0.elapsed().as_secs_f64());
-    }
     // An effect must beat the refit (what retuning cannot explain) and the file's model too (a
     // refit can overfit a short or chattering log and score worse than the file's values).
     let candidates: Vec<Outcome> = first
@@ -933,11 +1023,14 @@ pub fn select(
         }
         None => None,
     };
+    let mut floor = floor;
     if let Some(b) = best_first {
         chosen.push(b);
         while chosen.len() < max_effects {
             let Some(cur) = chosen.last() else { break };
-            if !open(&cur.scored) {
+            // what the chosen effects explain is no noise either: the floor after them
+            floor = floor.min(reread(&cur.scored));
+            if !open(&cur.scored, floor) {
                 break;
             }
             let effects = cur.scored.effects.clone();
@@ -976,7 +1069,7 @@ pub fn select(
             }
         }
     }
-    Selection { m0, refit, candidates, chosen, alpha_each }
+    Selection { m0, refit, candidates, chosen, alpha_each, floor }
 }
 
 #[cfg(test)]
@@ -1034,7 +1127,8 @@ mod tests {
         };
         let cols = vec![Col::Qdd, Col::QdAbsQd, Col::Qd, Col::Sgn, Col::SinSq(ws), Col::CosSq(ws), Col::Q, Col::Const];
         let beta0 = vec![0.4, 0.1, 2.0, 1.0, 2.5, 0.0, 0.5, -0.45];
-        (d, Base { cols, beta0 })
+        let fixed = vec![false; cols.len()];
+        (d, Base { cols, beta0, fixed })
     }
 
     /// A round's bordered fits and cached scoring give the numbers of a full rebuild, to the

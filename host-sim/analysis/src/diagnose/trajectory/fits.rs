@@ -285,6 +285,7 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
         dahl: None,
         spans: vec![],
         prior: vec![],
+        fixed: vec![],
     };
     s.into_scored(vec![], design, theta)
 }
