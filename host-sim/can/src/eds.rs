@@ -82,9 +82,35 @@ fn physical(s: &SubInfo) -> (Option<f32>, Option<String>, Option<String>) {
         (od::PARAMS_CRC, _) => {
             (None, None, Some("CRC-32 of a parameter set's record payload (joint_core::store::set_crc)".into()))
         }
-        (od::COMMIT_CRC, _) => {
-            (None, None, Some("write the staged set's CRC-32 (0x2204 sub 2) to commit exactly that set".into()))
-        }
+        (od::COMMIT_CRC, _) => (
+            None,
+            None,
+            Some(
+                "commit: write the CRC-32 of the set you mean (computed from it; 0x2204 sub 2 is what is staged): \
+                 the staged set is checked and goes live whole only if it is that set, else abort 0x08000022 and \
+                 commit error 7, so another master's staged values never go live with yours"
+                    .into(),
+            ),
+        ),
+        (od::COMMIT, _) => (
+            None,
+            None,
+            Some(
+                "0 discards the staged set; 1 (a plain commit, which names no set) is refused with abort \
+                 0x06010000 and commit error 9: commit by CRC at 0x2205"
+                    .into(),
+            ),
+        ),
+        (od::COMMIT_ERROR, 1) => (
+            None,
+            None,
+            Some(
+                "0 none, 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter outside \
+                 pre-operational, 6 gravity series, 7 the CRC named is not the staged set's, 8 staged set discarded \
+                 (its master quiet 3 s), 9 plain commit refused (commit by CRC at 0x2205)"
+                    .into(),
+            ),
+        ),
         (i, 0) if (od::PARAM_BASE..od::PARAM_BASE + PARAMS.len() as u16).contains(&i) => {
             let d = PARAMS.get((i - od::PARAM_BASE) as usize);
             (None, d.map(|d| d.unit.replace('·', "*").replace('²', "^2").replace('°', "deg")), None)

@@ -5,10 +5,11 @@
 //! time): scalar values are expedited (request + response, 2 frames each); the gravity table
 //! goes as its shape bytes and three segmented DOMAIN transfers, the gravity series as its term
 //! count and one DOMAIN of 12-byte terms. Nothing runs on the joint
-//! until the commit object is written, and the node checks the whole staged set then, so a
-//! push cut off anywhere before the commit leaves the old set running (the staged changes stay
-//! pending: `params_pending` = 1, discarded by the next push or by writing 0 to the commit
-//! object).
+//! until the commit, which names the set by its CRC-32 (0x2205; the joint refuses a plain
+//! commit), and the node checks the whole staged set then, so a push cut off anywhere before
+//! the commit leaves the old set running, and what it staged can go live only whole (the
+//! staged changes stay pending, `params_pending` = 1, until discarded: by [`push_verified`],
+//! by writing 0 to 0x2200, or by the joint when the channel goes quiet for 3 s).
 
 use super::master::{Master, SdoError};
 use joint_core::canopen::node::NMT_PRE_OPERATIONAL;
