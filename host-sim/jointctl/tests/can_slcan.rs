@@ -75,6 +75,20 @@ fn scan_push_pull_over_a_socat_pty_pair() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     println!("push over slcan/pty: {v}");
+    // Issue 21: a pty has no bit timing, yet a "wire minimum" and a ratio of 0.484 were printed.
+    // Over slcan the time is host/transport time unless the user says the adapter is on a real
+    // bus at its @BITRATE.
+    assert_eq!(v["time_basis"], "host", "{v}");
+    assert!(v["wire_minimum_us"].is_null() && v["ratio"].is_null(), "{v}");
+    let o = jointctl(&["push", "examples/models/trunk-right.toml", "--node", "6", "--bus", &bus]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("host/transport time, not bus time") && !out.contains("ratio"), "{out}");
+    let o =
+        jointctl(&["push", "examples/models/trunk-right.toml", "--node", "6", "--bus", &bus, "--real-bus", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((v["time_basis"].as_str(), v["bitrate"].as_u64()), (Some("bus"), Some(1_000_000)), "{v}");
+    assert!(v["ratio"].as_f64().is_some(), "{v}");
 
     let out = dir.path().join("pulled.toml");
     let o = jointctl(&["pull", "--node", "6", "--bus", &bus, "--out", out.to_str().unwrap()]);
