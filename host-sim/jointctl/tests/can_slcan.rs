@@ -236,3 +236,130 @@ fn a_killed_push_leaves_nothing_staged_and_the_set_in_force_unchanged() {
     let why = m.read_string(5, 0x2201, 3).unwrap();
     assert!(why.contains("discarded") && why.contains(&before), "{why}");
 }
+
+/// A CAN bus between slcan ptys: every frame line one port writes goes to all the others, as a
+/// bus delivers a frame to every node; commands and acknowledgements stay with their port.
+/// The threads end when socat goes (their reads fail).
+fn hub(ports: &[std::path::PathBuf]) {
+    use std::io::{Read, Write};
+    use std::sync::{Arc, Mutex};
+    let files: Vec<Arc<Mutex<std::fs::File>>> = ports
+        .iter()
+        .map(|p| Arc::new(Mutex::new(std::fs::OpenOptions::new().read(true).write(true).open(p).unwrap())))
+        .collect();
+    for (i, f) in files.iter().enumerate() {
+        let mut reader = f.lock().unwrap().try_clone().unwrap();
+        let others: Vec<_> = files.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, o)| o.clone()).collect();
+        std::thread::spawn(move || {
+            let (mut line, mut buf) = (Vec::new(), [0u8; 256]);
+            while let Ok(n) = reader.read(&mut buf) {
+                if n == 0 {
+                    return;
+                }
+                for &b in &buf[..n] {
+                    if b != b'\r' {
+                        line.push(b);
+                        continue;
+                    }
+                    if matches!(line.first(), Some(b't' | b'b' | b'd')) {
+                        line.push(b'\r');
+                        for o in &others {
+                            let _ = o.lock().unwrap().write_all(&line);
+                        }
+                    }
+                    line.clear();
+                }
+            }
+        });
+    }
+}
+
+/// Issue 21: jointctl always used the joint's default SDO channel, so a tool and a controller
+/// shared one transfer. Three slcan ptys on one bus (a hub): `jointctl sim` serves node 5, a
+/// controller (a master in this process) runs segmented uploads on channel 1 without pause,
+/// and `jointctl push --sdo-channel 2` pushes a set at the same time: neither disturbs the
+/// other (no retries, no errors), the set runs, and 0x1201 holds the COB-IDs jointctl gave it.
+#[test]
+fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut pairs = Vec::new();
+    for k in 0..3 {
+        let (a, b) = (dir.path().join(format!("A{k}")), dir.path().join(format!("B{k}")));
+        let socat = Kill(
+            Command::new("socat")
+                .args([
+                    "-d",
+                    "-d",
+                    &format!("pty,raw,echo=0,link={}", a.display()),
+                    &format!("pty,raw,echo=0,link={}", b.display()),
+                ])
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
+        wait_for(&a);
+        wait_for(&b);
+        pairs.push((socat, a, b));
+    }
+    hub(&pairs.iter().map(|(_, a, _)| a.clone()).collect::<Vec<_>>());
+    let _sim = Kill(
+        Command::new(env!("CARGO_BIN_EXE_jointctl"))
+            .current_dir(ROOT)
+            .args(["sim", "--bus", &format!("slcan:{}", pairs[0].2.display()), "--node", "5", "--seconds", "60"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    let tool = format!("slcan:{}", pairs[1].2.display());
+    // channel 2 configured once (through channel 1, before the controller starts)
+    let o = jointctl(&["status", "--node", "5", "--bus", &tool, "--sdo-channel", "2", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let spec: joint_can::BusSpec = format!("slcan:{}", pairs[2].2.display()).parse().unwrap();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let controller = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let mut m = joint_can::master::Master::new(joint_can::open(&spec).unwrap());
+            m.heartbeat_us = 0;
+            // what the pty buffered before this end was opened (the status command's answers)
+            // is no answer to this master: heard and dropped first
+            m.listen(Duration::from_millis(300)).unwrap();
+            let (mut done, mut errors) = (0u32, Vec::new());
+            while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+                match m.read_string(5, 0x1008, 0) {
+                    Ok(s) if s == "joint-node" => done += 1,
+                    other => errors.push(format!("{other:?}")),
+                }
+            }
+            let cobs = (m.read_u32(5, 0x1201, 1), m.read_u32(5, 0x1201, 2), m.read(5, 0x1201, 3));
+            (done, errors, cobs)
+        })
+    };
+    std::thread::sleep(Duration::from_millis(500));
+    let o = jointctl(&[
+        "push",
+        "examples/models/trunk-right.toml",
+        "--node",
+        "5",
+        "--bus",
+        &tool,
+        "--sdo-channel",
+        "2",
+        "--json",
+    ]);
+    std::thread::sleep(Duration::from_millis(200));
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    let (done, errors, cobs) = controller.join().unwrap();
+    println!("controller beside the push: {done} uploads, errors {errors:?}");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((v["ok"].as_bool(), v["retries"].as_u64()), (Some(true), Some(0)), "{v}");
+    assert!(errors.is_empty(), "the push disturbed the controller: {errors:?}");
+    assert!(done > 20, "the controller ran beside the push: {done} uploads");
+    assert_eq!((cobs.0.unwrap(), cobs.1.unwrap(), cobs.2.unwrap()), (0x645, 0x5C5, vec![0x7F]));
+    // a node id of 64 or more has no default COB-IDs for channel 2: named, or refused up front
+    let o = jointctl(&["pull", "--node", "70", "--bus", &tool, "--sdo-channel", "2", "--out", "/dev/null"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--sdo-cob-ids"), "{}", String::from_utf8_lossy(&o.stderr));
+}

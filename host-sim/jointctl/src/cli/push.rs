@@ -1,6 +1,6 @@
 //! `jointctl push`: stage a model's parameters on a joint by SDO, read them back, commit.
 
-use super::bus_args::{check_node, open_master, BusArgs};
+use super::bus_args::{check_node, open_master, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_can::transfer::{self, PushOptions};
@@ -49,6 +49,8 @@ pub struct PushArgs {
     pub real_bus: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 pub fn run(a: &PushArgs) -> anyhow::Result<()> {
@@ -73,6 +75,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     }
     let raw = mf.raw_params()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    a.sdo.apply(&mut m, a.node)?;
     let bar = indicatif::ProgressBar::new(1);
     if a.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
