@@ -274,13 +274,23 @@ fn hub(ports: &[std::path::PathBuf]) {
     }
 }
 
-/// Issue 21: jointctl always used the joint's default SDO channel, so a tool and a controller
-/// shared one transfer. Three slcan ptys on one bus (a hub): `jointctl sim` serves node 5, a
-/// controller (a master in this process) runs segmented uploads on channel 1 without pause,
-/// and `jointctl push --sdo-channel 2` pushes a set at the same time: neither disturbs the
-/// other (no retries, no errors), the set runs, and 0x1201 holds the COB-IDs jointctl gave it.
-#[test]
-fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
+/// What one run of two masters beside each other saw.
+struct TwoMasters {
+    /// `jointctl push --json`'s output and whether it exited 0
+    push: (bool, serde_json::Value, String),
+    /// the controller's uploads done and its errors
+    done: u32,
+    errors: Vec<String>,
+    /// 0x1201 sub 1, 2, 3 as the controller read them at the end
+    cobs: (u32, u32, Vec<u8>),
+    /// frames `jointctl sim` dropped because the pty would not take them (host too loaded)
+    dropped: u64,
+}
+
+/// Three slcan ptys joined into one bus (a hub): `jointctl sim` serves node 5, a controller
+/// (a master in this process) runs segmented uploads on channel 1 without pause, and
+/// `jointctl push` with `push_args` pushes a set at the same time.
+fn two_masters_over_slcan(push_args: &[&str]) -> TwoMasters {
     let dir = tempfile::tempdir().unwrap();
     let mut pairs = Vec::new();
     for k in 0..3 {
@@ -302,14 +312,13 @@ fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
         pairs.push((socat, a, b));
     }
     hub(&pairs.iter().map(|(_, a, _)| a.clone()).collect::<Vec<_>>());
-    let _sim = Kill(
-        Command::new(env!("CARGO_BIN_EXE_jointctl"))
-            .current_dir(ROOT)
-            .args(["sim", "--bus", &format!("slcan:{}", pairs[0].2.display()), "--node", "5", "--seconds", "60"])
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
+    let sim = Command::new(env!("CARGO_BIN_EXE_jointctl"))
+        .current_dir(ROOT)
+        .args(["sim", "--bus", &format!("slcan:{}", pairs[0].2.display()), "--node", "5", "--seconds", "60", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
     std::thread::sleep(Duration::from_millis(300));
     let tool = format!("slcan:{}", pairs[1].2.display());
     // channel 2 configured once (through channel 1, before the controller starts)
@@ -338,28 +347,78 @@ fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
         })
     };
     std::thread::sleep(Duration::from_millis(500));
-    let o = jointctl(&[
-        "push",
-        "examples/models/trunk-right.toml",
-        "--node",
-        "5",
-        "--bus",
-        &tool,
-        "--sdo-channel",
-        "2",
-        "--json",
-    ]);
+    let mut args = vec!["push", "examples/models/trunk-right.toml", "--node", "5", "--bus", &tool, "--json"];
+    args.extend_from_slice(push_args);
+    let o = jointctl(&args);
     std::thread::sleep(Duration::from_millis(200));
     stop.store(true, std::sync::atomic::Ordering::SeqCst);
     let (done, errors, cobs) = controller.join().unwrap();
-    println!("controller beside the push: {done} uploads, errors {errors:?}");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // SIGTERM: the sim stops cleanly and prints its summary (frames dropped included)
+    Command::new("kill").args(["-TERM", &sim.id().to_string()]).status().unwrap();
+    let summary = sim.wait_with_output().unwrap();
+    let sv: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap_or_default();
+    TwoMasters {
+        push: (
+            o.status.success(),
+            serde_json::from_slice(&o.stdout).unwrap_or_default(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        ),
+        done,
+        errors,
+        cobs: (cobs.0.unwrap_or(0), cobs.1.unwrap_or(0), cobs.2.unwrap_or_default()),
+        dropped: sv["frames_dropped"].as_u64().unwrap_or(u64::MAX),
+    }
+}
+
+/// Issue 21: jointctl always used the joint's default SDO channel, so a tool and a controller
+/// shared one transfer. `jointctl push --sdo-channel 2` beside a controller's uploads on channel
+/// 1 (three slcan ptys on one bus): neither disturbs the other (no retries, no errors), the set
+/// runs, and 0x1201 holds the COB-IDs jointctl gave it. Without the option the same run fails.
+/// A run in which the simulated joint had to drop frames (the host too loaded to drain its
+/// pty: a lost frame, not a shared transfer) is run again, up to three times.
+#[test]
+fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
+    let mut run = None;
+    for attempt in 1..=3 {
+        let r = two_masters_over_slcan(&["--sdo-channel", "2"]);
+        println!(
+            "attempt {attempt}: controller beside the push: {} uploads, errors {:?}; sim dropped {} frames",
+            r.done, r.errors, r.dropped
+        );
+        if r.dropped == 0 {
+            run = Some(r);
+            break;
+        }
+    }
+    let r = run.expect("the simulated joint dropped frames in every attempt: the host is too loaded for this test");
+    let (ok, v, err) = &r.push;
+    assert!(ok, "{err}");
     assert_eq!((v["ok"].as_bool(), v["retries"].as_u64()), (Some(true), Some(0)), "{v}");
-    assert!(errors.is_empty(), "the push disturbed the controller: {errors:?}");
-    assert!(done > 20, "the controller ran beside the push: {done} uploads");
-    assert_eq!((cobs.0.unwrap(), cobs.1.unwrap(), cobs.2.unwrap()), (0x645, 0x5C5, vec![0x7F]));
-    // a node id of 64 or more has no default COB-IDs for channel 2: named, or refused up front
-    let o = jointctl(&["pull", "--node", "70", "--bus", &tool, "--sdo-channel", "2", "--out", "/dev/null"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--sdo-cob-ids"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(r.errors.is_empty(), "the push disturbed the controller: {:?}", r.errors);
+    assert!(r.done > 20, "the controller ran beside the push: {} uploads", r.done);
+    assert_eq!(r.cobs, (0x645, 0x5C5, vec![0x7F]));
+}
+
+/// A node id of 64 or more has no default COB-IDs for channel 2: they are named, or the command
+/// is refused before any SDO transfer.
+#[test]
+fn the_second_channel_needs_named_cob_ids_from_node_64() {
+    let o = jointctl(&["pull", "--node", "70", "--bus", "sim", "--sdo-channel", "2", "--out", "/dev/null"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--sdo-cob-ids"), "{err}");
+    let o = jointctl(&[
+        "pull",
+        "--node",
+        "70",
+        "--bus",
+        "sim",
+        "--sdo-channel",
+        "2",
+        "--sdo-cob-ids",
+        "0x6A0,0x6A1",
+        "--json",
+        "--out",
+        "/dev/null",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
