@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Every test: the firmware size budgets (G431, G0B1), the firmware on an emulated Cortex-M4F
-# and on the FPU-less Cortex-M0+ instruction set (QEMU) with bit-parity against the PC (f32
-# and Q16.16 steps), the control step's instruction budgets on both cores, the core's no-panic lints,
-# and the host test suite (core, CANopen, host-sim, identification, diagnosis, python-canopen
-# interop, end-to-end), and the diagnosis's null test on 500 generated logs.
+# Every test: the firmware size budgets (G431 classic and CAN FD, G0B1), the firmware on an
+# emulated Cortex-M4F and on the FPU-less Cortex-M0+ instruction set (QEMU) with bit-parity
+# against the PC (f32 and Q16.16 steps), the control step's instruction budgets on both cores,
+# the core's no-panic lints, and the host test suite (core, CANopen, host-sim, identification,
+# diagnosis, python-canopen interop, end-to-end), and the diagnosis's null test on 500
+# generated logs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -19,6 +20,8 @@ bash scripts/check-deps.sh --self-test
 bash scripts/check-deps.sh
 echo "== firmware image size, STM32G431 (budget: flash ≤ 96 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh g431
+echo "== firmware image size, STM32G431 built for CAN FD (feature fd: 1/5 Mbit/s, BRS; same budget)"
+bash scripts/fw-size.sh g431-fd
 echo "== firmware image size, STM32G0B1, Q16.16 step (budget: flash ≤ 120 KiB, RAM ≤ 16 KiB)"
 bash scripts/fw-size.sh g0b1
 echo "== porting example: the core on an STM32F405 through stm32f4xx-hal, a HAL our boards do not use (docs/porting.md)"
@@ -31,8 +34,9 @@ echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 
 bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings
-echo "== board image lints (G431, G0B1)"
+echo "== board image lints (G431 classic and CAN FD, G0B1)"
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf --features fd -- -D warnings
 cargo clippy -q --profile fw --manifest-path firmware/board-g0b1/Cargo.toml --target thumbv6m-none-eabi -- -D warnings
 echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
 cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl -p diag-bench --lib --bins -- -D warnings

@@ -136,6 +136,15 @@ def preop(node):
     time.sleep(0.05)
 
 
+def commit(node):
+    """Commit the staged set by naming it: its CRC-32 to params_commit_crc (0x2205). The joint
+    refuses a plain commit (params_commit = 1), which named no set and so made live whatever
+    was staged, another master's values too. This master is alone on the bus and has read back
+    what it staged, so the staged set's CRC (params_crc.staged_crc, 0x2204:2) names the set it
+    means; a master sharing the bus computes the CRC from the set it means (jointctl does)."""
+    node.sdo["params_commit_crc"].raw = node.sdo["params_crc"]["staged_crc"].raw
+
+
 def test_heartbeat_and_boot_state(rig):
     network, node, _ = rig
     state = node.nmt.wait_for_heartbeat(timeout=2)
@@ -255,7 +264,7 @@ def test_gravity_table_by_segmented_sdo_and_commit(rig):
     node.sdo["gravity_table_shape"]["points_0"].raw = 9
     node.sdo["gravity_table_grid"].raw = struct.pack("<9f", *grid)
     node.sdo["gravity_table_torque"].raw = struct.pack("<9f", *torque)
-    node.sdo["params_commit"].raw = 1
+    commit(node)
     assert node.sdo["params_pending"].raw == 0
     back = node.sdo["gravity_table_torque"].raw
     assert struct.unpack("<9f", back) == tuple(f32(x) for x in torque)
@@ -263,7 +272,7 @@ def test_gravity_table_by_segmented_sdo_and_commit(rig):
     assert struct.unpack("<9f", g[:36]) == tuple(f32(x) for x in grid)
     # remove it again
     node.sdo["gravity_table_shape"]["n_axes"].raw = 0
-    node.sdo["params_commit"].raw = 1
+    commit(node)
 
 
 def test_gravity_table_by_block_transfer_with_crc(rig):
@@ -372,10 +381,10 @@ def test_aborts_keep_the_old_value(rig):
     assert node.sdo["compensation_fraction"].raw == frac
     preop(node)
     node.sdo["compensation_fraction"].raw = 0.7
-    node.sdo["params_commit"].raw = 1
+    commit(node)
     assert node.sdo["compensation_fraction"].raw == f32(0.7)
     node.sdo["compensation_fraction"].raw = frac
-    node.sdo["params_commit"].raw = 1
+    commit(node)
     assert node.sdo["params_pending"].raw == 0
 
 
@@ -386,7 +395,7 @@ def test_refused_commit_names_the_parameter_and_keeps_the_set(rig):
     old = node.sdo["controller_accel_cutoff"].raw
     node.sdo["controller_accel_cutoff"].raw = 600.0  # in range, but ≥ half the 1 kHz rate
     with pytest.raises(SdoAbortedError) as e:
-        node.sdo["params_commit"].raw = 1
+        commit(node)
     assert abort_code(e) == 0x06090030
     # the EMCY goes out with the abort; python-canopen logs every EMCY it receives
     wait_for(lambda: any(x.code == 0x6320 for x in node.emcy.log), 2, "EMCY 0x6320")
@@ -399,6 +408,42 @@ def test_refused_commit_names_the_parameter_and_keeps_the_set(rig):
     assert node.sdo["params_pending"].raw == 1
     node.sdo["params_commit"].raw = 0
     assert node.sdo["controller_accel_cutoff"].raw == old
+
+
+def test_a_plain_commit_is_refused_and_a_commit_names_its_set(rig):
+    """Issue 21: a plain commit made live whatever was staged, so a half-staged set from a
+    failed push plus one value from another master went live as a mix. The joint refuses it
+    (0x06010000, commit error 9, EMCY 0x6320) and commits only the set a commit names by CRC;
+    the EDS says so where python-canopen reads it."""
+    _, node, _ = rig
+    preop(node)
+    od = node.object_dictionary
+    assert "refused" in od["params_commit"].description and "0x2205" in od["params_commit"].description
+    assert "CRC-32 of the set you mean" in od["params_commit_crc"].description
+    active = node.sdo["params_crc"]["active_crc"].raw
+    old = node.sdo["friction_c"].raw
+    node.sdo["friction_c"].raw = old + 0.5
+    node.emcy.reset()
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["params_commit"].raw = 1
+    assert abort_code(e) == 0x06010000
+    wait_for(lambda: any(x.code == 0x6320 and x.data[0] == 9 for x in node.emcy.log), 2, "EMCY 0x6320, code 9")
+    assert node.sdo["params_commit_error"]["code"].raw == 9
+    assert "0x2205" in node.sdo["params_commit_error"]["message"].raw
+    assert node.sdo["params_crc"]["active_crc"].raw == active, "nothing went live"
+    assert node.sdo["params_pending"].raw == 1
+    # naming another set (the one in force) is refused too: the staged set is not that set
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["params_commit_crc"].raw = active
+    assert abort_code(e) == 0x08000022
+    assert node.sdo["params_commit_error"]["code"].raw == 7
+    # naming the staged set commits it
+    commit(node)
+    assert node.sdo["params_pending"].raw == 0
+    assert node.sdo["params_crc"]["active_crc"].raw != active
+    node.sdo["friction_c"].raw = old
+    commit(node)
+    assert node.sdo["params_crc"]["active_crc"].raw == active
 
 
 def test_tpdos_decoded_through_the_eds_mapping(rig):
@@ -494,7 +539,7 @@ def test_sync_triggered_tpdo_and_the_error_history(rig):
     old = node.sdo["controller_accel_cutoff"].raw
     node.sdo["controller_accel_cutoff"].raw = 600.0  # in range, but >= half the 1 kHz rate
     with pytest.raises(SdoAbortedError):
-        node.sdo["params_commit"].raw = 1
+        commit(node)
     wait_for(lambda: any(x.code == 0x6320 for x in node.emcy.log), 2, "EMCY 0x6320")
     assert node.sdo[0x1003][0].raw == 1
     assert node.sdo[0x1003][1].raw & 0xFFFF == 0x6320

@@ -290,8 +290,8 @@ fn canopen_session_matches<C: ControlStep>(log_var: &str, bin: &str) {
     // The session exercised what its script claims.
     assert_eq!(
         (summary.aborts, summary.expected_aborts_seen),
-        (3, 3),
-        "out-of-range, short SDO, safety write while operational"
+        (4, 4),
+        "out-of-range, short SDO, plain commit, safety write while operational"
     );
     assert!(summary.committed_trunk_set, "the pushed trunk-joint set is committed whole");
     assert!(summary.refused_writes_changed_nothing);

@@ -325,7 +325,8 @@ mod tests {
         n.process(0, None, &mut |_| {});
         let fraction = 0x2000 + ParamId::Fraction.index() as u16;
         n.write(fraction, 0, &0.6f32.to_le_bytes()).unwrap();
-        n.write(0x2200, 0, &[1]).unwrap();
+        let crc = joint_core::store::set_crc(n.staged()); // commit by naming the set (0x2205)
+        n.write(0x2205, 0, &crc.to_le_bytes()).unwrap();
         n.write(fraction, 0, &0.3f32.to_le_bytes()).unwrap(); // staged, not committed
         n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes()).unwrap();
         let again = n.write(0x1010, 1, &od::SAVE_SIGNATURE.to_le_bytes());

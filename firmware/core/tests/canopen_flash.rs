@@ -32,6 +32,12 @@ fn sdo(n: &mut Node<FlashStorage<MemFlash>>, d: [u8; 8]) -> [u8; 8] {
     r.unwrap()
 }
 
+/// The commit of what is staged, named by its CRC (0x2205; a plain commit is refused).
+fn commit(n: &mut Node<FlashStorage<MemFlash>>) -> [u8; 8] {
+    let c = joint_core::store::set_crc(n.staged()).to_le_bytes();
+    sdo(n, [0x23, 0x05, 0x22, 0x00, c[0], c[1], c[2], c[3]])
+}
+
 fn power_cycle(n: Node<FlashStorage<MemFlash>>) -> Node<FlashStorage<MemFlash>> {
     boot(n.into_storage().into_flash().unwrap())
 }
@@ -42,7 +48,7 @@ fn saved_set_survives_a_power_cycle_and_load_restores_defaults() {
     assert!(n.safety().faults().is_empty(), "a blank store is not a fault");
     let v = 3.25f32.to_le_bytes();
     assert_eq!(sdo(&mut n, [0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]])[0], 0x60); // friction_c
-    assert_eq!(sdo(&mut n, [0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])[0], 0x60); // commit
+    assert_eq!(commit(&mut n)[0], 0x60);
     assert_eq!(sdo(&mut n, [0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']), [0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0]);
 
     let mut n = power_cycle(n);
@@ -62,7 +68,7 @@ fn a_damaged_store_boots_on_defaults_with_a_fault() {
     let mut n = boot(MemFlash::blank(4 * PAGE));
     let v = 3.25f32.to_le_bytes();
     sdo(&mut n, [0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]);
-    sdo(&mut n, [0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]);
+    commit(&mut n);
     sdo(&mut n, [0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']);
     let mut flash = n.into_storage().into_flash().unwrap();
     // flip a payload bit of the only record

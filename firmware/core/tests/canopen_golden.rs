@@ -5,7 +5,8 @@
 
 use joint_core::canopen::node::{MemoryStorage, Node, NodeConfig, NMT_PRE_OPERATIONAL, NMT_START};
 use joint_core::canopen::CanFrame;
-use joint_core::params::ParamId;
+use joint_core::params::{ParamId, RawParams};
+use joint_core::store::set_crc;
 
 const ID: u8 = 5;
 
@@ -38,6 +39,12 @@ impl Bench {
         let r = self.ask(0x605, &d, 0x585);
         assert_eq!(r.len(), 1, "one SDO response for {d:02X?}");
         r.into_iter().next().unwrap()
+    }
+
+    /// The commit request that names `set` (0x2205 ← its CRC-32).
+    fn commit_request(set: &RawParams) -> [u8; 8] {
+        let c = set_crc(set).to_le_bytes();
+        [0x23, 0x05, 0x22, 0x00, c[0], c[1], c[2], c[3]]
     }
 
     fn advance_ms(&mut self, ms: u64) -> Vec<(u16, Vec<u8>)> {
@@ -117,8 +124,10 @@ fn sdo_expedited_download_parameter_and_read_back() {
     // staged, not yet running
     assert_eq!(b.node.params().get(ParamId::FrictionA), 0.0);
     assert_eq!(b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x03, 0x22, 0x00, 1, 0, 0, 0]);
-    // commit
-    assert_eq!(b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]), vec![0x60, 0x00, 0x22, 0x00, 0, 0, 0, 0]);
+    // commit, naming the set meant: the defaults with friction_a = 1.5
+    let mut want = RawParams::defaults();
+    want.set(ParamId::FrictionA, 1.5);
+    assert_eq!(b.sdo(Bench::commit_request(&want)), vec![0x60, 0x05, 0x22, 0x00, 0, 0, 0, 0]);
     assert_eq!(b.node.params().get(ParamId::FrictionA), 1.5);
     assert_eq!(b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x03, 0x22, 0x00, 0, 0, 0, 0]);
 }
@@ -181,9 +190,11 @@ fn refused_commit_keeps_the_old_set_and_reports_the_parameter() {
     // inconsistent (must be below half the rate).
     let v = 600.0f32.to_le_bytes();
     assert_eq!(b.sdo([0x23, 0x16, 0x20, 0x00, v[0], v[1], v[2], v[3]])[0], 0x60);
-    let out = b.run(Some((0x605, &[0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])));
+    let mut want = before.clone();
+    want.set(ParamId::AccelCutoff, 600.0);
+    let out = b.run(Some((0x605, &Bench::commit_request(&want))));
     // abort 0x06090030 on the commit object
-    assert_eq!(out[0], (0x585, vec![0x80, 0x00, 0x22, 0x00, 0x30, 0x00, 0x09, 0x06]));
+    assert_eq!(out[0], (0x585, vec![0x80, 0x05, 0x22, 0x00, 0x30, 0x00, 0x09, 0x06]));
     // EMCY 0x6320, error register 0 (no fault latched), code 3 (inconsistent), param 22 (0x16)
     assert_eq!(out[1], (0x085, vec![0x20, 0x63, 0x00, 0x03, 0x16, 0x00, 0x00, 0x00]));
     assert_eq!(b.node.params().raw(), &before);
@@ -244,8 +255,10 @@ fn store_and_restore_signatures() {
     let mut b = Bench::new();
     let v = 2.5f32.to_le_bytes();
     b.sdo([0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]); // friction_c
-    b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]); // commit
-                                                 // wrong signature: 0x08000020
+    let mut want = RawParams::defaults();
+    want.set(ParamId::FrictionC, 2.5);
+    b.sdo(Bench::commit_request(&want));
+    // wrong signature: 0x08000020
     assert_eq!(b.sdo([0x23, 0x10, 0x10, 0x01, 1, 2, 3, 4]), vec![0x80, 0x10, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08]);
     assert_eq!(b.node.storage().saves, 0);
     // "save"
@@ -261,7 +274,7 @@ fn store_and_restore_signatures() {
     assert!(b.node.storage().stored.is_none());
     assert_eq!(b.node.staged().get(ParamId::FrictionC), 2.5);
     assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
-    assert_eq!(b.sdo([0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])[0], 0x60); // a commit changes nothing
+    assert_eq!(b.sdo(Bench::commit_request(&want))[0], 0x60); // a commit changes nothing
     assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
     b.run(Some((0x000, &[0x81, ID])));
     assert_eq!(b.node.params().get(ParamId::FrictionC), 0.0);
@@ -309,4 +322,34 @@ fn a_commit_by_crc_commits_only_the_named_set() {
     assert_eq!(b.node.params().get(ParamId::FrictionC), 2.5);
     assert_eq!(read_u32(&mut b, 1), now);
     assert_eq!(now, joint_core::store::set_crc(b.node.params().raw()), "the host computes the same CRC");
+}
+
+/// A plain commit (0x2200 ← 1) named no set, so it made live whatever was staged: another
+/// master's half-pushed values with one's own (issue 21, "33 old + 1 new"). It is refused with
+/// 0x06010000 (unsupported access), EMCY 0x6320 and commit error 9 whose message says how to
+/// commit; nothing goes live and the staged set stays for its master to commit by CRC or
+/// discard (0x2200 ← 0, still served).
+#[test]
+fn a_plain_commit_is_refused_and_says_how_to_commit() {
+    let mut b = Bench::new();
+    let before = b.node.params().raw().clone();
+    let v = 2.5f32.to_le_bytes();
+    b.sdo([0x23, 0x02, 0x20, 0x00, v[0], v[1], v[2], v[3]]); // friction_c
+    let out = b.run(Some((0x605, &[0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0])));
+    assert_eq!(out[0], (0x585, vec![0x80, 0x00, 0x22, 0x00, 0x00, 0x00, 0x01, 0x06]));
+    // EMCY 0x6320, error register 0, code 9, no parameter (0xFFFF)
+    assert_eq!(out[1], (0x085, vec![0x20, 0x63, 0x00, 0x09, 0xFF, 0xFF, 0x00, 0x00]));
+    assert_eq!(out.len(), 2);
+    assert_eq!(b.node.params().raw(), &before, "nothing went live");
+    assert_eq!(b.sdo([0x40, 0x03, 0x22, 0x00, 0, 0, 0, 0]), vec![0x4F, 0x03, 0x22, 0x00, 1, 0, 0, 0], "still staged");
+    assert_eq!(b.sdo([0x40, 0x01, 0x22, 0x01, 0, 0, 0, 0]), vec![0x4F, 0x01, 0x22, 0x01, 9, 0, 0, 0]);
+    let msg = b.node.commit_error().unwrap().message.clone();
+    assert!(msg.contains("0x2205") && msg.contains("CRC"), "{msg}");
+    // any other value than 0 or 1: invalid value
+    assert_eq!(b.sdo([0x2F, 0x00, 0x22, 0x00, 2, 0, 0, 0]), vec![0x80, 0x00, 0x22, 0x00, 0x30, 0x00, 0x09, 0x06]);
+    // the commit that names the set goes through
+    let mut want = before.clone();
+    want.set(ParamId::FrictionC, 2.5);
+    assert_eq!(b.sdo(Bench::commit_request(&want)), vec![0x60, 0x05, 0x22, 0x00, 0, 0, 0, 0]);
+    assert_eq!(b.node.params().raw(), &want);
 }

@@ -163,7 +163,8 @@ proptest! {
         let tb: Vec<u8> = cells.iter().flat_map(|v| v.to_le_bytes()).collect();
         download(&mut n, od::TABLE_GRID, 0, &gb).unwrap();
         download(&mut n, od::TABLE_TORQUE, 0, &tb).unwrap();
-        download(&mut n, od::COMMIT, 0, &[1]).unwrap();
+        let crc = joint_core::store::set_crc(n.staged());
+        download(&mut n, od::COMMIT_CRC, 0, &crc.to_le_bytes()).unwrap();
         prop_assert_eq!(n.params().table().n_axes, 1);
         prop_assert_eq!(&n.params().table().torque[..points as usize], cells);
         let back = upload(&mut n, od::TABLE_TORQUE, 0).unwrap();

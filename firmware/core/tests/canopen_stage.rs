@@ -94,7 +94,8 @@ fn a_master_that_keeps_talking_keeps_its_staged_set_and_commits_it() {
         b.wait(1000);
         assert!(b.pending(), "a read every second keeps it");
     }
-    let r = b.run(0x605, &[0x2F, 0x00, 0x22, 0x00, 1, 0, 0, 0]);
+    let c = joint_core::store::set_crc(b.node.staged()).to_le_bytes();
+    let r = b.run(0x605, &[0x23, 0x05, 0x22, 0x00, c[0], c[1], c[2], c[3]]);
     assert!(r.iter().any(|(id, d)| *id == 0x585 && d[0] == 0x60));
     assert_eq!(b.node.params().get(ParamId::FrictionA), 0.5);
     // committed: nothing staged, nothing to discard later

@@ -23,8 +23,10 @@ fn param_index(id: ParamId) -> u16 {
     od::PARAM_BASE + PARAMS.iter().position(|d| d.id == id).unwrap() as u16
 }
 
+/// Commit what the test staged, named by its CRC (0x2205; a plain commit is refused).
 fn commit<C: ControlStep>(n: &mut Node<MemoryStorage, C>) -> Result<(), Abort> {
-    n.write(od::COMMIT, 0, &[1])
+    let crc = joint_core::store::set_crc(n.staged());
+    n.write(od::COMMIT_CRC, 0, &crc.to_le_bytes())
 }
 
 #[test]

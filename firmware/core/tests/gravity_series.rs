@@ -100,6 +100,12 @@ fn node() -> Node<MemoryStorage> {
     n
 }
 
+/// Commit what this test staged, named by its CRC (0x2205; a plain commit is refused).
+fn commit<S: joint_core::canopen::ParamStorage>(n: &mut Node<S>) -> Result<(), joint_core::canopen::Abort> {
+    let crc = joint_core::store::set_crc(n.staged());
+    n.write(od::COMMIT_CRC, 0, &crc.to_le_bytes())
+}
+
 #[test]
 fn series_objects_stage_and_commit_whole() {
     let mut n = node();
@@ -108,7 +114,7 @@ fn series_objects_stage_and_commit_whole() {
     n.write(od::SERIES_TERMS, 0, &terms_domain(&good)).unwrap();
     n.write(od::TABLE_SHAPE, 11, &[1]).unwrap();
     assert_eq!(n.params().series().n_terms, 0, "nothing runs before the commit");
-    n.write(od::COMMIT, 0, &[1]).unwrap();
+    commit(&mut n).unwrap();
     assert_eq!(*n.params().series(), good);
     assert!(n.params().table().residual);
     let mut buf = [0u8; 256];
@@ -128,7 +134,7 @@ fn series_objects_stage_and_commit_whole() {
     let mut bad = good.clone();
     bad.mult[0][0] = 7;
     n.write(od::SERIES_TERMS, 0, &terms_domain(&bad)).unwrap();
-    assert!(n.write(od::COMMIT, 0, &[1]).is_err());
+    assert!(commit(&mut n).is_err());
     let e = n.commit_error().unwrap();
     assert_eq!(e.code, 6);
     assert!(e.message.contains("term 0"), "{}", e.message);
@@ -165,7 +171,7 @@ fn store_round_trips_the_series_and_the_residual_flag() {
     let good = series_2dof();
     n.write(od::SERIES_COUNT, 0, &[good.n_terms]).unwrap();
     n.write(od::SERIES_TERMS, 0, &terms_domain(&good)).unwrap();
-    n.write(od::COMMIT, 0, &[1]).unwrap();
+    commit(&mut n).unwrap();
     n.write(od::STORE_PARAMETERS, 1, &od::SAVE_SIGNATURE.to_le_bytes()).unwrap();
     let storage = n.into_storage();
     let n = Node::new(NodeConfig::new(3), storage, 0);

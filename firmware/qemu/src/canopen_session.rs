@@ -3,7 +3,8 @@
 //! The session is what a master and the board's tasks do to a joint node, in virtual time:
 //! boot-up; NMT pre-operational; the host's heartbeats; SDO downloads of every trunk-joint
 //! parameter that differs from the table default, an out-of-range write that must abort
-//! (0x06090031) and change nothing, a malformed (short) SDO request; the commit; a read back;
+//! (0x06090031) and change nothing, a malformed (short) SDO request; a plain commit, refused
+//! (0x06010000: a commit names its set), then the commit by the set's CRC; a read back;
 //! "save" (0x1010); NMT start; RPDO assist commands (one of them too short: EMCY 0x8210); a
 //! safety parameter written while operational (0x08000022); then the host falls silent and
 //! the watchdog fades the torque (EMCY 0x8130). Between frames the board's 1 kHz loop runs
@@ -264,7 +265,10 @@ impl<E: FnMut(&Line), C: ControlStep> Run<'_, E, C> {
                 let kept = self.node.staged().get(p).to_bits() == before.to_bits();
                 // A 3-byte SDO request is malformed: abort, nothing written.
                 self.rx("sdo-short", f(0x600 + u16::from(me), &[0x23, 0x00, 0x20]), Some(0x0504_0001));
-                self.rx("commit", sdo_download_u8(od::COMMIT, 0, 1), None);
+                // A plain commit names no set: refused (0x06010000, EMCY 0x6320 code 9). The
+                // commit names the set it means by its CRC-32 (0x2205).
+                self.rx("commit-plain", sdo_download_u8(od::COMMIT, 0, 1), Some(0x0601_0000));
+                self.rx("commit", sdo_download_u32(od::COMMIT_CRC, 0, joint_core::store::set_crc(&trunk)), None);
                 self.s.committed_trunk_set = self.node.params().raw() == &trunk;
                 self.rx("read-back", sdo_upload(param_index(ParamId::WeightAmplitude), 0), None);
                 self.rx("save", sdo_download_u32(0x1010, 1, od::SAVE_SIGNATURE), None);

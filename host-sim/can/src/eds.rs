@@ -82,9 +82,35 @@ fn physical(s: &SubInfo) -> (Option<f32>, Option<String>, Option<String>) {
         (od::PARAMS_CRC, _) => {
             (None, None, Some("CRC-32 of a parameter set's record payload (joint_core::store::set_crc)".into()))
         }
-        (od::COMMIT_CRC, _) => {
-            (None, None, Some("write the staged set's CRC-32 (0x2204 sub 2) to commit exactly that set".into()))
-        }
+        (od::COMMIT_CRC, _) => (
+            None,
+            None,
+            Some(
+                "commit: write the CRC-32 of the set you mean (computed from it; 0x2204 sub 2 is what is staged): \
+                 the staged set is checked and goes live whole only if it is that set, else abort 0x08000022 and \
+                 commit error 7, so another master's staged values never go live with yours"
+                    .into(),
+            ),
+        ),
+        (od::COMMIT, _) => (
+            None,
+            None,
+            Some(
+                "0 discards the staged set; 1 (a plain commit, which names no set) is refused with abort \
+                 0x06010000 and commit error 9: commit by CRC at 0x2205"
+                    .into(),
+            ),
+        ),
+        (od::COMMIT_ERROR, 1) => (
+            None,
+            None,
+            Some(
+                "0 none, 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter outside \
+                 pre-operational, 6 gravity series, 7 the CRC named is not the staged set's, 8 staged set discarded \
+                 (its master quiet 3 s), 9 plain commit refused (commit by CRC at 0x2205)"
+                    .into(),
+            ),
+        ),
         (i, 0) if (od::PARAM_BASE..od::PARAM_BASE + PARAMS.len() as u16).contains(&i) => {
             let d = PARAMS.get((i - od::PARAM_BASE) as usize);
             (None, d.map(|d| d.unit.replace('·', "*").replace('²', "^2").replace('°', "deg")), None)
@@ -171,8 +197,9 @@ fn generate_with<C: ControlStep>(fd: bool) -> String {
         let _ = writeln!(
             out,
             "Comment=CAN FD node (CiA 1301 frames, 1 Mbit/s nominal, 5 Mbit/s data with BRS): TPDO3 carries the \
-             whole joint state in 32 bytes of REAL32 (0x2301, SI units, no scale); SDO is CiA 301 SDO in 8-byte \
-             frames (no USDO)"
+             joint state in 32 bytes (0x2301 sub 1..8: q, qd, qdd, tau, tau measured, u, temperature in REAL32, SI \
+             units, no scale, and the mode; the fault bits; the error register), not the assist gain and command \
+             (0x2301 sub 9, 10: a 48-byte frame); SDO is CiA 301 SDO in 8-byte frames (no USDO)"
         );
     }
     let _ = writeln!(out, "CreatedBy=jointctl {}", env!("CARGO_PKG_VERSION"));
@@ -184,8 +211,9 @@ fn generate_with<C: ControlStep>(fd: bool) -> String {
     let _ = writeln!(out, "ProductName={}", cfg.device_name);
     let _ = writeln!(out, "ProductNumber=0x{:X}", cfg.identity.product_code);
     let _ = writeln!(out, "RevisionNumber=0x{:X}", cfg.identity.revision);
-    // What the board image runs: 1 Mbit/s, fixed at build time (firmware/board CAN_BITRATE; no
-    // LSS to change it on the bus). The host tools and the simulated bus take any rate.
+    // What the board images run: 1 Mbit/s, fixed at build time (firmware/board CAN_BITRATE);
+    // LSS configure bit timing answers every other rate with error 1. The host tools and the
+    // simulated bus take any rate.
     for (rate, ok) in [(10, 0), (20, 0), (50, 0), (125, 0), (250, 0), (500, 0), (800, 0), (1000, 1)] {
         let _ = writeln!(out, "BaudRate_{rate}={ok}");
     }
@@ -196,12 +224,9 @@ fn generate_with<C: ControlStep>(fd: bool) -> String {
     let _ = writeln!(out, "GroupMessaging=0");
     let _ = writeln!(out, "NrOfRXPDO={}", od::RPDO_COUNT);
     let _ = writeln!(out, "NrOfTXPDO={}", od::TPDO_COUNT);
-    // CiA 305 LSS slave: in `jointctl sim`, the G0B1 and the QEMU images; the G431 image
-    // leaves it out (its flash is full: docs/canopen.md), so there the id is set at build time
+    // CiA 305 LSS slave: in `jointctl sim`, both board images (the G431 since b391aa6, node id
+    // and bit timing stored in the flash record's communication block) and the QEMU images
     let lss = joint_core::canopen::lss::SERVED;
-    if lss {
-        let _ = writeln!(out, "; LSS: not in the G431 image (flash); node id set at build time there");
-    }
     let _ = writeln!(out, "LSS_Supported={}", u8::from(lss));
     out.push('\n');
     let _ = writeln!(out, "[DummyUsage]");
@@ -287,5 +312,17 @@ mod tests {
         }
         // the two DefaultValue lines: 0x1008 (the name) and 0x1018 sub 2 (the product code)
         assert_eq!(differing.iter().filter(|(a, _)| a.starts_with("DefaultValue")).count(), 2, "{differing:?}");
+    }
+
+    /// LSS is in every image the EDS describes since b391aa6 (the G431's too); the EDS once
+    /// said the G431 left it out. The FD EDS names what TPDO3 leaves out.
+    #[test]
+    fn lss_is_declared_for_every_board_and_the_fd_comment_says_what_tpdo3_carries() {
+        let f = generate();
+        assert!(f.contains("LSS_Supported=1\n"));
+        assert!(!f.contains("G431"), "no board is singled out");
+        let fd = generate_for_bus(Arithmetic::F32, true);
+        let comment = fd.lines().find(|l| l.starts_with("Comment=")).unwrap_or_default();
+        assert!(comment.contains("32 bytes") && comment.contains("not the assist gain and command"), "{comment}");
     }
 }

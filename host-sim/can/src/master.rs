@@ -1,9 +1,15 @@
 //! The CANopen master side `jointctl` uses: SDO client (expedited and segmented), NMT,
 //! its own heartbeat (the joints' watchdogs need it), and a record of what it overheard
 //! (heartbeats, EMCYs, TPDOs) while waiting for answers.
+//!
+//! SDO frames carry no client address, so two masters on one server channel have one's
+//! segments acknowledged into the other's transfer. The joint serves a second channel
+//! (0x1201) for that: [`Master::use_second_channel`] configures it through the default one, as
+//! CiA 301 has it, and runs every later transfer with that node on it.
 
 use super::{timing, Bus};
 use joint_core::canopen::node::{NmtState, DEFAULT_HOST_ID, EMCY_BASE, HEARTBEAT_BASE};
+use joint_core::canopen::od;
 use joint_core::canopen::sdo::{self, Abort};
 use joint_core::canopen::CanFrame;
 use std::collections::BTreeMap;
@@ -34,6 +40,48 @@ impl SdoError {
 /// Our heartbeat period unless a node consumes it faster ([`Master::match_consumer`]).
 pub const DEFAULT_HEARTBEAT_US: u64 = 100_000;
 
+/// COB-IDs of an SDO server channel: `rx` client → server (requests), `tx` server → client.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoCobs {
+    pub rx: u16,
+    pub tx: u16,
+}
+
+/// "Not valid" bit of a COB-ID entry (CiA 301).
+const COB_INVALID: u32 = 0x8000_0000;
+
+impl SdoCobs {
+    /// The default channel of `node` (0x1200): 0x600 + id, 0x580 + id.
+    pub fn default_for(node: u8) -> SdoCobs {
+        SdoCobs { rx: sdo::RX_BASE + u16::from(node), tx: sdo::TX_BASE + u16::from(node) }
+    }
+
+    /// The second channel's COB-IDs by our convention: the default channel's of node id + 64
+    /// (0x640 + id, 0x5C0 + id), free on a bus whose node ids stay below 64. `None` for a node
+    /// id of 64 or more, whose + 64 is no node id: such a node needs COB-IDs named for it.
+    pub fn second_for(node: u8) -> Option<SdoCobs> {
+        (1..64).contains(&node).then(|| SdoCobs::default_for(node + 64))
+    }
+
+    /// Whether these COB-IDs can be a second channel of `node`: 11-bit ids, not 0 (NMT), two
+    /// different ones, neither one of the node's default channel (the node refuses those too).
+    pub fn check_for(self, node: u8) -> Result<(), String> {
+        let d = SdoCobs::default_for(node);
+        for id in [self.rx, self.tx] {
+            if id == 0 || id > 0x7FF {
+                return Err(format!("COB-ID 0x{id:X} is not an 11-bit CAN id (1..=0x7FF)"));
+            }
+            if id == d.rx || id == d.tx {
+                return Err(format!("COB-ID 0x{id:X} is node {node}'s default SDO channel"));
+            }
+        }
+        if self.rx == self.tx {
+            return Err(format!("request and response need two COB-IDs, not 0x{:X} twice", self.rx));
+        }
+        Ok(())
+    }
+}
+
 /// What the master last heard from a node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Seen {
@@ -61,6 +109,9 @@ pub struct Master {
     /// SDO frames exchanged (requests and responses) and their bits on the wire
     pub sdo_frames: u64,
     pub sdo_bits: u64,
+    /// nodes served on their second SDO channel: its COB-IDs and the boot-ups heard when it was
+    /// configured (a reset communication makes it "not valid" again: it is configured anew)
+    second: BTreeMap<u8, (SdoCobs, u64)>,
 }
 
 impl Master {
@@ -77,7 +128,101 @@ impl Master {
             keep_other: false,
             sdo_frames: 0,
             sdo_bits: 0,
+            second: BTreeMap::new(),
         }
+    }
+
+    /// The SDO channel this master uses with `node`.
+    pub fn sdo_cobs(&self, node: u8) -> SdoCobs {
+        self.second.get(&node).map_or(SdoCobs::default_for(node), |(c, _)| *c)
+    }
+
+    fn boots(&self, node: u8) -> u64 {
+        self.seen.get(&node).map_or(0, |s| s.boots)
+    }
+
+    /// Run every later SDO transfer with `node` on its second server channel (0x1201) at
+    /// `cobs`, so this master never shares a transfer with one on the default channel (a
+    /// controller). The channel is configured as CiA 301 has it, through the default channel:
+    /// 0x1201 sub 1 and 2 the COB-IDs (valid), sub 3 our node id: three expedited writes, the
+    /// only transfers this master makes on the default channel. When the node already serves
+    /// `cobs` there (an earlier command configured it), nothing is written. Refused, changing
+    /// nothing, when the node's second channel is in use with other COB-IDs.
+    pub fn use_second_channel(&mut self, node: u8, cobs: SdoCobs) -> Result<(), SdoError> {
+        let proto = |what: String| SdoError::Protocol { node, index: od::SDO_SERVER2, sub: 1, what };
+        cobs.check_for(node).map_err(proto)?;
+        // already served there? A request left unanswered changes nothing on the node; it
+        // costs one SDO timeout, once (a shorter wait, taken for "not configured" on a loaded
+        // host or adapter, would write on channel 1 beside the controller again)
+        self.second.insert(node, (cobs, self.boots(node)));
+        let there = self.read_u32(node, od::SDO_SERVER2, 1);
+        if there == Ok(u32::from(cobs.rx)) {
+            return Ok(());
+        }
+        self.second.remove(&node);
+        self.configure_second(node, cobs)
+    }
+
+    /// An expedited write of the channel configuration, tried again when its answer is lost
+    /// or is another master's (a controller's transfer on the default channel: its answers,
+    /// or the abort of its transfer that ours ended, which carry no client address): the write
+    /// leaves no transfer open on the node, so trying it again is harmless, and no abort is
+    /// sent (it would end the other master's transfer).
+    fn write_config(&mut self, node: u8, sub: u8, data: &[u8]) -> Result<(), SdoError> {
+        let out_of_step = [Abort::Toggle.code(), Abort::Command.code(), Abort::Timeout.code()];
+        let mut tries = 1;
+        loop {
+            match self.write(node, od::SDO_SERVER2, sub, data) {
+                Err(SdoError::Timeout { .. } | SdoError::Protocol { .. }) if tries < 4 => tries += 1,
+                Err(SdoError::Abort { code, .. }) if tries < 4 && out_of_step.contains(&code) => tries += 1,
+                r => return r,
+            }
+        }
+    }
+
+    /// Write 0x1201 through the default channel, then use it.
+    fn configure_second(&mut self, node: u8, cobs: SdoCobs) -> Result<(), SdoError> {
+        let written = self
+            .write_config(node, 1, &u32::from(cobs.rx).to_le_bytes())
+            .and_then(|()| self.write_config(node, 2, &u32::from(cobs.tx).to_le_bytes()));
+        if let Err(e) = written {
+            if e.abort_code() == Some(Abort::InvalidValue.code()) {
+                // a valid COB-ID's id cannot change: another master uses the channel
+                let rx = self.read_u32(node, od::SDO_SERVER2, 1)?;
+                let tx = self.read_u32(node, od::SDO_SERVER2, 2)?;
+                if (rx | tx) & COB_INVALID == 0 {
+                    return Err(SdoError::Protocol {
+                        node,
+                        index: od::SDO_SERVER2,
+                        sub: 1,
+                        what: format!(
+                            "the second SDO channel is in use with COB-IDs 0x{:X}/0x{:X} (another master's?), not \
+                             0x{:X}/0x{:X}",
+                            rx & 0x7FF,
+                            tx & 0x7FF,
+                            cobs.rx,
+                            cobs.tx
+                        ),
+                    });
+                }
+            }
+            return Err(e);
+        }
+        self.write_config(node, 3, &[self.host_id])?;
+        self.second.insert(node, (cobs, self.boots(node)));
+        Ok(())
+    }
+
+    /// Before a transfer on a second channel: the node reset since it was configured (its
+    /// boot-up heard), so the channel is "not valid" again: configure it anew.
+    fn second_still_valid(&mut self, node: u8) -> Result<(), SdoError> {
+        if let Some((cobs, boots)) = self.second.get(&node).copied() {
+            if self.boots(node) > boots {
+                self.second.remove(&node);
+                self.configure_second(node, cobs)?;
+            }
+        }
+        Ok(())
     }
 
     fn io(e: std::io::Error) -> SdoError {
@@ -183,9 +328,11 @@ impl Master {
         self.sdo_bits += u64::from(timing::classic_bits(f.id(), f.data()));
     }
 
-    /// One request, one response.
+    /// One request, one response, on the channel this master uses with `node`.
     fn transact(&mut self, node: u8, index: u16, sub: u8, req: [u8; 8]) -> Result<[u8; 8], SdoError> {
-        let f = CanFrame::new(sdo::RX_BASE + u16::from(node), &req).ok_or_else(|| SdoError::Protocol {
+        self.second_still_valid(node)?;
+        let cobs = self.sdo_cobs(node);
+        let f = CanFrame::new(cobs.rx, &req).ok_or_else(|| SdoError::Protocol {
             node,
             index,
             sub,
@@ -196,7 +343,7 @@ impl Master {
         self.count(&f);
         let start = self.bus.now_us();
         let limit = self.sdo_timeout.as_micros() as u64;
-        let want = sdo::TX_BASE + u16::from(node);
+        let want = cobs.tx;
         loop {
             let waited = self.bus.now_us().saturating_sub(start);
             if waited >= limit {
@@ -227,7 +374,7 @@ impl Master {
     }
 
     fn abort(&mut self, node: u8, index: u16, sub: u8, a: Abort) {
-        if let Some(f) = CanFrame::new(sdo::RX_BASE + u16::from(node), &sdo::abort_payload(index, sub, a)) {
+        if let Some(f) = CanFrame::new(self.sdo_cobs(node).rx, &sdo::abort_payload(index, sub, a)) {
             let _ = self.bus.send(&f);
         }
     }

@@ -28,6 +28,13 @@ const CAN_EFF_FLAG: u32 = 0x8000_0000;
 const CAN_RTR_FLAG: u32 = 0x4000_0000;
 const CAN_ERR_FLAG: u32 = 0x2000_0000;
 
+/// The nominal bit rate a SocketCAN interface reports through netlink (`ip -details link show`:
+/// `bitrate`), `None` when it has no bit timing (a `vcan`, which moves frames between sockets
+/// at memory speed) or cannot be asked.
+pub fn interface_bitrate(iface: &str) -> Option<u32> {
+    socketcan::CanInterface::open(iface).ok()?.bit_rate().ok().flatten().filter(|&b| b > 0)
+}
+
 /// A frame as the kernel's struct: `can_frame` (16 bytes) for classic frames, `canfd_frame`
 /// (72 bytes) for FD frames. `can_id` is in host byte order, as the kernel keeps it.
 pub fn encode(f: &CanFrame) -> Vec<u8> {

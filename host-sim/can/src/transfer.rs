@@ -5,10 +5,11 @@
 //! time): scalar values are expedited (request + response, 2 frames each); the gravity table
 //! goes as its shape bytes and three segmented DOMAIN transfers, the gravity series as its term
 //! count and one DOMAIN of 12-byte terms. Nothing runs on the joint
-//! until the commit object is written, and the node checks the whole staged set then, so a
-//! push cut off anywhere before the commit leaves the old set running (the staged changes stay
-//! pending: `params_pending` = 1, discarded by the next push or by writing 0 to the commit
-//! object).
+//! until the commit, which names the set by its CRC-32 (0x2205; the joint refuses a plain
+//! commit), and the node checks the whole staged set then, so a push cut off anywhere before
+//! the commit leaves the old set running, and what it staged can go live only whole (the
+//! staged changes stay pending, `params_pending` = 1, until discarded: by [`push_verified`],
+//! by writing 0 to 0x2200, or by the joint when the channel goes quiet for 3 s).
 
 use super::master::{Master, SdoError};
 use joint_core::canopen::node::NMT_PRE_OPERATIONAL;
@@ -450,4 +451,81 @@ pub fn push_verified_until(
 /// The wire-time minimum of a push's SDO frames at `bitrate`, µs.
 pub fn wire_minimum_us(r: &PushReport, bitrate: u32) -> f64 {
     r.bits as f64 * 1e6 / f64::from(bitrate.max(1))
+}
+
+/// What a push's elapsed time may be held against. The wire minimum of its frames means
+/// something only where the frames cross a wire at a known bit rate: the simulated bus (its
+/// bit-timing model and virtual clock), a SocketCAN interface that reports its bit timing, an
+/// slcan adapter whose user says its bus runs at the rate given. A pty (`socat`) has no bit
+/// timing: a push over one was printed at 0.484 of a "wire minimum" it never had.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TimeBasis {
+    /// frames on a wire at this nominal bit rate, `how` it is known
+    Wire { bitrate: u32, how: &'static str },
+    /// host and transport time only, and why there is no wire to compare with
+    Host { why: String },
+}
+
+impl TimeBasis {
+    /// The basis of a push on `spec`: `slcan_is_real` says the slcan adapter drives a real bus
+    /// at the spec's bit rate; `sim_bitrate` is the simulated bus's; `socketcan_bitrate` the
+    /// interface's own, if it reports one.
+    pub fn of(
+        spec: &super::BusSpec,
+        slcan_is_real: bool,
+        sim_bitrate: u32,
+        socketcan_bitrate: impl FnOnce(&str) -> Option<u32>,
+    ) -> TimeBasis {
+        use super::BusSpec;
+        match spec {
+            BusSpec::Sim => TimeBasis::Wire { bitrate: sim_bitrate, how: "the simulated bus's bit timing" },
+            BusSpec::Slcan { bitrate, .. } if slcan_is_real => {
+                TimeBasis::Wire { bitrate: *bitrate, how: "the adapter's bus rate, as stated (--real-bus)" }
+            }
+            BusSpec::Slcan { path, .. } => TimeBasis::Host {
+                why: format!(
+                    "slcan {path} may be a pty or a link to another program, which has no bit timing \
+                     (--real-bus says it is an adapter on a real bus at its @BITRATE)"
+                ),
+            },
+            BusSpec::SocketCan { iface } => match socketcan_bitrate(iface) {
+                Some(bitrate) => TimeBasis::Wire { bitrate, how: "the interface's bit timing" },
+                None => TimeBasis::Host {
+                    why: format!("{iface} reports no bit timing (a vcan, or its settings cannot be read)"),
+                },
+            },
+            BusSpec::Replay { .. } => TimeBasis::Host { why: "a replayed capture is no bus".into() },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BusSpec;
+
+    #[test]
+    fn only_a_bus_with_bit_timing_gets_a_wire_minimum() {
+        let slcan = BusSpec::Slcan { path: "/tmp/canA".into(), bitrate: 500_000 };
+        let none = |_: &str| None;
+        assert_eq!(
+            TimeBasis::of(&BusSpec::Sim, false, 250_000, none),
+            TimeBasis::Wire { bitrate: 250_000, how: "the simulated bus's bit timing" }
+        );
+        assert!(
+            matches!(TimeBasis::of(&slcan, false, 1_000_000, none), TimeBasis::Host { why } if why.contains("pty"))
+        );
+        assert!(matches!(TimeBasis::of(&slcan, true, 1_000_000, none), TimeBasis::Wire { bitrate: 500_000, .. }));
+        let can0 = BusSpec::SocketCan { iface: "can0".into() };
+        assert!(matches!(
+            TimeBasis::of(&can0, false, 1_000_000, |_| Some(125_000)),
+            TimeBasis::Wire { bitrate: 125_000, .. }
+        ));
+        let vcan = BusSpec::SocketCan { iface: "vcan0".into() };
+        assert!(
+            matches!(TimeBasis::of(&vcan, false, 1_000_000, none), TimeBasis::Host { why } if why.contains("vcan0"))
+        );
+        let replay = BusSpec::Replay { path: "x.log".into() };
+        assert!(matches!(TimeBasis::of(&replay, true, 1_000_000, none), TimeBasis::Host { .. }));
+    }
 }

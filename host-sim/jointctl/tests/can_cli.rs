@@ -27,7 +27,17 @@ fn push_json_reports_timing_within_budget() {
     assert_eq!(v["node"], 5);
     let ratio = v["ratio"].as_f64().unwrap();
     assert!((1.0..=1.2).contains(&ratio), "{v}");
+    assert_eq!((v["time_basis"].as_str(), v["bitrate"].as_u64()), (Some("bus"), Some(1_000_000)), "{v}");
     assert_eq!(v["frames"].as_u64().unwrap(), 2 * v["sdo_transfers"].as_u64().unwrap());
+    // the simulated bus has a bit-timing model: the human line compares with the wire
+    let o =
+        jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--bus", "sim", "--bitrate", "500000"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("wire minimum of those frames at 500 kbit/s"), "{out}");
+    // --real-bus means an slcan adapter: anywhere else it is refused before any traffic
+    let o = jointctl(&["push", "examples/models/trunk-right.toml", "--node", "5", "--bus", "sim", "--real-bus"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--real-bus is for slcan"), "{err}");
 }
 
 #[test]

@@ -6,6 +6,7 @@
 
 use clap::{CommandFactory, Parser};
 use joint_analysis::identify::segments::Window;
+use joint_can::master::SdoCobs;
 use joint_can::BusSpec;
 use jointctl::cli::Cli;
 use std::any::TypeId;
@@ -23,6 +24,11 @@ const BITRATE_BAD: &[&str] = &["0", "9999", "1000001", "4294967295"];
 // `--bus slcan:PATH@BITRATE` carries a bitrate too: slcan's nine
 const BUS_OK: &[&str] = &["sim", "slcan:/dev/x@10000", "slcan:/dev/x@1000000", "socketcan:can0"];
 const BUS_BAD: &[&str] = &["slcan:/dev/x@0", "slcan:/dev/x@123", "slcan:/dev/x@nan"];
+const SDO_CHANNEL_OK: &[&str] = &["1", "2"];
+const SDO_CHANNEL_BAD: &[&str] = &["0", "3", "-1", "x"];
+// the second SDO channel's COB-IDs: two different 11-bit ids
+const COB_IDS_OK: &[&str] = &["0x640,0x5C0", "1,2047"];
+const COB_IDS_BAD: &[&str] = &["0,5", "0x800,1", "x,1", "5", "0x645,0x645", "1,-1"];
 
 const TABLE: &[Row] = &[
     ("simulate", "seconds", &["1e-3", "86400"], &["nan", "inf", "0", "-1", "86401"], "0 < x ≤ 86400 s"),
@@ -69,6 +75,20 @@ const TABLE: &[Row] = &[
     ("log", "seconds", &["1e-3", "3600"], &["nan", "0", "3601"], "0 < x ≤ 3600 s"),
     ("log", "bitrate", BITRATE_OK, BITRATE_BAD, "10000..=1000000"),
     ("log", "bus", BUS_OK, BUS_BAD, ""),
+    ("push", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("push", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("pull", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("pull", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("save", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("save", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("status", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("status", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("discard", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("discard", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("log", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("log", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
+    ("watch", "sdo-channel", SDO_CHANNEL_OK, SDO_CHANNEL_BAD, "1..=2"),
+    ("watch", "sdo-cob-ids", COB_IDS_OK, COB_IDS_BAD, "1..=0x7FF"),
     ("sim", "node", NODE_OK, NODE_BAD, "1..=127"),
     ("sim", "seconds", &["1e-3", "1e7"], &["nan", "0", "-1"], "0 < x ≤ 1e7 s"),
     ("sim", "bus", &["slcan:/dev/x@125000", "socketcan:can0"], BUS_BAD, ""),
@@ -150,6 +170,7 @@ fn numeric_options() -> BTreeSet<(String, String)> {
         TypeId::of::<(f64, f64)>(),
         TypeId::of::<Window>(),
         TypeId::of::<BusSpec>(),
+        TypeId::of::<SdoCobs>(),
     ];
     let mut set = BTreeSet::new();
     for sub in Cli::command().get_subcommands() {

@@ -9,11 +9,15 @@
 //! watchdog ([`crate::safety::Safety`]) the node feeds from the host's heartbeats.
 //!
 //! # Parameters: staged, committed, stored
-//! SDO writes to the parameter objects change the **staged** [`RawParams`] only. Writing 1 to
-//! `params_commit` (0x2200) runs [`params::check`] on the whole staged set and swaps it in as
-//! one; if the check fails the committed set stays, the write is aborted (range/value code)
-//! and the error is readable at 0x2201 and sent as EMCY 0x6320 naming the parameter. So a
-//! half-pushed set never runs. `save` (0x1010) persists the committed set through the
+//! SDO writes to the parameter objects change the **staged** [`RawParams`] only. A commit
+//! names the set it commits: writing the staged set's CRC-32 ([`crate::store::set_crc`]) to
+//! `params_commit_crc` (0x2205) runs [`params::check`] on the whole staged set and swaps it in
+//! as one; if the CRC is not the staged set's, or the check fails, the committed set stays, the
+//! write is aborted and the error is readable at 0x2201 and sent as EMCY 0x6320 naming the
+//! parameter. So a half-pushed set never runs, and neither does a mix of two masters' values:
+//! the CRC a master computes from the set it means cannot match a set another master also
+//! wrote to. A plain commit (0x2200 ← 1), which named nothing, is refused (abort 0x06010000,
+//! 0x2201 code 9); 0x2200 ← 0 discards the staged set. `save` (0x1010) persists the committed set through the
 //! [`ParamStorage`] the firmware's flash task (or host-sim) implements; `load` (0x1011) makes
 //! the stored set the defaults (CiA 301: in force after the next reset) and stages them.
 //!
@@ -361,7 +365,8 @@ pub struct CommitError {
     /// 1 not finite, 2 out of range, 3 inconsistent, 4 gravity table, 5 safety parameter
     /// changed outside pre-operational, 6 gravity series, 7 the named CRC is not the staged
     /// set's, 8 the staged set was discarded because its master stopped (not a refused
-    /// commit: the node says so the same way, 0x2201 and EMCY 0x6320)
+    /// commit: the node says so the same way, 0x2201 and EMCY 0x6320), 9 a plain commit
+    /// (0x2200 ← 1), which names no set
     pub code: u8,
     /// index into `PARAMS` (object 0x2000 + index), 0xFFFF for table and series errors
     pub param: u16,
@@ -1415,7 +1420,16 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
                 self.commit()
             }
             Key::Commit => match u {
-                1 => self.commit(),
+                // A plain commit would make whatever is staged live, another master's leftovers
+                // included: a commit must name its set (0x2205, the set's CRC-32).
+                1 => {
+                    self.set_commit_error(
+                        9,
+                        0xFFFF,
+                        format_args!("plain commit refused: a commit names its set, write its CRC-32 to 0x2205"),
+                    );
+                    Err(Abort::Unsupported)
+                }
                 0 => {
                     self.staged = self.active.current().raw().clone();
                     self.staged_by = None;

@@ -14,8 +14,10 @@
 //!   `0x2101..=0x2103` grid/torque/sigma as DOMAINs of little-endian f32 (segmented SDO);
 //! - `0x2104` gravity series term count (U8), `0x2105` its terms as a DOMAIN of 12-byte
 //!   records (f32 amplitude, f32 phase, 4 × i8 multipliers; see [`crate::series`]);
-//! - `0x2200` commit (write 1: check the staged set and swap it in whole; write 0: discard the
-//!   staged changes), `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active;
+//! - `0x2200` write 0: discard the staged changes (1, a commit that names no set, is refused),
+//!   `0x2201` last commit error, `0x2202` clear faults, `0x2203` staged ≠ active, `0x2204` the
+//!   CRC-32 of the set in force and of the staged set, `0x2205` commit: write the CRC-32 of the
+//!   set meant, the staged set is checked and swapped in whole only if it is that set;
 //! - `0x2300` joint state (PDO-mappable scaled integers), `0x2301` the same state in REAL32 (the
 //!   CAN FD TPDO3: a master needs no scale), `0x2310` host command, `0x2311` the other joints'
 //!   angles (inputs of a multi-joint gravity table).

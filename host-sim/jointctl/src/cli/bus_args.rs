@@ -5,7 +5,7 @@
 use crate::sim_joint::{JointSim, SimStorage};
 use anyhow::Context as _;
 use clap::Args;
-use joint_can::master::Master;
+use joint_can::master::{Master, SdoCobs};
 use joint_can::script_bus::ScriptBus;
 use joint_can::sim_bus::{SharedSimBus, SimBus};
 use joint_can::tap::{TapBus, Tape};
@@ -31,6 +31,73 @@ pub struct BusArgs {
     /// @, socketcan from the interface)
     #[arg(long, value_name = "BIT/S", default_value_t = 1_000_000, value_parser = super::num::bitrate(super::num::CAN_BITRATE))]
     pub bitrate: u32,
+}
+
+/// Which of a joint's SDO server channels a command uses (`--sdo-channel`, `--sdo-cob-ids`).
+#[derive(Debug, Clone, Args)]
+pub struct SdoArgs {
+    /// SDO server channel of the joint: 1 the default (0x1200: 0x600 + id / 0x580 + id), 2 the
+    /// second (0x1201), so this command and a controller on channel 1 never share a transfer
+    /// (SDO frames carry no client address). Channel 2 is configured first through channel 1,
+    /// as CiA 301 has it (0x1201: its two COB-IDs and our node id, three expedited writes,
+    /// skipped when the joint already serves it with those COB-IDs), and again after the joint
+    /// resets
+    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = super::num::int::<u8>(1, 2))]
+    pub sdo_channel: u8,
+    /// COB-IDs of channel 2, request,response (0x… hex or decimal). Default 0x640 + id,
+    /// 0x5C0 + id: the default channel of node id + 64, free on a bus whose node ids are all
+    /// below 64; a node id of 64 or more needs them named
+    #[arg(long, value_name = "RX,TX", value_parser = parse_cob_pair)]
+    pub sdo_cob_ids: Option<SdoCobs>,
+}
+
+/// Two 11-bit CAN ids, `RX,TX`, different. Whether they suit the node (not its default
+/// channel) is checked against its id before any traffic ([`SdoCobs::check_for`]).
+fn parse_cob_pair(s: &str) -> Result<SdoCobs, String> {
+    const ALLOWED: &str = "allowed: two different COB-IDs RX,TX, each 1..=0x7FF (0x… hex or decimal)";
+    let one = |t: &str| {
+        let t = t.trim();
+        let v = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+            Some(h) => u16::from_str_radix(h, 16),
+            None => t.parse::<u16>(),
+        }
+        .map_err(|_| format!("`{t}` is not a COB-ID; {ALLOWED}"))?;
+        if !(1..=0x7FF).contains(&v) {
+            return Err(format!("`{t}` is not an 11-bit CAN id; {ALLOWED}"));
+        }
+        Ok(v)
+    };
+    let (rx, tx) = s.split_once(',').ok_or_else(|| format!("one value; {ALLOWED}"))?;
+    let c = SdoCobs { rx: one(rx)?, tx: one(tx)? };
+    if c.rx == c.tx {
+        return Err(format!("the same COB-ID twice; {ALLOWED}"));
+    }
+    Ok(c)
+}
+
+impl SdoArgs {
+    /// Put `m`'s SDO transfers with `node` on the channel asked for: channel 2 is configured
+    /// on the joint first (through channel 1), so nothing else of the command runs there.
+    pub fn apply(&self, m: &mut Master, node: u8) -> anyhow::Result<()> {
+        if self.sdo_channel == 1 {
+            if self.sdo_cob_ids.is_some() {
+                anyhow::bail!("--sdo-cob-ids names channel 2's COB-IDs: give it with --sdo-channel 2");
+            }
+            return Ok(());
+        }
+        let cobs = match self.sdo_cob_ids {
+            Some(c) => c,
+            None => SdoCobs::second_for(node).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "node {node}: channel 2's default COB-IDs (node id + 64's default channel) exist only for node \
+                     ids below 64: name them with --sdo-cob-ids RX,TX"
+                )
+            })?,
+        };
+        cobs.check_for(node).map_err(|e| anyhow::anyhow!("--sdo-cob-ids: {e}"))?;
+        m.use_second_channel(node, cobs)
+            .map_err(|e| anyhow::anyhow!("configuring SDO channel 2 (0x1201) at 0x{:X}/0x{:X}: {e}", cobs.rx, cobs.tx))
+    }
 }
 
 /// A master on the chosen bus. On `sim`, `nodes` get simulated joints (in memory, table

@@ -16,7 +16,7 @@ use std::time::Duration;
 ///
 /// Traffic per joint per period: classic CAN — TPDO1 (8 B: q, q̇, τ, faults), TPDO2 (8 B: q̈,
 /// τ measured, temperature, gain) and the host's RPDO1 (2 B: assist command); CAN FD (with
-/// --data-bitrate, bit-rate switch) — the FD node's TPDO3 (32 B: the whole state in REAL32)
+/// --data-bitrate, bit-rate switch) — the FD node's TPDO3 (32 B: the state in REAL32 but the assist gain and command)
 /// and the host's shared command frame (COB-ID 0x200, 2 B per joint, FD with BRS, once per
 /// period for all joints). Plus heartbeats: every joint and the host at 10 Hz (classic, 1 B).
 ///

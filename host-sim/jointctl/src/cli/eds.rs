@@ -16,7 +16,7 @@ pub struct EdsArgs {
     /// named in the EDS's product number and name
     #[arg(long, value_enum, default_value = "f32")]
     pub step: Step,
-    /// A node on a CAN FD bus: TPDO3 (the whole state in REAL32, 32 bytes) valid by default,
+    /// A node on a CAN FD bus: TPDO3 (the state in REAL32 but the assist gain and command, 32 bytes) valid by default,
     /// the classic TPDO1/2 invalid
     #[arg(long)]
     pub fd: bool,

@@ -1,6 +1,6 @@
 //! `jointctl log`: record a joint's TPDOs into a joint-log CSV (spec §1).
 
-use super::bus_args::{open_master_tapped, BusArgs};
+use super::bus_args::{open_master_tapped, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_can::tap::Tape;
@@ -43,6 +43,8 @@ pub struct LogArgs {
     pub json: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 pub fn run(a: &LogArgs) -> anyhow::Result<()> {
@@ -58,6 +60,7 @@ pub fn run(a: &LogArgs) -> anyhow::Result<()> {
     if a.start {
         // the joint faults (heartbeat_lost) when our heartbeat is slower than its 0x1016 says
         if !matches!(a.bus.spec()?, BusSpec::Replay { .. }) {
+            a.sdo.apply(&mut m, a.node)?;
             m.match_consumer(a.node)?;
         }
         m.nmt(a.node, NMT_START)?;

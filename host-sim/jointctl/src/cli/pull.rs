@@ -1,6 +1,6 @@
 //! `jointctl pull`: read a joint's parameter set into a model TOML.
 
-use super::bus_args::{open_master, BusArgs};
+use super::bus_args::{open_master, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_can::transfer;
@@ -33,6 +33,8 @@ pub struct PullArgs {
     pub json: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 pub fn run(a: &PullArgs) -> anyhow::Result<()> {
@@ -43,6 +45,7 @@ pub fn run(a: &PullArgs) -> anyhow::Result<()> {
     }
     let outs = plan.check()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    a.sdo.apply(&mut m, a.node)?;
     let (raw, pending) = transfer::pull(&mut m, a.node)?;
     if pending {
         eprintln!("warning: node {} has staged changes not committed; the file holds the staged values", a.node);

@@ -1,6 +1,6 @@
 //! `jointctl push`: stage a model's parameters on a joint by SDO, read them back, commit.
 
-use super::bus_args::{check_node, open_master, BusArgs};
+use super::bus_args::{check_node, open_master, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_can::transfer::{self, PushOptions};
@@ -40,12 +40,27 @@ pub struct PushArgs {
     /// or stiffness); the joint's own check still applies
     #[arg(long)]
     pub force: bool,
+    /// The slcan PATH is an adapter on a real CAN bus running at its @BITRATE: the push's time
+    /// is then compared with the wire minimum of its frames at that rate. Without it an slcan
+    /// push reports host/transport time only (a pty or a socat link has no bit timing). The
+    /// simulated bus is always compared (its bit-timing model), SocketCAN when the interface
+    /// reports its bit timing (a vcan does not)
+    #[arg(long)]
+    pub real_bus: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     check_node(a.node)?;
+    if a.real_bus && !matches!(a.bus.spec()?, joint_can::BusSpec::Slcan { .. }) {
+        anyhow::bail!(
+            "--real-bus is for slcan adapters: the simulated bus is always timed, and SocketCAN reads the \
+             interface's bit timing"
+        );
+    }
     let mf = ModelFile::read_file(&a.model)?;
     // Refuse locally what the joint would refuse, with the file's key and line named.
     mf.param_set()?;
@@ -60,6 +75,7 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
     }
     let raw = mf.raw_params()?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    a.sdo.apply(&mut m, a.node)?;
     let bar = indicatif::ProgressBar::new(1);
     if a.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
@@ -127,33 +143,50 @@ pub fn run(a: &PushArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     };
-    let bitrate = match &a.bus.spec()? {
-        joint_can::BusSpec::Slcan { bitrate, .. } => *bitrate,
-        _ => a.bus.bitrate,
-    };
-    let wire = transfer::wire_minimum_us(&r, bitrate);
-    let ratio = r.elapsed_us as f64 / wire;
+    let basis =
+        transfer::TimeBasis::of(&a.bus.spec()?, a.real_bus, a.bus.bitrate, joint_can::socketcan::interface_bitrate);
     if a.json {
+        let (time_basis, wire, ratio, bitrate, note) = match &basis {
+            transfer::TimeBasis::Wire { bitrate, how } => {
+                let wire = transfer::wire_minimum_us(&r, *bitrate);
+                ("bus", Some(wire), Some(r.elapsed_us as f64 / wire), Some(*bitrate), how.to_string())
+            }
+            transfer::TimeBasis::Host { why } => ("host", None, None, None, why.clone()),
+        };
         let j = serde_json::json!({
             "node": a.node, "model": a.model.display().to_string(), "bus": m.bus.describe(), "ok": true,
             "simulated": a.bus.is_sim(),
             "sdo_transfers": r.sdo_transfers, "frames": r.frames, "bits": r.bits,
-            "elapsed_us": r.elapsed_us, "wire_minimum_us": wire, "ratio": ratio, "saved": r.saved,
+            "elapsed_us": r.elapsed_us, "time_basis": time_basis, "time_note": note, "bitrate": bitrate,
+            "wire_minimum_us": wire, "ratio": ratio, "saved": r.saved,
             "in_force": in_force, "attempts": v.attempts, "retries": v.retries,
         });
         println!("{j}");
     } else {
+        let time = match &basis {
+            transfer::TimeBasis::Wire { bitrate, .. } => {
+                let wire = transfer::wire_minimum_us(&r, *bitrate);
+                format!(
+                    "{:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3})",
+                    r.elapsed_us as f64 / 1000.0,
+                    bitrate / 1000,
+                    wire / 1000.0,
+                    r.elapsed_us as f64 / wire
+                )
+            }
+            transfer::TimeBasis::Host { why } => format!(
+                "{:.2} ms of host/transport time, not bus time (no wire minimum: {why})",
+                r.elapsed_us as f64 / 1000.0
+            ),
+        };
         println!(
-            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {:.2} ms (wire minimum of those frames at {} kbit/s: {:.2} ms, ratio {:.3}){}{}; read back: the new set runs{}",
+            "pushed {} to node {} on {}: {} SDO transfers, {} frames, {}{}{}; read back: the new set runs{}",
             a.model.display(),
             a.node,
             m.bus.describe(),
             r.sdo_transfers,
             r.frames,
-            r.elapsed_us as f64 / 1000.0,
-            bitrate / 1000,
-            wire / 1000.0,
-            ratio,
+            time,
             if r.saved { ", saved" } else { "" },
             a.bus.sim_note(),
             if v.retries > 0 || v.attempts > 1 {

@@ -51,7 +51,7 @@ pub struct SimArgs {
     /// Print a JSON summary at the end
     #[arg(long)]
     pub json: bool,
-    /// CAN FD: the joints are FD nodes (TPDO3, the whole state in 32 bytes of REAL32, FD
+    /// CAN FD: the joints are FD nodes (TPDO3, the state in 32 bytes of REAL32 but the assist gain and command, FD
     /// frames with bit-rate switch; RPDO1 from the host's shared command frame 0x200), and an
     /// slcan adapter is opened with its data bit rate (`Yn`; frames `b`/`d`)
     #[arg(long)]

@@ -1,7 +1,7 @@
 //! `jointctl status`: which parameter set runs on a joint, whether another is staged, its NMT
 //! state and faults; `jointctl discard`: drop a staged set.
 
-use super::bus_args::{check_node, open_master, BusArgs};
+use super::bus_args::{check_node, open_master, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_can::master::{Master, SdoError};
@@ -31,6 +31,8 @@ pub struct StatusArgs {
     pub json: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 /// Drop a joint's staged parameter set (changes written but not committed, e.g. by a push that
@@ -48,6 +50,8 @@ pub struct DiscardArgs {
     pub json: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 /// (set in force, staged set) CRCs.
@@ -68,6 +72,7 @@ pub fn run_status(a: &StatusArgs) -> anyhow::Result<()> {
         None => None,
     };
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    a.sdo.apply(&mut m, a.node)?;
     // a heartbeat tells the NMT state
     m.listen(Duration::from_millis(300))?;
     let (active, staged) = crcs(&mut m, a.node)?;
@@ -112,6 +117,7 @@ pub fn run_status(a: &StatusArgs) -> anyhow::Result<()> {
 pub fn run_discard(a: &DiscardArgs) -> anyhow::Result<()> {
     check_node(a.node)?;
     let (mut m, _sim) = open_master(&a.bus, &[a.node])?;
+    a.sdo.apply(&mut m, a.node)?;
     let (_, before) = crcs(&mut m, a.node)?;
     m.write(a.node, od::COMMIT, 0, &[0])?;
     let (active, staged) = crcs(&mut m, a.node)?;

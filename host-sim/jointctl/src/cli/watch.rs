@@ -1,6 +1,6 @@
 //! `jointctl watch`: a live table of every node's state from heartbeats and TPDOs.
 
-use super::bus_args::{open_master, BusArgs};
+use super::bus_args::{open_master, BusArgs, SdoArgs};
 use super::num;
 use clap::Args;
 use joint_core::canopen::node::{NMT_START, TPDO1_BASE};
@@ -27,6 +27,8 @@ pub struct WatchArgs {
     pub json: bool,
     #[command(flatten)]
     pub bus: BusArgs,
+    #[command(flatten)]
+    pub sdo: SdoArgs,
 }
 
 pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
@@ -36,7 +38,11 @@ pub fn run(a: &WatchArgs) -> anyhow::Result<()> {
         // every joint heard so far gets our heartbeat at the rate its 0x1016 consumes it
         let nodes: Vec<u8> = m.seen.keys().copied().collect();
         if !matches!(a.bus.spec()?, joint_can::BusSpec::Replay { .. }) {
+            if a.sdo.sdo_cob_ids.is_some() && nodes.len() > 1 {
+                anyhow::bail!("--sdo-cob-ids names one node's channel 2, and {} nodes answer", nodes.len());
+            }
             for n in nodes {
+                a.sdo.apply(&mut m, n)?;
                 m.match_consumer(n)?;
             }
         }
