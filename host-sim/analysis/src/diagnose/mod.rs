@@ -589,7 +589,17 @@ fn torque_mode(
     lap("expected sign, design, file residual");
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
     lap("regimes");
-    let mut split = select::make_split(n);
+    // Test units long against the residual's correlation: the noise's (AR(1) from the
+    // variogram: (1 + ρ)/(1 − ρ) samples) and the derivative estimates' windows, twice over, at
+    // least 20 samples (the 50 of a fixed rule left a 3000-sample log 12 units).
+    let unit_min = {
+        let (_, rho) = floor::variogram_noise(&r0);
+        let noise_corr = (1.0 + rho) / (1.0 - rho).max(0.05);
+        let window = |i: &crate::prep::DerivInfo| if i.white { 0.0 } else { i.half_window_s / dt };
+        let corr = noise_corr.max(window(&prep.report.qd)).max(window(&prep.report.qdd));
+        ((2.0 * corr).ceil() as usize).clamp(20, 50)
+    };
+    let mut split = select::make_split_units(n, unit_min);
     split.leave_out(&prep.ambiguous);
     // With a pure Coulomb sign (no band in the file) a sample whose direction the data cannot
     // tell predicts ±c by a coin toss: it says nothing about the model and is left out too.

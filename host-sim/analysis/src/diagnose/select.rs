@@ -65,12 +65,20 @@ pub fn at_floor_factor(d: &Data) -> f64 {
 }
 
 pub fn make_split(n: usize) -> Split {
+    make_split_units(n, 50)
+}
+
+/// [`make_split`] with test units of at least `unit_min` samples: units must be long against
+/// the time over which the residual's errors are correlated (the noise's colour, the q̇/q̈
+/// estimates' windows), or neighbouring units are not independent; where those are short, a
+/// short log gets more units and its tests their degrees of freedom.
+pub fn make_split_units(n: usize, unit_min: usize) -> Split {
     let blocks = 20usize;
     let held = |b: usize| matches!(b % 10, 2 | 5 | 8);
     let len = n.div_ceil(blocks).max(1);
     let guard = (len / 10).min(50);
-    // 10 test units per held-out block (fewer in short logs, at least ~50 samples each).
-    let subs = (len / 50).clamp(2, 10);
+    // 10 test units per held-out block (fewer in short logs, at least `unit_min` samples each).
+    let subs = (len / unit_min.max(1)).clamp(2, 10);
     let mut train = Vec::with_capacity(n);
     let mut holdout = Vec::with_capacity(n * 3 / 10 + 1);
     let mut unit = Vec::with_capacity(n * 3 / 10 + 1);
