@@ -422,17 +422,11 @@ impl Plant {
         moved.clamp(-level, level)
     }
 
-    /// The plant's smoothed sign.
+    /// The plant's smoothed sign: the rule the joint's friction band follows (the core's, in
+    /// f64), with the plant's own band. Only the rule is shared: the plant's effect torques are
+    /// its own code.
     pub fn sgn(&self, v: f64) -> f64 {
-        if self.band > 0.0 {
-            (v / self.band).clamp(-1.0, 1.0)
-        } else if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        }
+        joint_core::math::sign_smooth_f64(v, self.band)
     }
 
     /// Weight plus gravity table (or their fusion when `sigma_model > 0`).

@@ -733,17 +733,8 @@ fn transmitted_load(tau: &[f64], u: &[f64], non_friction: &[f64]) -> Vec<f64> {
 /// Half-width of the zero-phase moving average applied to q̇ before any model sees it, s.
 pub const VELOCITY_SMOOTHING_S: f64 = 0.005;
 
-pub(crate) fn sgn_band(v: f64, band: f64) -> f64 {
-    if band > 0.0 {
-        (v / band).clamp(-1.0, 1.0)
-    } else if v > 0.0 {
-        1.0
-    } else if v < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
-}
+/// The core's smoothed sign in f64 (one rule for the joint, the identification and the plant).
+pub(crate) use joint_core::math::sign_smooth_f64 as sgn_band;
 
 fn coef(s: &Scored, c: Col) -> Option<f64> {
     s.design.cols.iter().position(|x| *x == c).map(|k| s.beta[k])
