@@ -92,24 +92,8 @@ pub struct OperatorCfg {
 /// same file are read by [`ModelFile::parse_except`], which leaves these to this struct.
 #[derive(Clone, Debug, Default, serde::Deserialize)]
 struct PlantToml {
-    #[serde(default)]
-    stribeck: Option<effects::Stribeck>,
-    #[serde(default)]
-    asymmetric_friction: Option<effects::AsymmetricFriction>,
-    #[serde(default)]
-    load_dependent_friction: Option<effects::LoadDependentFriction>,
-    #[serde(default)]
-    thermal_drift: Option<effects::ThermalDrift>,
-    #[serde(default)]
-    position_ripple: Option<effects::PositionRipple>,
-    #[serde(default)]
-    cable_spring: Option<effects::CableSpring>,
-    #[serde(default)]
-    backlash: Option<effects::Backlash>,
-    #[serde(default)]
-    delay: Option<effects::Delay>,
-    #[serde(default)]
-    dry_friction: Option<effects::DryFriction>,
+    #[serde(flatten)]
+    effects: Effects,
     #[serde(default)]
     sensors: Option<Sensors>,
     #[serde(default)]
@@ -158,17 +142,7 @@ impl PlantFile {
         }
         // The model part must be a valid parameter set too (ranges, table shape).
         model.param_set()?;
-        let effects = Effects {
-            stribeck: t.stribeck,
-            asymmetric_friction: t.asymmetric_friction,
-            load_dependent_friction: t.load_dependent_friction,
-            thermal_drift: t.thermal_drift,
-            position_ripple: t.position_ripple,
-            cable_spring: t.cable_spring,
-            backlash: t.backlash,
-            delay: t.delay,
-            dry_friction: t.dry_friction,
-        };
+        let effects = t.effects;
         let err = |msg: String| ModelError::Toml { file: file.to_string(), msg };
         effects.check().map_err(|e| err(e.to_string()))?;
         let sensors = t.sensors.unwrap_or_default();
