@@ -385,7 +385,7 @@ fn torque_not_applicable(base: &Base, d: &Data, tried: &[Vocab]) -> Vec<NotAppli
         effect: Vocab::InitialState.name(),
         why: "trajectory mode only (torque mode has no state to integrate)",
     }];
-    for k in candidates::Kind::ALL {
+    for k in Vocab::terms().filter_map(torque_kind) {
         if tried.contains(&k.effect()) {
             continue;
         }
@@ -1362,12 +1362,29 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     o
 }
 
-/// The model/plant file section an effect is written as (spec §2; the vocabulary name
-/// otherwise).
+/// The model/plant file section an effect is written as: its vocabulary entry's (spec §2).
 pub(crate) fn section_name(k: candidates::Kind) -> &'static str {
-    match k {
-        candidates::Kind::Presliding => "presliding",
-        _ => k.name(),
+    k.effect().section().unwrap_or_else(|| k.name())
+}
+
+/// The torque-mode kind that fits vocabulary term `v`. The match names every entry, so a term
+/// added to the vocabulary does not compile here until the diagnosis fits it (a kind, in
+/// [`candidates::Kind::ALL`]: a test checks the two agree) or says it cannot.
+pub(crate) fn torque_kind(v: Vocab) -> Option<candidates::Kind> {
+    use candidates::Kind as K;
+    match v {
+        Vocab::Stribeck => Some(K::Stribeck),
+        Vocab::AsymmetricFriction => Some(K::Asymmetric),
+        Vocab::LoadDependentFriction => Some(K::Load),
+        Vocab::ThermalDrift => Some(K::Thermal),
+        Vocab::PositionRipple => Some(K::Ripple),
+        Vocab::CableSpring => Some(K::Cable),
+        Vocab::Backlash => Some(K::Backlash),
+        Vocab::Delay => Some(K::Delay),
+        Vocab::DryFriction => Some(K::Dry),
+        Vocab::PreslidingHysteresis => Some(K::Presliding),
+        // verdicts and the trajectory mode's start state: no torque-mode candidate
+        Vocab::Parameters | Vocab::InitialState | Vocab::None | Vocab::Unexplained => None,
     }
 }
 
@@ -1387,4 +1404,23 @@ fn fit_warmup(d: &Data) -> (f64, f64, f64) {
     let tau = lt.exp();
     let (b, _) = solve(tau);
     (b[0], b[1], tau)
+}
+
+#[cfg(test)]
+mod vocabulary_tests {
+    use super::*;
+
+    /// Torque mode tries every effect term of the vocabulary, each as one kind, in the
+    /// vocabulary's order, and writes it as the vocabulary's section.
+    #[test]
+    fn torque_mode_kinds_are_the_vocabularys_terms() {
+        let from_vocab: Vec<candidates::Kind> = Vocab::terms().filter_map(torque_kind).collect();
+        assert_eq!(candidates::Kind::ALL.to_vec(), from_vocab);
+        for v in Vocab::terms() {
+            let k = torque_kind(v).unwrap_or_else(|| panic!("{v} has no torque-mode kind"));
+            assert_eq!(k.effect(), v);
+            assert_eq!(Some(section_name(k)), v.section());
+        }
+        assert_eq!(section_name(candidates::Kind::Presliding), "presliding");
+    }
 }
