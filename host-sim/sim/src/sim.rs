@@ -12,6 +12,20 @@
 //! 4. the plant advances `plant_rate/rate` RK4 steps with u and the operator held.
 //!
 //! Other joints named by the plant's gravity table follow smooth random paths inside their grid.
+//!
+//! Why the step and not the boards' loop (the core's `ControlLoop`, which `jointctl sim` and the
+//! closed-loop experiments run): the loop estimates q̇ and q̈ from the angle alone, as an
+//! encoder-only board does, while a plant file here describes the sensors its logs carry, an
+//! angle with white noise (`q_noise`), a velocity sensor, an acceleration estimate. Tried in
+//! issue 18 (`ControlLoop` around the same step, its mode the scenario's): on the diagnosis
+//! tests' joint (`q_noise` 1e-4 rad, 20 s of sweep, poses and hand at 1 kHz) the loop's q̇
+//! estimate differentiates that noise, and the torque changed by 0.77 N·m rms from one tick to
+//! the next instead of 0.053; the exact model's log was no longer at its noise floor (diagnose:
+//! `unexplained` instead of `none`), four `diagnose_cli` tests and the withheld-effect bench
+//! (6 of its model-exact cases named an effect) failed. With an encoder's 9.6 µrad quantisation
+//! in place of the noise the loop's log was diagnosed `none` (0.044 N·m rms per tick). So the
+//! loop would change what these plants mean, not only the numbers; a plant that wants the
+//! board's loop is a closed-loop experiment.
 
 use std::collections::VecDeque;
 
