@@ -96,7 +96,7 @@ echo "== full step, instructions (trunk joint + inertia/offset + spring, assist 
 printf '| %-40s | %8s | %11s | %20s | %11s |\n' "" "M4F f32" "M4F Q16.16" "M0+ soft-float f32" "M0+ Q16.16"
 printf '|%s|%s|%s|%s|%s|\n' "------------------------------------------" "----------" "-------------" "----------------------" "-------------"
 for row in "full step" "full step + Dahl state (walk)" "full step + 2-D table, fused" \
-    "full step, arm: series + residual table"; do
+    "full step, arm: series + residual table" "full step + load friction"; do
     printf '| %-40s | %8s | %11s | %20s | %11s |\n' "${row/ (walk)/}" \
         "$(full m4f "f32 $row")" "$(full m4f "Q16.16 $row")" "$(full m0 "f32 $row")" "$(full m0 "Q16.16 $row")"
 done

@@ -1133,5 +1133,8 @@ pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
     if has(P::DryFrictionC) && !has(P::FrictionC) {
         push(Col::Sgn, v(P::DryFrictionC));
     }
+    if has(P::LoadFrictionMu) {
+        push(Col::LoadSgn, v(P::LoadFrictionMu));
+    }
     Base { cols, beta0 }
 }

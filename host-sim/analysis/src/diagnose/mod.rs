@@ -542,7 +542,9 @@ fn torque_mode(
         ws: model.value(ParamId::WeightS),
         wsin: Vec::new(),
         wcos: Vec::new(),
-        load: Vec::new(),
+        // the joint's own load (its load cell), what a model's load-dependent friction reads in
+        // the prediction: the fixed rest below takes that term off with it
+        load: tau.iter().map(|t| t.abs()).collect(),
         qdd_noise_var: prep.qdd_noise_var(),
         q_noise_var: prep.report.q_noise_sd.powi(2),
         qd_noise_var: prep.qd_err.iter().map(|e| e * e).sum::<f64>() / prep.qd_err.len().max(1) as f64,
@@ -877,6 +879,12 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
         let c = Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) };
         if let Some(kc) = coef(s, c) {
             put("cable_spring", "k", kc);
+        }
+    }
+    // in the base whenever the file states it (0 included), so refitted whenever it is there
+    if model.explicit(ParamId::LoadFrictionMu).is_some() {
+        if let Some(mu) = coef(s, Col::LoadSgn) {
+            put("load_dependent_friction", "mu", mu);
         }
     }
     let ws = v(ParamId::WeightS);

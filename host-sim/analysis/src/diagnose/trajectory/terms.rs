@@ -115,6 +115,13 @@ impl Kind {
     }
 }
 
+/// A model term trajectory mode fits: J only with a known input (a free response scales with
+/// D/J), and never a load-dependent friction, which a log without a measured load cannot move
+/// (the joint's term is 0 there).
+pub fn kept(c: Col, driven: bool) -> bool {
+    (driven || c != Col::Qdd) && c != Col::LoadSgn
+}
+
 /// The model's terms as the fits see them, and what bounds the effects' shapes.
 #[derive(Clone, Debug)]
 pub struct Layout {
@@ -148,7 +155,7 @@ impl Layout {
     pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64, driven: bool) -> Layout {
         let base = base_from_model(model);
         let (cols, mut beta0): (Vec<Col>, Vec<f64>) =
-            base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
+            base.cols.iter().zip(&base.beta0).filter(|(c, _)| kept(**c, driven)).map(|(c, b)| (*c, *b)).unzip();
         let v = |id| model.value(id);
         let weight_s = free_weight_s(&cols);
         beta0.extend(weight_s);
