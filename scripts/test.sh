@@ -30,7 +30,8 @@ echo "== firmware on QEMU (mps2-an386, Cortex-M4F)"
 bash scripts/qemu-test.sh m4f
 echo "== firmware on QEMU (mps2-an385: the M0+ instruction set without FPU; f32 soft-float and Q16.16)"
 bash scripts/qemu-test.sh m0
-echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400 on the M4F, Q16.16 ≤ 2500 on the M0+)"
+echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400 on the M4F, Q16.16 ≤ 2500 on the M0+; no row above scripts/fw-bench-baseline.txt)"
+bash scripts/fw-bench.sh --self-test
 bash scripts/fw-bench.sh
 echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
 cargo clippy -q -p joint-core --lib -- -D warnings

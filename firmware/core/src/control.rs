@@ -70,6 +70,9 @@ pub struct Input {
     pub others: [f32; 3],
     /// extra support torque from the host, N·m at the output
     pub assist_cmd: f32,
+    /// the load the joint transmits as its load cell measures it, N·m at the output (0 without
+    /// one); only the load-dependent friction reads it
+    pub tau_load: f32,
 }
 
 /// Result of one step.
@@ -121,15 +124,16 @@ pub fn gravity(p: &ParamSet, q: f32, others: &[f32; 3]) -> f32 {
 }
 
 /// The modelled disturbance `C_c` (trunk paper eq. 7, with spring and table terms): the torque
-/// the joint's own mechanics take at this state. In torque-mode logs this is `u − tau`.
-/// Stateless: with presliding on, the Coulomb terms are `c·sign(q̇)` with the Dahl level c
-/// (`friction.c + dry_friction.c`), the value the Dahl state reaches after a travel well beyond
-/// `c/σ`; the controller uses [`disturbance_stateful`].
+/// the joint's own mechanics take at this state, `load` the measured load (N·m; a
+/// load-dependent friction grows with it). In torque-mode logs this is `u − tau`, and `load`
+/// is `tau`. Stateless: with presliding on, the Coulomb terms are `c·sign(q̇)` with the Dahl
+/// level c (`friction.c + dry_friction.c`), the value the Dahl state reaches after a travel
+/// well beyond `c/σ`; the controller uses [`disturbance_stateful`].
 #[inline]
-pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
+pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], load: f32) -> f32 {
     let t = p.terms();
     let c = if t.presliding.on { t.presliding.c } else { t.friction.c };
-    with_coulomb(p, q, qd, qdd, others, c * math::sign_smooth(qd, t.friction.v_band))
+    with_coulomb(p, q, qd, qdd, others, load, c * math::sign_smooth(qd, t.friction.v_band))
 }
 
 /// The modelled disturbance with a Dahl friction state `f` (N·m) in place of the Coulomb
@@ -137,8 +141,8 @@ pub fn disturbance(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -
 /// presliding is on (`p`'s effect terms then hold no dry friction). `f` comes from a [`Dahl`]
 /// advanced to this sample.
 #[inline]
-pub fn disturbance_dahl(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], f: f32) -> f32 {
-    with_coulomb(p, q, qd, qdd, others, f)
+pub fn disturbance_dahl(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], load: f32, f: f32) -> f32 {
+    with_coulomb(p, q, qd, qdd, others, load, f)
 }
 
 /// `C_c` exactly as [`Controller::step`] computes it: with presliding off [`disturbance`] (and
@@ -146,27 +150,35 @@ pub fn disturbance_dahl(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 
 /// samples of a log in order through one `Dahl` (from [`Dahl::new`]) and the numbers are the
 /// joint's, bit for bit; the state makes the prediction depend on every earlier sample.
 #[inline]
-pub fn disturbance_stateful(p: &ParamSet, dahl: &mut Dahl, q: f32, qd: f32, qdd: f32, others: &[f32; 3]) -> f32 {
+pub fn disturbance_stateful(
+    p: &ParamSet,
+    dahl: &mut Dahl,
+    q: f32,
+    qd: f32,
+    qdd: f32,
+    others: &[f32; 3],
+    load: f32,
+) -> f32 {
     let t = p.terms();
     // One branch when off (the full step's instruction budget has no room for more): only the
     // Coulomb torque differs between the two models.
     let coulomb =
         if t.presliding.on { dahl.update(p, q, qd) } else { t.friction.c * math::sign_smooth(qd, t.friction.v_band) };
-    with_coulomb(p, q, qd, qdd, others, coulomb)
+    with_coulomb(p, q, qd, qdd, others, load, coulomb)
 }
 
 /// `C_c` with the Coulomb torque `coulomb` (c·sign(q̇) or a Dahl state) given. `viscous +
 /// coulomb` is the friction polynomial's own association, so with `c·sign(q̇)` the bits are
 /// [`crate::model::Friction::torque`]'s.
 #[inline(always)]
-fn with_coulomb(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], coulomb: f32) -> f32 {
+fn with_coulomb(p: &ParamSet, q: f32, qd: f32, qdd: f32, others: &[f32; 3], load: f32, coulomb: f32) -> f32 {
     let t = p.terms();
     t.j * qdd
         + (t.friction.viscous(qd) + coulomb)
         + gravity(p, q, others)
         + t.c0
         + t.spring.torque(q, qd)
-        + t.extra_torque(q, qd)
+        + t.extra_torque(q, qd, load)
 }
 
 /// The Dahl friction state between samples: F and the angle it was advanced to.
@@ -299,6 +311,7 @@ impl Controller {
                     math::clamp(o2, -lim.q, lim.q),
                 ],
                 assist_cmd: math::clamp(inp.assist_cmd, -CMD_MAX, CMD_MAX),
+                tau_load: inp.tau_load,
             })
         } else {
             None
@@ -310,8 +323,8 @@ impl Controller {
                 self.integ = 0.0;
                 0.0
             }
-            Some(Input { q, qd, qdd, others, assist_cmd }) => {
-                let c_c = disturbance_stateful(p, &mut self.dahl, q, qd, qdd, &others);
+            Some(Input { q, qd, qdd, others, assist_cmd, tau_load }) => {
+                let c_c = disturbance_stateful(p, &mut self.dahl, q, qd, qdd, &others, tau_load);
                 out.c_c = c_c;
                 match mode {
                     Mode::Off => {
@@ -337,14 +350,19 @@ impl Controller {
                         } else {
                             t.friction.torque(v)
                         };
-                        let ff = fric + gravity(p, q, &others) + t.c0 + t.spring.torque(q, v) + t.extra_torque(q, v);
+                        let ff = fric
+                            + gravity(p, q, &others)
+                            + t.c0
+                            + t.spring.torque(q, v)
+                            + t.extra_torque(q, v, tau_load);
                         p.get(ParamId::VelKp) * err + self.integ + ff
                     }
                     Mode::Position(x) => {
                         self.integ = 0.0;
                         let x = if math::is_finite(x) { math::clamp(x, -INPUT_LIMITS.q, INPUT_LIMITS.q) } else { q };
                         let t = p.terms();
-                        let ff = gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0) + t.extra_torque(q, 0.0);
+                        let ff =
+                            gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0) + t.extra_torque(q, 0.0, tau_load);
                         p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
                     }
                 }

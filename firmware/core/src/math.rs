@@ -153,39 +153,50 @@ pub fn copysign(magnitude: f32, sign: f32) -> f32 {
     libm::copysignf(magnitude, sign)
 }
 
-/// `x` limited to `[lo, hi]`; NaN maps to `lo` so a bad sample can never pass through a limit.
-#[inline(always)]
-pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
-    if x >= lo {
-        if x <= hi {
-            x
-        } else {
-            hi
+/// Declares a limit and the smoothed sign for one float type: written once, so the f32 the
+/// joint runs and the f64 host tools evaluate the model with (the plant, the identification,
+/// the diagnosis) follow one rule, sign(0) = 0 included.
+macro_rules! limits_for {
+    ($t:ty, $clamp:ident, $sign_smooth:ident) => {
+        /// `x` limited to `[lo, hi]`; NaN maps to `lo` so a bad sample can never pass through a
+        /// limit.
+        #[inline(always)]
+        pub fn $clamp(x: $t, lo: $t, hi: $t) -> $t {
+            if x >= lo {
+                if x <= hi {
+                    x
+                } else {
+                    hi
+                }
+            } else {
+                lo
+            }
         }
-    } else {
-        lo
-    }
+
+        /// sign(v) smoothed linearly inside `|v| < band`, so a noisy zero velocity gives a small
+        /// torque instead of a full ±c chatter. Odd, monotonic, and exactly ±1 outside the band.
+        /// `band = 0` (or less) gives the hard sign with sign(0) = 0.
+        #[inline(always)]
+        pub fn $sign_smooth(v: $t, band: $t) -> $t {
+            if band > 0.0 {
+                $clamp(v / band, -1.0, 1.0)
+            } else if v > 0.0 {
+                1.0
+            } else if v < 0.0 {
+                -1.0
+            } else {
+                0.0
+            }
+        }
+    };
 }
+
+limits_for!(f32, clamp, sign_smooth);
+limits_for!(f64, clamp_f64, sign_smooth_f64);
 
 /// `true` for finite numbers (not NaN, not ±∞).
 #[inline(always)]
 pub fn is_finite(x: f32) -> bool {
     // core's is_finite is a bit test, identical on every target.
     x.is_finite()
-}
-
-/// sign(v) smoothed linearly inside `|v| < band`, so a noisy zero velocity gives a small torque
-/// instead of a full ±c chatter. Odd, monotonic, and exactly ±1 outside the band. `band = 0`
-/// gives the hard sign with sign(0) = 0.
-#[inline(always)]
-pub fn sign_smooth(v: f32, band: f32) -> f32 {
-    if band > 0.0 {
-        clamp(v / band, -1.0, 1.0)
-    } else if v > 0.0 {
-        1.0
-    } else if v < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
 }

@@ -19,9 +19,11 @@ pub struct InputLimits {
     pub q: f32,
     pub qd: f32,
     pub qdd: f32,
+    /// measured load torque, N·m (read only by the load-dependent friction, which limits it)
+    pub tau: f32,
 }
 
-pub const INPUT_LIMITS: InputLimits = InputLimits { q: 1.0e3, qd: 1.0e3, qdd: 1.0e6 };
+pub const INPUT_LIMITS: InputLimits = InputLimits { q: 1.0e3, qd: 1.0e3, qdd: 1.0e6, tau: 1.0e4 };
 
 /// Friction polynomial (trunk paper eq. 3). All coefficients are ≥ 0 (checked by the parameter
 /// table), so the torque is odd in q̇ and grows monotonically with |q̇|.
@@ -140,6 +142,10 @@ impl Spring {
 /// The rigid-body and transmission terms of the joint model, copied out of a validated
 /// parameter set so the control step reads plain fields.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+// 8-aligned, as the table's `Lut`: the parameter set in front of both grows by 4 bytes with
+// each appended parameter, and the soft-float step (M0+) measured 3 to 7 instructions apart
+// between the two alignments (scripts/fw-bench.sh); aligned, a new term no longer moves them.
+#[repr(align(8))]
 pub struct Terms {
     pub friction: Friction,
     pub weight: Weight,
@@ -148,19 +154,19 @@ pub struct Terms {
     pub j: f32,
     /// constant torque offset C_0, N·m
     pub c0: f32,
-    /// effect terms a diagnosis can add (Stribeck, asymmetric and dry friction, position
-    /// ripple, cable spring)
+    /// the effect terms of the vocabulary the joint compensates ([`Extra`])
     pub extra: Extra,
     /// the Dahl friction state's parameters (off unless `presliding.sigma > 0`)
     pub presliding: Presliding,
 }
 
 impl Terms {
-    /// Torque of the effect terms; 0 without any (one branch on the hot path).
+    /// Torque of the effect terms at (q, q̇) with the measured load `load` (N·m, the joint's
+    /// load cell); 0 without any (one branch on the hot path).
     #[inline]
-    pub fn extra_torque(&self, q: f32, qd: f32) -> f32 {
+    pub fn extra_torque(&self, q: f32, qd: f32, load: f32) -> f32 {
         if self.extra.any {
-            self.extra.torque(q, qd, math::sign_smooth(qd, self.friction.v_band))
+            self.extra.torque(q, qd, math::sign_smooth(qd, self.friction.v_band), load)
         } else {
             0.0
         }
@@ -174,11 +180,13 @@ impl Terms {
 /// - position ripple: `amplitude·sin(2π·q/period + phase) + amplitude_2·sin(4π·q/period + phase_2)`;
 /// - cable spring: 0 below `engage`, `k·x²/(2·width)` in the blend, `k·(x − width/2)` above,
 ///   `x = q − engage`;
-/// - dry friction: `c·sgn`.
+/// - dry friction: `c·sgn`;
+/// - load-dependent friction: `mu·|τ_load|·sgn`, τ_load the measured load ([`INPUT_LIMITS`]
+///   bounds it; a non-finite one counts as no load).
 ///
-/// Load-dependent friction, thermal drift, backlash and delay are not here: the first two need
-/// a measured load torque or temperature the loop does not have, the last two change the
-/// plant's structure rather than add a torque (see the README).
+/// Thermal drift, backlash and delay are not here: the first needs a temperature the loop does
+/// not have, the last two change the plant's structure rather than add a torque (see the
+/// README).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Extra {
     /// any term non-zero (dry friction counted only outside a Dahl state)
@@ -199,13 +207,17 @@ pub struct Extra {
     /// the dry friction level outside a Dahl state: `dry_friction.c`, or 0 with presliding on
     /// (the level has moved into [`Presliding::c`])
     pub dry_c: f32,
+    /// load-dependent friction: the share of the measured load that is friction
+    pub load_mu: f32,
 }
 
 impl Extra {
-    /// Sum of the terms, `sgn` the smoothed sign of q̇. Kept out of line: inlined, its
-    /// registers cost the common step (no effect terms) about ten instructions.
+    /// Sum of the terms, `sgn` the smoothed sign of q̇, `load` the measured load (N·m). Kept
+    /// out of line: inlined, its registers cost the common step (no effect terms) about ten
+    /// instructions.
     #[inline(never)]
-    pub fn torque(&self, q: f32, qd: f32, sgn: f32) -> f32 {
+    #[cold]
+    pub fn torque(&self, q: f32, qd: f32, sgn: f32, load: f32) -> f32 {
         let r = qd * self.stribeck_inv_speed;
         let stribeck = self.stribeck_level * math::exp(-(r * r)) * sgn;
         let asym = self.asym_delta * math::abs(sgn);
@@ -221,6 +233,8 @@ impl Extra {
         } else {
             self.cable_k * (x - 0.5 * self.cable_width)
         };
-        stribeck + asym + ripple + cable + self.dry_c * sgn
+        // |τ_load| within the input limit; NaN or ±∞ (a failed load cell) is no load
+        let load = if math::is_finite(load) { math::clamp(math::abs(load), 0.0, INPUT_LIMITS.tau) } else { 0.0 };
+        stribeck + asym + ripple + cable + self.dry_c * sgn + self.load_mu * load * sgn
     }
 }

@@ -156,6 +156,8 @@ param_table! {
        "second harmonic of the position ripple: amplitude_2·sin(4π·q/period + phase_2) (a wave generator's or a tooth's half-period)";
     RipplePhase2 = 39: "position_ripple_phase_2", "position_ripple", "phase_2", "rad", -10.0, 10.0, 0.0, false,
        "phase of the ripple's second harmonic";
+    LoadFrictionMu = 40: "load_dependent_friction_mu", "load_dependent_friction", "mu", "1", 0.0, 1.0, 0.0, false,
+       "friction growing with the transmitted torque: mu·|τ_load|·sign(q̇), τ_load the joint's measured load (its load cell; 0 without one)";
 }
 
 impl ParamId {
@@ -439,7 +441,8 @@ fn terms_of(raw: &RawParams) -> Terms {
                 || g(ParamId::RippleAmplitude) != 0.0
                 || g(ParamId::RippleAmplitude2) != 0.0
                 || g(ParamId::CableK) != 0.0
-                || dry_c != 0.0,
+                || dry_c != 0.0
+                || g(ParamId::LoadFrictionMu) != 0.0,
             stribeck_level: g(ParamId::StribeckLevel),
             stribeck_inv_speed: 1.0 / g(ParamId::StribeckSpeed),
             asym_delta: g(ParamId::AsymmetricDelta),
@@ -452,6 +455,7 @@ fn terms_of(raw: &RawParams) -> Terms {
             cable_engage: g(ParamId::CableEngage),
             cable_width: g(ParamId::CableWidth),
             dry_c,
+            load_mu: g(ParamId::LoadFrictionMu),
         },
         presliding: Presliding::new(g(ParamId::PreslidingSigma), g(ParamId::FrictionC) + g(ParamId::DryFrictionC)),
     }

@@ -293,6 +293,8 @@ pub fn fuse(tau_model: f32, sigma_model: f32, tau_data: f32, sigma_data: f32, k:
 /// Per-table values precomputed at parameter check time so the control step's interpolation
 /// needs no search on uniform grids, no division, and one pass for torque and σ together.
 #[derive(Clone, Debug, PartialEq)]
+// 8-aligned (see `model::Terms`): a parameter appended to the table does not move it.
+#[repr(align(8))]
 pub struct Lut {
     n: u8,
     /// copied from the table: its data is the residual of the analytic model

@@ -219,6 +219,16 @@ pub fn presliding_sigma_out_of_range() -> RawParams {
     p
 }
 
+/// [`trunk_spring`] with load-dependent friction (`mu·|τ_load|·sign(q̇)`, the joint's load cell
+/// as the load) and a Stribeck dip beside it, so the effect terms' sum is exercised too.
+pub fn trunk_load_friction() -> RawParams {
+    let mut p = trunk_spring();
+    p.set(ParamId::LoadFrictionMu, 0.08);
+    p.set(ParamId::StribeckLevel, 0.6);
+    p.set(ParamId::StribeckSpeed, 0.05);
+    p
+}
+
 /// Parameter sets the core must refuse, each with a name for messages.
 pub fn rejected_sets() -> [(&'static str, RawParams); 4] {
     let mut nan = trunk_right();
@@ -402,6 +412,7 @@ pub fn random_input(rng: &mut XorShift32) -> (Mode, Input) {
         qdd: rng.uniform(-20.0, 20.0),
         others: [rng.uniform(-1.2, 2.2), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)],
         assist_cmd: rng.uniform(-5.0, 5.0),
+        tau_load: 0.0,
     };
     match rng.next_u32() % 32 {
         0 => inp.qd = 0.0,
@@ -490,6 +501,22 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
         }
     }
 
+    /// Random steps with a measured load: the load cell's working range, a load at rest, and
+    /// the values a failed load cell gives (non-finite: no load; beyond the input limit).
+    fn load_steps(&mut self, n: u32) {
+        for _ in 0..n {
+            let (mode, mut inp) = random_input(&mut self.rng);
+            inp.tau_load = match self.rng.next_u32() % 16 {
+                0 => 0.0,
+                1 => f32::NAN,
+                2 => f32::NEG_INFINITY,
+                3 => 3.0e4,
+                _ => self.rng.uniform(-60.0, 60.0),
+            };
+            self.step(mode, &inp);
+        }
+    }
+
     /// Encoder-like positions (a slow swing plus quantisation-sized noise) differentiated
     /// twice by the core's filter, as the firmware's loop does.
     fn differentiated_steps(&mut self, n: u32) {
@@ -505,7 +532,8 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
             let q = 0.9 + 0.8 * math::sin(2.0 * core::f32::consts::PI * 0.7 * t) + self.rng.uniform(-2.0e-4, 2.0e-4);
             let qd = dq.update(q, dt, vel_cutoff);
             let qdd = dqd.update(qd, dt, accel_cutoff);
-            let inp = Input { q, qd, qdd, others: [self.rng.uniform(-1.0, 2.0), 0.0, 0.0], assist_cmd: 0.0 };
+            let others = [self.rng.uniform(-1.0, 2.0), 0.0, 0.0];
+            let inp = Input { q, qd, qdd, others, ..Input::default() };
             self.step(Mode::Assist, &inp);
         }
     }
@@ -514,7 +542,7 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
     fn path(&mut self, n: u32, mode: Mode, q: impl Fn(f32) -> f32, qd: impl Fn(f32) -> f32) {
         for i in 0..n {
             let x = i as f32;
-            let inp = Input { q: q(x), qd: qd(x), qdd: 0.0, others: [0.4, 0.0, 0.0], assist_cmd: 0.0 };
+            let inp = Input { q: q(x), qd: qd(x), others: [0.4, 0.0, 0.0], ..Input::default() };
             self.step(mode, &inp);
         }
     }
@@ -540,7 +568,7 @@ impl<F: FnMut(&Record)> Runner<'_, F> {
         let big = [1.5, -0.2, -0.2, 2.1, 1.0e4, 2.1, f32::NAN, 2.0999, 2.1001, -1.0e4, 0.3];
         for (k, &q) in big.iter().enumerate() {
             let qd = if k == 4 { f32::INFINITY } else { 0.0 };
-            self.step(Mode::Assist, &Input { q, qd, qdd: 0.0, others: [0.4, 0.0, 0.0], assist_cmd: 0.0 });
+            self.step(Mode::Assist, &Input { q, qd, others: [0.4, 0.0, 0.0], ..Input::default() });
         }
         self.random_steps(STEPS_PER_PHASE / 2);
     }
@@ -603,6 +631,10 @@ pub fn session<F: FnMut(&Record)>(sink: &mut F) -> Summary {
     r.presliding_steps();
     r.offer(&presliding_sigma_out_of_range(), false);
     r.path(32, Mode::Assist, |i| 0.3 + 1.0e-3 * math::sin(0.4 * i), |i| 0.4 * math::cos(0.4 * i));
+    // Load-dependent friction on the load cell's reading (appended: the phases above keep their
+    // random draws).
+    r.offer(&trunk_load_friction(), true);
+    r.load_steps(STEPS_PER_PHASE);
     r.summary
 }
 
@@ -656,12 +688,12 @@ mod tests {
     #[test]
     fn session_facts() {
         let s = session(&mut |_| {});
-        assert_eq!(s.accepted, 5);
+        assert_eq!(s.accepted, 6);
         assert_eq!(s.rejected, 7);
         assert_eq!(s.rejected_but_changed, 0);
         assert_eq!(s.unexpected_results, 0);
         assert_eq!(s.unsafe_outputs, 0);
-        assert_eq!(s.records, 2 * s.steps + 12);
+        assert_eq!(s.records, 2 * s.steps + 13);
     }
 
     #[test]

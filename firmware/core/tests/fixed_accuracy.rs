@@ -253,7 +253,7 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
                 };
                 let sgn = if qd > 0.0 { Fx::ONE } else { -Fx::ONE };
                 let x = h(qd) / speed as f64;
-                (extra_fx(&e, Fx::ZERO, fx(qd), sgn), h(level) * (-(x * x)).exp() * h(qd).signum())
+                (extra_fx(&e, Fx::ZERO, fx(qd), sgn, 0.0), h(level) * (-(x * x)).exp() * h(qd).signum())
             },
         ),
         measure(
@@ -271,7 +271,7 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
                     ripple_phase: fx(phase),
                     ..ExtraFx::default()
                 };
-                (extra_fx(&e, fx(q), Fx::ZERO, Fx::ZERO), h(amp) * (k as f64 * h(q) + h(phase)).sin())
+                (extra_fx(&e, fx(q), Fx::ZERO, Fx::ZERO, 0.0), h(amp) * (k as f64 * h(q) + h(phase)).sin())
             },
         ),
         measure(
@@ -298,7 +298,22 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
                 } else {
                     h(k) * (x - wd / 2.0)
                 };
-                (extra_fx(&e, fx(q), Fx::ZERO, Fx::ZERO), exact)
+                (extra_fx(&e, fx(q), Fx::ZERO, Fx::ZERO, 0.0), exact)
+            },
+        ),
+        measure(
+            "load friction mu·|τ_load|·sign",
+            "mu ∈ [0, 1]",
+            "τ_load ∈ ±1e4 N·m, sign ±1 or in the band",
+            |r, h| {
+                let (mu, load) = (draw(r, 1.0, false), draw(r, 1e4, true));
+                let sgn = match r.next_u32() % 3 {
+                    0 => 1.0f32,
+                    1 => -1.0,
+                    _ => draw(r, 1.0, true),
+                };
+                let e = ExtraFx { any: true, load_mu: fx(mu), ..ExtraFx::default() };
+                (extra_fx(&e, Fx::ZERO, Fx::ZERO, fx(sgn), load), h(mu) * h(load).abs() * h(sgn))
             },
         ),
         measure("1/(N − 1) (motor command)", "N ∈ [1.01, 1e4]", "τ ∈ ±1e4 N·m", |r, h| {

@@ -105,10 +105,12 @@ fn the_q16_step_follows_the_f32_step_in_every_mode() {
         (ParamId::CableEngage, 0.4),
         (ParamId::CableWidth, 0.1),
         (ParamId::DryFrictionC, 0.5),
+        (ParamId::LoadFrictionMu, 0.08),
     ] {
         fx_effects.set(id, v);
     }
     sets.push(("effect terms", fx_effects));
+    sets.push(("load friction", vectors::trunk_load_friction()));
     let modes = [Mode::Assist, Mode::Velocity(0.8), Mode::Position(0.6), Mode::Off];
     println!("{:<20} {:<14} {:>12} {:>12}", "set", "mode", "worst |Δτ|", "worst |ΔC_c|");
     for (name, raw) in sets {
@@ -133,6 +135,7 @@ fn the_q16_step_follows_the_f32_step_in_every_mode() {
                     qdd: r(rng.uniform(-20.0, 20.0)),
                     others: [r(rng.uniform(-1.2, 2.2)), r(rng.uniform(-1.0, 1.0)), r(rng.uniform(-1.0, 1.0))],
                     assist_cmd: r(rng.uniform(-1.0, 1.0)),
+                    tau_load: r(rng.uniform(-40.0, 40.0)),
                 };
                 let a = c.step(&p, mode, &inp, 1e-3);
                 let b = x.step(&p, mode, &inp, 1e-3);

@@ -37,7 +37,7 @@ fn check_rows(t: &Table1, rows: &[(f64, f64, f64, f64, f64, f64)]) {
         let terms = p.terms();
         close(terms.friction.torque(qd), fric, 2e-4 * fric.abs().max(1.0), "friction");
         close(terms.weight.torque(q), w, 2e-5 * 3.0, "weight");
-        close(disturbance(&p, q, qd, acc as f32, &[0.0; 3]), cc, 3e-4 * cc.abs().max(1.0), "C_c");
+        close(disturbance(&p, q, qd, acc as f32, &[0.0; 3], 0.0), cc, 3e-4 * cc.abs().max(1.0), "C_c");
     }
 }
 
@@ -95,7 +95,7 @@ fn elastic_joint_spring_damper() {
     raw.set(ParamId::InertiaJ, 0.0085);
     let p = check(&raw).unwrap();
     close(p.terms().spring.torque(0.3, -0.5), 2.17025, 1e-5, "spring");
-    close(disturbance(&p, 0.3, -0.5, 4.0, &[0.0; 3]), 2.20425, 1e-5, "J·q̈ + spring");
+    close(disturbance(&p, 0.3, -0.5, 4.0, &[0.0; 3], 0.0), 2.20425, 1e-5, "J·q̈ + spring");
 }
 
 #[test]
@@ -114,6 +114,6 @@ fn rate_limit_bounds_each_step() {
         prev = out.tau_out;
     }
     // After 100 ms it has reached the (unlimited by torque) target.
-    let cc = disturbance(&p, 1.0, 1.0, 0.0, &[0.0; 3]);
+    let cc = disturbance(&p, 1.0, 1.0, 0.0, &[0.0; 3], 0.0);
     assert!((prev - cc).abs() < 1e-3, "{prev} vs {cc}");
 }

@@ -58,6 +58,29 @@ fn sign_smooth_and_clamp_edge_cases() {
     assert!(math::sin(1e30).is_finite() && math::sin(f32::MAX).is_finite());
 }
 
+/// The host's f64 sign (plant, identification, diagnosis) is the joint's rule: on f32 inputs it
+/// gives the f32 result rounded once (an f64 quotient of two f32 values rounds to the correctly
+/// rounded f32 quotient), sign(0) = 0 with and without a band, NaN to −1.
+#[test]
+fn the_f64_sign_is_the_f32_rule() {
+    let mut rng = joint_core::vectors::XorShift32::new(17);
+    for i in 0..200_000 {
+        let v = rng.uniform(-0.05, 0.05) * if i % 3 == 0 { 100.0 } else { 1.0 };
+        let band = match i % 4 {
+            0 => 0.0,
+            1 => -0.01,
+            _ => rng.uniform(1.0e-4, 0.05),
+        };
+        let want = math::sign_smooth(v, band);
+        let got = math::sign_smooth_f64(f64::from(v), f64::from(band)) as f32;
+        assert_eq!(got.to_bits(), want.to_bits(), "v {v}, band {band}");
+    }
+    assert_eq!(math::sign_smooth_f64(0.0, 0.0), 0.0);
+    assert_eq!(math::sign_smooth_f64(-0.0, 0.01), 0.0);
+    assert_eq!(math::sign_smooth_f64(f64::NAN, 0.01), -1.0);
+    assert_eq!(math::clamp_f64(f64::NAN, -1.0, 1.0), -1.0);
+}
+
 /// Beyond |x| ≈ 3.4e9 rad the quadrant count saturates; sin/cos then reduce modulo f32 2π
 /// (`fmodf`, exact) instead of linking libm's large-argument sinf/cosf (4.3 KiB of flash):
 /// finite, bounded, a consistent sin/cos pair, and the same as the wrapped argument gives.

@@ -104,8 +104,8 @@ proptest! {
         raw.set(ParamId::StribeckLevel, 0.5);
         let p = check(&raw).unwrap();
         let mut d = Dahl::new();
-        let a = disturbance_stateful(&p, &mut d, q, qd, qdd, &[o, 0.0, 0.0]);
-        let b = disturbance(&p, q, qd, qdd, &[o, 0.0, 0.0]);
+        let a = disturbance_stateful(&p, &mut d, q, qd, qdd, &[o, 0.0, 0.0], 0.0);
+        let b = disturbance(&p, q, qd, qdd, &[o, 0.0, 0.0], 0.0);
         prop_assert_eq!(a.to_bits(), b.to_bits());
         prop_assert_eq!(d, Dahl::new());
     }
@@ -143,11 +143,11 @@ fn dry_friction_joins_the_dahl_level() {
     let mut d = Dahl::new();
     let mut last = 0.0;
     for i in 0..200 {
-        last = disturbance_stateful(&on, &mut d, 0.01 * i as f32, 0.5, 0.0, &[0.0; 3]);
+        last = disturbance_stateful(&on, &mut d, 0.01 * i as f32, 0.5, 0.0, &[0.0; 3], 0.0);
     }
     assert_eq!(d.force(), 0.75);
-    assert_eq!(last.to_bits(), disturbance(&on, 1.99, 0.5, 0.0, &[0.0; 3]).to_bits());
-    assert_eq!(disturbance(&on, 1.99, 0.5, 0.0, &[0.0; 3]), disturbance(&off, 1.99, 0.5, 0.0, &[0.0; 3]));
+    assert_eq!(last.to_bits(), disturbance(&on, 1.99, 0.5, 0.0, &[0.0; 3], 0.0).to_bits());
+    assert_eq!(disturbance(&on, 1.99, 0.5, 0.0, &[0.0; 3], 0.0), disturbance(&off, 1.99, 0.5, 0.0, &[0.0; 3], 0.0));
 }
 
 #[test]
@@ -187,9 +187,9 @@ fn controller_runs_the_state_the_host_helper_computes() {
         if i % 50 == 10 {
             ctl.reset();
         }
-        let out = ctl.step(&p, mode, &Input { q, qd, qdd: 0.0, others: [0.0; 3], assist_cmd: 0.0 }, 1e-3);
+        let out = ctl.step(&p, mode, &Input { q, qd, qdd: 0.0, others: [0.0; 3], ..Input::default() }, 1e-3);
         assert_eq!(ctl.presliding().force().to_bits(), f.to_bits(), "sample {i}");
-        assert_eq!(out.c_c.to_bits(), disturbance_dahl(&p, q, qd, 0.0, &[0.0; 3], f).to_bits(), "sample {i}");
+        assert_eq!(out.c_c.to_bits(), disturbance_dahl(&p, q, qd, 0.0, &[0.0; 3], 0.0, f).to_bits(), "sample {i}");
     }
     // A bad sample leaves the state; a new parameter set starts it afresh.
     let before = *ctl.presliding();
@@ -212,7 +212,7 @@ fn velocity_feed_forward_uses_the_state() {
     let mut sign_raw = raw.clone();
     sign_raw.set(ParamId::PreslidingSigma, 0.0);
     let s = check(&sign_raw).unwrap();
-    let inp = |q: f32| Input { q, qd: 0.2, qdd: 0.0, others: [0.0; 3], assist_cmd: 0.0 };
+    let inp = |q: f32| Input { q, qd: 0.2, qdd: 0.0, others: [0.0; 3], ..Input::default() };
     let mut ctl = Controller::new();
     ctl.step(&p, Mode::Off, &inp(0.5), 1e-3);
     ctl.step(&p, Mode::Off, &inp(0.4), 1e-3); // 100 mrad backward: F = −c

@@ -4,6 +4,7 @@
 mod common;
 use common::*;
 use joint_core::control::{disturbance, Controller, Input, Mode};
+use joint_core::fixed::ControllerFx;
 use joint_core::params::{check, ActiveParams, ParamError, ParamId, RawParams, PARAMS, PARAM_COUNT};
 use joint_core::table::{fuse, interpolate, validate, RawTable, AXES_MAX, CELLS_MAX};
 use proptest::prelude::*;
@@ -83,11 +84,12 @@ proptest! {
     fn step_output_is_finite_and_limited_for_any_finite_input(
         raw in valid_raw(), q in any_finite(), qd in any_finite(), qdd in any_finite(),
         o in any_finite(), cmd in any_finite(), dt in any_finite(), mode in 0u8..4, target in any_finite(),
+        load in any_finite(),
     ) {
         let p = check(&raw).unwrap();
         let mode = match mode { 0 => Mode::Off, 1 => Mode::Assist, 2 => Mode::Velocity(target), _ => Mode::Position(target) };
         let mut c = Controller::new();
-        let inp = Input { q, qd, qdd, others: [o, -o, o], assist_cmd: cmd };
+        let inp = Input { q, qd, qdd, others: [o, -o, o], assist_cmd: cmd, tau_load: load };
         for _ in 0..3 {
             let out = c.step(&p, mode, &inp, dt);
             prop_assert!(out.tau_out.is_finite() && out.u_motor.is_finite() && out.c_c.is_finite(), "{out:?}");
@@ -98,12 +100,30 @@ proptest! {
     #[test]
     fn non_finite_input_drives_zero(raw in valid_raw(), bad in prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)], which in 0usize..4) {
         let p = check(&raw).unwrap();
-        let mut inp = Input { q: 0.5, qd: 0.1, qdd: 0.0, others: [0.0; 3], assist_cmd: 0.0 };
+        let mut inp = Input { q: 0.5, qd: 0.1, others: [0.0; 3], ..Input::default() };
         match which { 0 => inp.q = bad, 1 => inp.qd = bad, 2 => inp.qdd = bad, _ => inp.others[1] = bad }
         let mut c = Controller::new();
         let out = c.step(&p, Mode::Assist, &inp, 1e-3);
         prop_assert!(out.bad_input);
         prop_assert_eq!(out.tau_out, 0.0);
+    }
+
+    /// A failed load cell (a non-finite load) is no load: the step runs on, with the load
+    /// friction at 0, in both arithmetics; a load past the input limit counts as the limit.
+    #[test]
+    fn a_non_finite_load_is_no_load(raw in valid_raw(), mu in 0.0f32..=1.0, bad in prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)]) {
+        let mut raw = raw;
+        raw.set(ParamId::LoadFrictionMu, mu);
+        let p = check(&raw).unwrap();
+        let at = |load: f32| Input { q: 0.5, qd: 0.3, others: [0.0; 3], tau_load: load, ..Input::default() };
+        let (mut a, mut b) = (Controller::new(), Controller::new());
+        let bad_out = a.step(&p, Mode::Assist, &at(bad), 1e-3);
+        prop_assert!(!bad_out.bad_input);
+        prop_assert_eq!(bad_out, b.step(&p, Mode::Assist, &at(0.0), 1e-3));
+        let (mut a, mut b) = (ControllerFx::new(&p), ControllerFx::new(&p));
+        prop_assert_eq!(a.step(&p, Mode::Assist, &at(bad), 1e-3), b.step(&p, Mode::Assist, &at(0.0), 1e-3));
+        let t = p.terms();
+        prop_assert_eq!(t.extra_torque(0.5, 0.3, 3.0e4), t.extra_torque(0.5, 0.3, 1.0e4));
     }
 
     #[test]
@@ -209,7 +229,7 @@ fn fusion_needs_sigma_and_a_table() {
     let w = p.terms().weight.torque(0.5);
     let g = joint_core::control::gravity(&p, 0.5, &[0.5, 0.0, 0.0]);
     assert!((g - w).abs() <= 0.3 + 1e-5, "{g} vs {w}");
-    let plain = disturbance(&p, 0.5, 0.0, 0.0, &[0.5, 0.0, 0.0]);
+    let plain = disturbance(&p, 0.5, 0.0, 0.0, &[0.5, 0.0, 0.0], 0.0);
     assert!(plain.is_finite());
 }
 
@@ -325,8 +345,8 @@ fn ripple_second_harmonic_is_the_documented_term() {
         let q = -1.0 + i as f32 * 1e-3;
         let one = 0.2 * (tau * f64::from(q) / 0.05 + 0.3).sin();
         let two = one + 0.1 * (2.0 * tau * f64::from(q) / 0.05 - 1.0).sin();
-        let a = f64::from(with.terms().extra.torque(q, 0.0, 0.0));
-        let b = f64::from(without.terms().extra.torque(q, 0.0, 0.0));
+        let a = f64::from(with.terms().extra.torque(q, 0.0, 0.0, 0.0));
+        let b = f64::from(without.terms().extra.torque(q, 0.0, 0.0, 0.0));
         worst = worst.max((a - two).abs()).max((b - one).abs());
     }
     // f32 phase of 2π·q/period at |q| ≤ 1 rad (≈ 250 rad of phase): a few 1e-5 of rounding

@@ -10,6 +10,9 @@
 //! |q̈| ≤ 1e6 rad/s², which the controller clamps to). A prediction on a slice of a log starts
 //! its own state at the slice's first sample, so it can differ from the same samples' prediction
 //! on the whole log for the first pre-sliding distance of travel.
+//!
+//! The measured load a load-dependent friction grows with is the log's `tau` (the load cell
+//! the joint reads): 0 where the log has no `tau`, as on a joint without one.
 
 use joint_core::control::{self, Dahl};
 use joint_core::params::ParamSet;
@@ -32,8 +35,9 @@ pub fn predicted(log: &JointLog, p: &ParamSet, other_columns: &[String]) -> Opti
                 let q = log.q.get(i).copied().unwrap_or(0.0) as f32;
                 let v = qd.get(i).copied().unwrap_or(0.0) as f32;
                 let a = qdd.get(i).copied().unwrap_or(0.0) as f32;
+                let load = log.tau.as_ref().and_then(|t| t.get(i)).copied().unwrap_or(0.0) as f32;
                 // Presliding off: the stateless `control::disturbance`, bit for bit.
-                f64::from(control::disturbance_stateful(p, &mut dahl, q, v, a, &o))
+                f64::from(control::disturbance_stateful(p, &mut dahl, q, v, a, &o, load))
             })
             .collect(),
     )

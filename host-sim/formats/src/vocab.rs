@@ -63,8 +63,7 @@ vocabulary! {
     AsymmetricFriction => "asymmetric_friction", Some("asymmetric_friction"),
         "friction level depends on the direction of motion", None;
     LoadDependentFriction => "load_dependent_friction", Some("load_dependent_friction"),
-        "friction grows with the transmitted torque",
-        Some("the friction grows with the transmitted torque; the joint has no measurement of that load in its control step (the only torque it knows is its own command, and feeding that back is an algebraic loop), so there is no term");
+        "friction grows with the transmitted torque", None;
     ThermalDrift => "thermal_drift", Some("thermal_drift"),
         "friction changes with temperature (or, without `temp`, over time)",
         Some("the friction scale follows the temperature; the control step gets no temperature input, and a time-based guess would be wrong after every pause");
@@ -149,6 +148,7 @@ mod tests {
             [
                 "stribeck",
                 "asymmetric_friction",
+                "load_dependent_friction",
                 "position_ripple",
                 "cable_spring",
                 "dry_friction",

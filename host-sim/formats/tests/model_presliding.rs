@@ -152,6 +152,7 @@ fn prediction_is_the_controllers_disturbance_to_the_bit() {
             qdd: log.qdd.as_ref().unwrap()[i] as f32,
             others: [0.0; 3],
             assist_cmd: 0.0,
+            tau_load: log.tau.as_ref().map_or(0.0, |t| t[i] as f32),
         };
         let out = ctl.step(&p, Mode::Off, &inp, 1e-3);
         assert_eq!(out.c_c.to_bits(), (pred[i] as f32).to_bits(), "sample {i}");
@@ -167,6 +168,7 @@ fn prediction_is_the_controllers_disturbance_to_the_bit() {
                 log.qd.as_ref().unwrap()[i] as f32,
                 log.qdd.as_ref().unwrap()[i] as f32,
                 &[0.0; 3],
+                0.0,
             );
             (f64::from(s) - pred[i]).abs()
         })
@@ -182,7 +184,7 @@ fn without_presliding_the_prediction_is_the_stateless_model() {
     let pred = predict::predicted(&log, &p, &[]).unwrap();
     for (i, &v) in pred.iter().enumerate() {
         let (q, qd, qdd) = (log.q[i] as f32, log.qd.as_ref().unwrap()[i] as f32, log.qdd.as_ref().unwrap()[i] as f32);
-        assert_eq!(v, f64::from(control::disturbance(&p, q, qd, qdd, &[0.0; 3])), "sample {i}");
+        assert_eq!(v, f64::from(control::disturbance(&p, q, qd, qdd, &[0.0; 3], 0.0)), "sample {i}");
     }
     assert!(predict::presliding_force(&log, &p).unwrap().iter().all(|&f| f == 0.0));
     // Defaults are off.

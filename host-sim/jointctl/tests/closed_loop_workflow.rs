@@ -67,16 +67,19 @@ fn position_ripple_found_but_short_of_60_percent() {
     assert!(o.after.tracking_rmse_mean <= o.before.tracking_rmse_mean);
 }
 
-/// An emitted model that needs a term the firmware lacks is not pushed (its refit depends on
-/// that term); the effect is named and the old model keeps running.
+/// Load-dependent friction is a term the joint runs on its load cell: the emitted model holds
+/// it and is pushed, nothing is dropped, and the joint's model error falls.
 #[test]
-fn load_dependent_friction_is_not_pushed() {
+fn load_dependent_friction_is_pushed() {
     let plant = PlantFile::read_file(&root().join("examples/plants/trunk-right-load-dependent-friction.toml")).unwrap();
     let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
     let cfg = LoopConfig { fraction: Some(0.7), trials: 2, seconds: 8.0, seed: 1, ..LoopConfig::default() };
     let o = run_workflow(&plant, &model, &cfg, ("ldf", "trunk-right")).unwrap();
+    eprintln!("emitted\n{}\nbefore {:?}\nafter {:?}", o.emitted_model, o.before, o.after);
     assert!(o.emitted_model.contains("[load_dependent_friction]"), "{}", o.emitted_model);
-    assert_eq!(o.dropped_effects, vec!["load_dependent_friction".to_string()]);
-    assert!(o.pushed_effects.is_empty() && !o.pushed);
-    assert_eq!(o.pushed_model, model);
+    assert!(o.dropped_effects.is_empty() && o.pushed, "{:?}", o.dropped_effects);
+    assert!(o.pushed_effects.iter().any(|e| e == "load_dependent_friction"), "{:?}", o.pushed_effects);
+    assert!(o.pushed_model.explicit(joint_core::params::ParamId::LoadFrictionMu).is_some_and(|mu| mu > 0.0));
+    assert!(o.before.stable && o.after.stable);
+    assert!(o.model_error_ratio < 0.9, "{:?} → {:?}", o.before, o.after);
 }

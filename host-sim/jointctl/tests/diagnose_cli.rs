@@ -9,6 +9,7 @@ use std::process::Command;
 use host_sim::plant::PlantFile;
 use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
+use joint_core::params::ParamId;
 use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
 
@@ -54,6 +55,38 @@ fn run_json(log: &Path, model: &Path, extra: &[&str]) -> serde_json::Value {
     let o = jointctl(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+/// A model's own `[load_dependent_friction]` (a term the joint runs on its load cell): missing
+/// from the model it is the verdict, and the emitted model holds it as a model section (a file
+/// the model parser, and so `jointctl push`, takes); stated at the joint's value the log is
+/// `none`; stated wrong, or as 0, it is refitted as the model's other terms are (`parameters`).
+#[test]
+fn load_dependent_friction_is_a_term_of_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, model) = torque_case(dir.path(), "[load_dependent_friction]\nmu = 0.1\n", 20.0);
+    let em = dir.path().join("fixed.toml");
+    let mu_in = |path: &Path| {
+        let text = std::fs::read_to_string(path).unwrap();
+        assert!(text.lines().any(|l| l == "[load_dependent_friction]"), "{text}");
+        ModelFile::parse(&text, "emitted").unwrap().explicit(ParamId::LoadFrictionMu).unwrap()
+    };
+    let v = run_json(&log, &model, &["--emit-model", em.to_str().unwrap()]);
+    assert_eq!(v["verdict"]["effect"], "load_dependent_friction");
+    let mu = mu_in(&em);
+    assert!((mu - 0.1).abs() < 0.02, "{mu}");
+    for (stated, verdict) in [("0.1", "none"), ("0.3", "parameters"), ("0.0", "parameters")] {
+        let m = dir.path().join(format!("model-{stated}.toml"));
+        std::fs::write(&m, format!("{MODEL}[load_dependent_friction]\nmu = {stated}\n")).unwrap();
+        let v = run_json(&log, &m, &["--emit-model", em.to_str().unwrap()]);
+        assert_eq!(v["verdict"]["effect"], verdict, "mu = {stated}");
+        let mu = mu_in(&em);
+        if verdict == "parameters" {
+            let refit = v["verdict"]["effects"][0].as_str().unwrap();
+            assert_eq!(refit, "parameters");
+            assert!((mu - 0.1).abs() < 0.02, "mu = {stated} refitted to {mu}");
+        }
+    }
 }
 
 #[test]

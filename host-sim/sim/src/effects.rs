@@ -20,28 +20,29 @@
 //!
 //! `dz(x) = x − w/2` for `x > w/2`, `x + w/2` for `x < −w/2`, `0` inside.
 
-use serde::Deserialize;
+use joint_formats::vocab::Effect;
+use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Stribeck {
     pub level: f64,
     pub speed: f64,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct AsymmetricFriction {
     pub delta: f64,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct LoadDependentFriction {
     pub mu: f64,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ThermalDrift {
     pub coefficient: f64,
@@ -57,7 +58,7 @@ fn yes() -> bool {
     true
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PositionRipple {
     pub amplitude: f64,
@@ -71,7 +72,7 @@ pub struct PositionRipple {
     pub phase_2: f64,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CableSpring {
     pub k: f64,
@@ -84,7 +85,7 @@ fn cable_width() -> f64 {
     0.01
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Backlash {
     pub width: f64,
@@ -96,29 +97,40 @@ fn inertia_share() -> f64 {
     0.1
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Delay {
     pub seconds: f64,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DryFriction {
     pub c: f64,
 }
 
-/// All effect sections of one plant file; `None` = effect absent.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// All effect sections of one plant file; `None` = effect absent. Each field is read from (and
+/// written as) the TOML section of its name, which is the vocabulary's section of the effect
+/// ([`Effects::section`] maps the two; a test checks every name).
+#[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
 pub struct Effects {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stribeck: Option<Stribeck>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub asymmetric_friction: Option<AsymmetricFriction>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_dependent_friction: Option<LoadDependentFriction>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal_drift: Option<ThermalDrift>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_ripple: Option<PositionRipple>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cable_spring: Option<CableSpring>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub backlash: Option<Backlash>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub delay: Option<Delay>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dry_friction: Option<DryFriction>,
 }
 
@@ -141,6 +153,37 @@ fn need(section: &'static str, key: &'static str, value: f64, ok: bool, why: &'s
 }
 
 impl Effects {
+    /// The plant's section of vocabulary entry `e` as its keys and values (defaults filled in),
+    /// or `None` when the plant does not have the effect. The match names every entry of the
+    /// vocabulary, so a term added there does not compile here until the plant says whether it
+    /// simulates it: whatever lists a plant's effects (the closed-loop workflow's truth, the
+    /// true-parameter model) follows from this.
+    pub fn section(&self, e: Effect) -> Option<toml::Table> {
+        fn table<T: Serialize>(x: &Option<T>) -> Option<toml::Table> {
+            x.as_ref().and_then(|v| toml::Table::try_from(v).ok())
+        }
+        match e {
+            Effect::Stribeck => table(&self.stribeck),
+            Effect::AsymmetricFriction => table(&self.asymmetric_friction),
+            Effect::LoadDependentFriction => table(&self.load_dependent_friction),
+            Effect::ThermalDrift => table(&self.thermal_drift),
+            Effect::PositionRipple => table(&self.position_ripple),
+            Effect::CableSpring => table(&self.cable_spring),
+            Effect::Backlash => table(&self.backlash),
+            Effect::Delay => table(&self.delay),
+            Effect::DryFriction => table(&self.dry_friction),
+            // a section of the model, which the plant runs through its model (see crate::plant)
+            Effect::PreslidingHysteresis => None,
+            // verdicts, no term
+            Effect::Parameters | Effect::InitialState | Effect::None | Effect::Unexplained => None,
+        }
+    }
+
+    /// The vocabulary's effect terms this plant has, in the vocabulary's order.
+    pub fn present(&self) -> impl Iterator<Item = Effect> + '_ {
+        Effect::terms().filter(|&e| self.section(e).is_some())
+    }
+
     /// Refuses values that would make the plant meaningless (negative widths, zero speeds…).
     pub fn check(&self) -> Result<(), EffectError> {
         if let Some(e) = &self.stribeck {

@@ -92,24 +92,8 @@ pub struct OperatorCfg {
 /// same file are read by [`ModelFile::parse_except`], which leaves these to this struct.
 #[derive(Clone, Debug, Default, serde::Deserialize)]
 struct PlantToml {
-    #[serde(default)]
-    stribeck: Option<effects::Stribeck>,
-    #[serde(default)]
-    asymmetric_friction: Option<effects::AsymmetricFriction>,
-    #[serde(default)]
-    load_dependent_friction: Option<effects::LoadDependentFriction>,
-    #[serde(default)]
-    thermal_drift: Option<effects::ThermalDrift>,
-    #[serde(default)]
-    position_ripple: Option<effects::PositionRipple>,
-    #[serde(default)]
-    cable_spring: Option<effects::CableSpring>,
-    #[serde(default)]
-    backlash: Option<effects::Backlash>,
-    #[serde(default)]
-    delay: Option<effects::Delay>,
-    #[serde(default)]
-    dry_friction: Option<effects::DryFriction>,
+    #[serde(flatten)]
+    effects: Effects,
     #[serde(default)]
     sensors: Option<Sensors>,
     #[serde(default)]
@@ -158,17 +142,7 @@ impl PlantFile {
         }
         // The model part must be a valid parameter set too (ranges, table shape).
         model.param_set()?;
-        let effects = Effects {
-            stribeck: t.stribeck,
-            asymmetric_friction: t.asymmetric_friction,
-            load_dependent_friction: t.load_dependent_friction,
-            thermal_drift: t.thermal_drift,
-            position_ripple: t.position_ripple,
-            cable_spring: t.cable_spring,
-            backlash: t.backlash,
-            delay: t.delay,
-            dry_friction: t.dry_friction,
-        };
+        let effects = t.effects;
         let err = |msg: String| ModelError::Toml { file: file.to_string(), msg };
         effects.check().map_err(|e| err(e.to_string()))?;
         let sensors = t.sensors.unwrap_or_default();
@@ -422,17 +396,11 @@ impl Plant {
         moved.clamp(-level, level)
     }
 
-    /// The plant's smoothed sign.
+    /// The plant's smoothed sign: the rule the joint's friction band follows (the core's, in
+    /// f64), with the plant's own band. Only the rule is shared: the plant's effect torques are
+    /// its own code.
     pub fn sgn(&self, v: f64) -> f64 {
-        if self.band > 0.0 {
-            (v / self.band).clamp(-1.0, 1.0)
-        } else if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        }
+        joint_core::math::sign_smooth_f64(v, self.band)
     }
 
     /// Weight plus gravity table (or their fusion when `sigma_model > 0`).

@@ -1,7 +1,9 @@
 //! The effect terms the firmware core can compensate use exactly the plant's formulas, so a
 //! model emitted by `jointctl diagnose --emit-model` cancels the effect it names.
 
-use host_sim::effects::{AsymmetricFriction, CableSpring, DryFriction, Effects, PositionRipple, Stribeck};
+use host_sim::effects::{
+    AsymmetricFriction, CableSpring, DryFriction, Effects, LoadDependentFriction, PositionRipple, Stribeck,
+};
 use joint_formats::model_file::ModelFile;
 
 const MODEL: &str = r#"
@@ -30,6 +32,9 @@ width = 0.02
 
 [dry_friction]
 c = 0.25
+
+[load_dependent_friction]
+mu = 0.08
 "#;
 
 #[test]
@@ -48,6 +53,7 @@ fn core_effect_terms_match_the_plant() {
         }),
         cable_spring: Some(CableSpring { k: 6.0, engage: 1.2, width: 0.02 }),
         dry_friction: Some(DryFriction { c: 0.25 }),
+        load_dependent_friction: Some(LoadDependentFriction { mu: 0.08 }),
         ..Effects::default()
     };
     let t = p.terms();
@@ -57,8 +63,10 @@ fn core_effect_terms_match_the_plant() {
         for j in 0..=200 {
             let qd = -0.5 + 1.0 * j as f64 / 200.0;
             let sgn = (qd / 0.01).clamp(-1.0, 1.0);
-            let plant = effects.torque(q, qd, 0.0, sgn);
-            let core = t.extra_torque(q as f32, qd as f32) as f64;
+            // the plant's external load τ_ext; the joint's load cell reads −τ_ext
+            let load = 30.0 * ((i * 7 + j) % 13) as f64 / 13.0 - 15.0;
+            let plant = effects.torque(q, qd, load, sgn);
+            let core = t.extra_torque(q as f32, qd as f32, -load as f32) as f64;
             worst = worst.max((plant - core).abs());
         }
     }

@@ -710,7 +710,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     pub fn joint_state(&self) -> &JointState {
         &self.state
     }
-    /// Sensor values that the control step does not know (load cell, temperature).
+    /// Sensor values: the load cell's torque (the step's load-dependent friction reads it at
+    /// the next [`Node::control`]) and the temperature (reported only).
     pub fn set_measurements(&mut self, tau_measured: f32, temperature: f32) {
         self.state.tau_measured = tau_measured;
         self.state.temperature = temperature;
@@ -730,7 +731,8 @@ impl<S: ParamStorage, C: ControlStep> Node<S, C> {
     /// `tau_out`/`u_motor` after the safety layer; records the state for the TPDOs.
     pub fn control(&mut self, now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output {
         let mode = self.mode();
-        let inp = Input { q, qd, qdd, others: self.others, assist_cmd: self.assist_cmd };
+        let inp =
+            Input { q, qd, qdd, others: self.others, assist_cmd: self.assist_cmd, tau_load: self.state.tau_measured };
         let p = self.active.current();
         let mut out = self.controller.step(p, mode, &inp, dt);
         let tau = self.safety.update(now_us, out.tau_out);

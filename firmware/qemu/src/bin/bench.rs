@@ -81,7 +81,19 @@ mod bench {
                 qdd: rng.uniform(-20.0, 20.0),
                 others: [rng.uniform(-1.2, 2.2), 0.0, 0.0],
                 assist_cmd: rng.uniform(-5.0, 5.0),
+                tau_load: 0.0,
             };
+        }
+        v
+    }
+
+    /// The same inputs with a measured load (a load cell's working range), for the
+    /// load-dependent friction; a generator of its own, so the other rows' inputs stay as they were.
+    pub fn load_inputs(inp: &[Input; INPUTS]) -> [Input; INPUTS] {
+        let mut rng = XorShift32::new(vectors::SESSION_SEED ^ 0x10AD_0000);
+        let mut v = *inp;
+        for i in v.iter_mut() {
+            i.tau_load = rng.uniform(-30.0, 30.0);
         }
         v
     }
@@ -123,6 +135,11 @@ mod bench {
         })
     }
 
+    /// Out of line (with [`steps_fx`] and [`loop_body`]): inlined into `run`, the loop around
+    /// the step took its registers and stack offsets from whatever else `run` held, so a row's
+    /// loop overhead moved with the size of an unrelated local (the parameter set) by up to
+    /// 14 instructions a step on the M0+; out of line, every row pays the same loop.
+    #[inline(never)]
     pub fn steps(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
         let mut ctl = Controller::new();
         let dt = 1.0 / p.get(ParamId::ControlRateHz);
@@ -135,6 +152,7 @@ mod bench {
     }
 
     /// The Q16.16 full step (what an FPU-less board's node runs), same inputs and interface.
+    #[inline(never)]
     pub fn steps_fx(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
         let mut ctl = ControllerFx::new(p);
         let dt = 1.0 / p.get(ParamId::ControlRateHz);
@@ -148,6 +166,7 @@ mod bench {
 
     /// What the firmware's loop does per tick: q̇ and q̈ from the position by two
     /// differentiators, then the step.
+    #[inline(never)]
     pub fn loop_body(p: &ParamSet, inp: &[Input; INPUTS]) -> u32 {
         let mut ctl = Controller::new();
         let mut dq = Differentiator::new();
@@ -161,7 +180,7 @@ mod bench {
                 let i = black_box(i);
                 let qd = dq.update(i.q, dt, vc);
                 let qdd = dqd.update(qd, dt, ac);
-                let x = Input { q: i.q, qd, qdd, others: i.others, assist_cmd: i.assist_cmd };
+                let x = Input { q: i.q, qd, qdd, ..*i };
                 let o = ctl.step(black_box(p), Mode::Assist, &x, dt);
                 black_box(o.u_motor);
             }
@@ -327,6 +346,14 @@ fn run() -> i32 {
     let fx_table = per(steps_fx(&fused, &inp));
     let f32_arm = per(steps(&arm, &arm_inp));
     let fx_arm = per(steps_fx(&arm, &arm_inp));
+    // Load-dependent friction on the load cell's reading (with a Stribeck dip: the effect terms'
+    // out-of-line sum), the trunk joint with a spring otherwise.
+    let Some(load) = set(&vectors::trunk_load_friction()) else {
+        return EXIT_CHECK_FAILED;
+    };
+    let load_inp = load_inputs(&inp);
+    let f32_load = per(steps(&load, &load_inp));
+    let fx_load = per(steps_fx(&load, &load_inp));
     for (name, n) in [
         ("f32 full step", f32_full),
         ("Q16.16 full step", fx_full),
@@ -336,6 +363,8 @@ fn run() -> i32 {
         ("Q16.16 full step + 2-D table, fused", fx_table),
         ("f32 full step, arm: series + residual table", f32_arm),
         ("Q16.16 full step, arm: series + residual table", fx_arm),
+        ("f32 full step + load friction", f32_load),
+        ("Q16.16 full step + load friction", fx_load),
     ] {
         let _ = writeln!(out, "  {:<42} {:>14.1}", name, n);
         let _ = writeln!(out, "bench full \"{name}\" {n:.1}");

@@ -28,7 +28,7 @@ fn run() -> i32 {
     };
 
     let s = vectors::session(&mut |_| {});
-    check_that("session: 5 sets accepted, 7 refused", s.accepted == 5 && s.rejected == 7, &mut out);
+    check_that("session: 6 sets accepted, 7 refused", s.accepted == 6 && s.rejected == 7, &mut out);
     check_that("session: a refused set never changes the set in force", s.rejected_but_changed == 0, &mut out);
     check_that("session: every result as expected", s.unexpected_results == 0, &mut out);
     check_that("session: outputs finite and within the torque limit", s.unsafe_outputs == 0, &mut out);

@@ -796,6 +796,9 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
         Kind::Backlash => has(Col::Q),
         // it replaces the model's own Coulomb sign
         Kind::Presliding => has(Col::Sgn),
+        // a term the model already carries is refitted with the model's own, not added twice
+        Kind::Load => !has(Col::LoadSgn),
+        Kind::Asymmetric => !has(Col::AbsSgn),
         _ => true,
     };
     if !applicable || chosen.iter().any(|e| e.kind() == kind) {
@@ -1183,6 +1186,9 @@ pub fn base_from_model(m: &joint_formats::model_file::ModelFile) -> Base {
     }
     if has(P::DryFrictionC) && !has(P::FrictionC) {
         push(Col::Sgn, v(P::DryFrictionC));
+    }
+    if has(P::LoadFrictionMu) {
+        push(Col::LoadSgn, v(P::LoadFrictionMu));
     }
     let fixed = vec![false; cols.len()];
     Base { cols, beta0, fixed }

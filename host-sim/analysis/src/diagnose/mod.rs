@@ -385,7 +385,7 @@ fn torque_not_applicable(base: &Base, d: &Data, tried: &[Vocab]) -> Vec<NotAppli
         effect: Vocab::InitialState.name(),
         why: "trajectory mode only (torque mode has no state to integrate)",
     }];
-    for k in candidates::Kind::ALL {
+    for k in Vocab::terms().filter_map(torque_kind) {
         if tried.contains(&k.effect()) {
             continue;
         }
@@ -398,11 +398,15 @@ fn torque_not_applicable(base: &Base, d: &Data, tried: &[Vocab]) -> Vec<NotAppli
                 "the logged temperature does not change (range below 0.1 °C): this log cannot test a thermal drift"
             }
             candidates::Kind::Thermal => "the model has no friction term to scale",
+            candidates::Kind::Load | candidates::Kind::Asymmetric
+                if base.cols.iter().any(|c| matches!(c, Col::LoadSgn | Col::AbsSgn)) =>
+            {
+                "the model carries this term already: it is refitted with the model's own (`parameters`)"
+            }
             _ => "its shape search found no usable range in this log",
         };
         v.push(NotApplicable { effect: k.name(), why });
     }
-    let _ = base;
     v
 }
 
@@ -542,7 +546,9 @@ fn torque_mode(
         ws: model.value(ParamId::WeightS),
         wsin: Vec::new(),
         wcos: Vec::new(),
-        load: Vec::new(),
+        // the joint's own load (its load cell), what a model's load-dependent friction reads in
+        // the prediction: the fixed rest below takes that term off with it
+        load: tau.iter().map(|t| t.abs()).collect(),
         qdd_noise_var: prep.qdd_noise_var(),
         q_noise_var: prep.report.q_noise_sd.powi(2),
         qd_noise_var: prep.qd_err.iter().map(|e| e * e).sum::<f64>() / prep.qd_err.len().max(1) as f64,
@@ -751,17 +757,8 @@ fn transmitted_load(tau: &[f64], u: &[f64], non_friction: &[f64]) -> Vec<f64> {
 /// Half-width of the zero-phase moving average applied to q̇ before any model sees it, s.
 pub const VELOCITY_SMOOTHING_S: f64 = 0.005;
 
-pub(crate) fn sgn_band(v: f64, band: f64) -> f64 {
-    if band > 0.0 {
-        (v / band).clamp(-1.0, 1.0)
-    } else if v > 0.0 {
-        1.0
-    } else if v < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
-}
+/// The core's smoothed sign in f64 (one rule for the joint, the identification and the plant).
+pub(crate) use joint_core::math::sign_smooth_f64 as sgn_band;
 
 fn coef(s: &Scored, c: Col) -> Option<f64> {
     s.design.cols.iter().position(|x| *x == c).map(|k| s.beta[k])
@@ -904,6 +901,12 @@ fn refit_values(model: &ModelFile, s: &Scored) -> BTreeMap<String, BTreeMap<Stri
         let c = Col::Cable { engage: v(ParamId::CableEngage), width: v(ParamId::CableWidth) };
         if let Some(kc) = coef(s, c) {
             put("cable_spring", "k", kc);
+        }
+    }
+    // in the base whenever the file states it (0 included), so refitted whenever it is there
+    if model.explicit(ParamId::LoadFrictionMu).is_some() {
+        if let Some(mu) = coef(s, Col::LoadSgn) {
+            put("load_dependent_friction", "mu", mu);
         }
     }
     let ws = v(ParamId::WeightS);
@@ -1389,12 +1392,29 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
     o
 }
 
-/// The model/plant file section an effect is written as (spec §2; the vocabulary name
-/// otherwise).
+/// The model/plant file section an effect is written as: its vocabulary entry's (spec §2).
 pub(crate) fn section_name(k: candidates::Kind) -> &'static str {
-    match k {
-        candidates::Kind::Presliding => "presliding",
-        _ => k.name(),
+    k.effect().section().unwrap_or_else(|| k.name())
+}
+
+/// The torque-mode kind that fits vocabulary term `v`. The match names every entry, so a term
+/// added to the vocabulary does not compile here until the diagnosis fits it (a kind, in
+/// [`candidates::Kind::ALL`]: a test checks the two agree) or says it cannot.
+pub(crate) fn torque_kind(v: Vocab) -> Option<candidates::Kind> {
+    use candidates::Kind as K;
+    match v {
+        Vocab::Stribeck => Some(K::Stribeck),
+        Vocab::AsymmetricFriction => Some(K::Asymmetric),
+        Vocab::LoadDependentFriction => Some(K::Load),
+        Vocab::ThermalDrift => Some(K::Thermal),
+        Vocab::PositionRipple => Some(K::Ripple),
+        Vocab::CableSpring => Some(K::Cable),
+        Vocab::Backlash => Some(K::Backlash),
+        Vocab::Delay => Some(K::Delay),
+        Vocab::DryFriction => Some(K::Dry),
+        Vocab::PreslidingHysteresis => Some(K::Presliding),
+        // verdicts and the trajectory mode's start state: no torque-mode candidate
+        Vocab::Parameters | Vocab::InitialState | Vocab::None | Vocab::Unexplained => None,
     }
 }
 
@@ -1414,4 +1434,23 @@ fn fit_warmup(d: &Data) -> (f64, f64, f64) {
     let tau = lt.exp();
     let (b, _) = solve(tau);
     (b[0], b[1], tau)
+}
+
+#[cfg(test)]
+mod vocabulary_tests {
+    use super::*;
+
+    /// Torque mode tries every effect term of the vocabulary, each as one kind, in the
+    /// vocabulary's order, and writes it as the vocabulary's section.
+    #[test]
+    fn torque_mode_kinds_are_the_vocabularys_terms() {
+        let from_vocab: Vec<candidates::Kind> = Vocab::terms().filter_map(torque_kind).collect();
+        assert_eq!(candidates::Kind::ALL.to_vec(), from_vocab);
+        for v in Vocab::terms() {
+            let k = torque_kind(v).unwrap_or_else(|| panic!("{v} has no torque-mode kind"));
+            assert_eq!(k.effect(), v);
+            assert_eq!(Some(section_name(k)), v.section());
+        }
+        assert_eq!(section_name(candidates::Kind::Presliding), "presliding");
+    }
 }

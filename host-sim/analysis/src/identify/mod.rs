@@ -270,14 +270,9 @@ impl Data {
 /// would clip corrections the data support; 3 keeps the clamp a guard against a wrong table.
 pub const TABLE_CLAMP_K: f64 = 3.0;
 
-/// Smoothed sign as the core computes it (`clamp(v/band, −1, 1)`).
-pub fn sign_band(v: f64, band: f64) -> f64 {
-    if band > 0.0 {
-        (v / band).clamp(-1.0, 1.0)
-    } else {
-        v.signum()
-    }
-}
+/// Smoothed sign as the core computes it (`clamp(v/band, −1, 1)`; sign(0) = 0 without a band):
+/// the core's own rule in f64, the one the diagnosis and the plant use too.
+pub use joint_core::math::sign_smooth_f64 as sign_band;
 
 /// Friction torque of a fitted curve at a signed velocity, as the model evaluates it.
 pub fn friction_torque(f: &friction::FrictionFit, v: f64, band: f64) -> f64 {

@@ -49,21 +49,38 @@ pub mod watch;
     name = "jointctl",
     version,
     about = "Host tool for the exoskeleton/robot-arm joint boards",
-    long_about = "Host tool for the exoskeleton/robot-arm joint boards.\n\n\
-        Files: a joint log is a CSV (t, q, qd, qdd, u, tau, temp, q_<joint> columns, SI units); \
-        a model is a TOML with [friction], [weight], [inertia], [offset], [spring], \
-        [gravity_table], [compensation] sections, optionally [controller], [gravity_series] \
-        (a multi-angle sine series, docs/arm-gravity.md), [presliding] (sigma: the Coulomb \
-        friction as a Dahl pre-sliding state that builds up over c/sigma after each reversal \
-        instead of c·sign(qd); its level is [friction] c plus [dry_friction] c) and the effect \
-        terms the joint can compensate ([stribeck], [asymmetric_friction], [position_ripple], \
-        [cable_spring], [dry_friction]); a plant is a model plus the unmodelled \
-        effects and sensor noise of a simulated joint. See shared/spec/formats.md.",
+    long_about = long_about(),
     propagate_version = true
 )]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+}
+
+/// The top-level help. Its section lists follow from the parameter table and the effect
+/// vocabulary: a model's own sections are the table's sections that are no effect term, the
+/// effect terms listed are those the joint compensates (their sections have parameters in the
+/// table), so a term added to the table is in the help at once.
+pub fn long_about() -> String {
+    use joint_core::params;
+    use joint_formats::vocab::Effect;
+    let list = |v: Vec<&str>| v.iter().map(|s| format!("[{s}]")).collect::<Vec<_>>().join(", ");
+    let own: Vec<&str> = params::sections().filter(|s| Effect::from_section(s).is_none()).collect();
+    let terms: Vec<&str> = Effect::terms().filter(|e| e.compensable()).filter_map(Effect::section).collect();
+    let presliding = Effect::PreslidingHysteresis.section().unwrap_or_default();
+    let dry = Effect::DryFriction.section().unwrap_or_default();
+    format!(
+        "Host tool for the exoskeleton/robot-arm joint boards.\n\n\
+        Files: a joint log is a CSV (t, q, qd, qdd, u, tau, temp, q_<joint> columns, SI units); \
+        a model is a TOML of optional sections: its own terms {}, [gravity_series] (a multi-angle \
+        sine series, docs/arm-gravity.md), and the effect terms the joint can compensate: {}. \
+        [{presliding}] sigma makes the Coulomb friction a Dahl pre-sliding state that builds up \
+        over c/sigma after each reversal instead of c·sign(qd), its level [friction] c plus \
+        [{dry}] c. A plant is a model plus the unmodelled effects and sensor noise of a simulated \
+        joint. See shared/spec/formats.md.",
+        list(own),
+        list(terms)
+    )
 }
 
 #[derive(Debug, Subcommand)]
@@ -112,5 +129,26 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::BusBudget(args) => bus_budget::run(&args),
         Command::ClosedLoop(args) => closed_loop::run(&args),
         Command::ArmGravity(args) => arm::run(&args),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use joint_formats::vocab::Effect;
+
+    /// Every section of the parameter table is in the help, every effect term the joint
+    /// compensates too, and no effect term it cannot run (a plant's, not a model's).
+    #[test]
+    fn the_help_names_every_model_section_and_only_the_compensable_terms() {
+        let help = long_about();
+        for s in joint_core::params::sections() {
+            assert!(help.contains(&format!("[{s}]")), "[{s}] missing: {help}");
+        }
+        for e in Effect::terms() {
+            let s = format!("[{}]", e.section().unwrap());
+            assert_eq!(help.contains(&s), e.compensable(), "{s}: {help}");
+        }
+        assert!(help.contains("[gravity_series]"));
     }
 }

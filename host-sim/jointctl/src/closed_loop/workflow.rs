@@ -4,12 +4,11 @@
 //!
 //! The diagnosis sees only the log and the model, never the plant: what is pushed after the
 //! fix is exactly the text `jointctl diagnose --emit-model` writes. When that text holds an
-//! effect section the firmware has no term for (`load_dependent_friction`, `thermal_drift`,
-//! `backlash`, `delay`) the joint's parameter table would refuse the file, and the refitted
-//! model terms cannot be pushed without it either: they were fitted *together with* that
-//! effect (in a closed-loop log `μ·|u|·sgn(q̇)` is nearly collinear with the friction terms,
-//! since u ≈ F·d, and a refit beside it guts them). So nothing is pushed, the old model keeps
-//! running, and the result names the effect. Separately, and labelled
+//! effect section the firmware has no term for ([`not_compensable`]: the vocabulary's terms
+//! whose section the core's parameter table lacks) the joint's parameter table would refuse the
+//! file, and the refitted model terms cannot be pushed without it either: they were fitted
+//! *together with* that effect (and may have given it what they lost). So nothing is pushed,
+//! the old model keeps running, and the result names the effect. Separately, and labelled
 //! as such, [`ceiling`] builds the model with the plant's *true* effect parameters: the best a
 //! perfect diagnosis could reach.
 
@@ -18,7 +17,7 @@ use serde::Serialize;
 use super::{run, LoopConfig, LoopError, LoopReport, Setup};
 use host_sim::plant::PlantFile;
 use joint_analysis::diagnose::{self, Options};
-use joint_core::params::ParamId;
+use joint_core::params;
 use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
 use joint_formats::vocab::Effect;
@@ -89,26 +88,10 @@ pub struct Outcome {
     pub diagnosis_json: String,
 }
 
-/// Effect sections present in a plant.
+/// Effect sections present in a plant, in the vocabulary's order (the plant's own list:
+/// `host_sim::effects::Effects::section` names every entry of the vocabulary).
 pub fn plant_effects(p: &PlantFile) -> Vec<String> {
-    let e = &p.effects;
-    let mut v = Vec::new();
-    for (effect, on) in [
-        (Effect::Stribeck, e.stribeck.is_some()),
-        (Effect::AsymmetricFriction, e.asymmetric_friction.is_some()),
-        (Effect::LoadDependentFriction, e.load_dependent_friction.is_some()),
-        (Effect::ThermalDrift, e.thermal_drift.is_some()),
-        (Effect::PositionRipple, e.position_ripple.is_some()),
-        (Effect::CableSpring, e.cable_spring.is_some()),
-        (Effect::Backlash, e.backlash.is_some()),
-        (Effect::Delay, e.delay.is_some()),
-        (Effect::DryFriction, e.dry_friction.is_some()),
-    ] {
-        if on {
-            v.push(effect.name().to_string());
-        }
-    }
-    v
+    p.effects.present().map(|e| e.name().to_string()).collect()
 }
 
 /// Parses an emitted model: the effect sections the firmware cannot take are removed first
@@ -174,34 +157,19 @@ pub fn run_workflow(
 /// The model with the plant's true parameters for its compensable effects (labelled a ceiling
 /// wherever it is reported: no diagnosis was involved). `None` when the plant has none.
 pub fn true_effect_model(plant: &PlantFile, model: &ModelFile) -> Option<ModelFile> {
-    let e = &plant.effects;
     let mut m = model.clone();
     let mut any = false;
-    let mut set = |id: ParamId, v: f64| {
-        m.set(id, v, None);
-        any = true;
-    };
-    if let Some(s) = &e.stribeck {
-        set(ParamId::StribeckLevel, s.level);
-        set(ParamId::StribeckSpeed, s.speed);
-    }
-    if let Some(s) = &e.asymmetric_friction {
-        set(ParamId::AsymmetricDelta, s.delta);
-    }
-    if let Some(s) = &e.position_ripple {
-        set(ParamId::RippleAmplitude, s.amplitude);
-        set(ParamId::RipplePeriod, s.period);
-        set(ParamId::RipplePhase, s.phase);
-        set(ParamId::RippleAmplitude2, s.amplitude_2);
-        set(ParamId::RipplePhase2, s.phase_2);
-    }
-    if let Some(s) = &e.cable_spring {
-        set(ParamId::CableK, s.k);
-        set(ParamId::CableEngage, s.engage);
-        set(ParamId::CableWidth, s.width);
-    }
-    if let Some(s) = &e.dry_friction {
-        set(ParamId::DryFrictionC, s.c);
+    // Each compensable term's section in the plant, key by key into the parameter of the same
+    // place: the plant's effect sections use the model's keys (a test in host-sim checks them).
+    for e in compensable() {
+        let (Some(section), Some(values)) = (e.section(), plant.effects.section(e)) else { continue };
+        for d in params::section_params(section) {
+            let v = values.get(d.key).and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)));
+            if let Some(v) = v {
+                m.set(d.id, v, None);
+                any = true;
+            }
+        }
     }
     any.then_some(m)
 }
@@ -222,6 +190,40 @@ pub fn ceiling(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use joint_core::params::ParamId;
+
+    /// The truth the workflow reports and the ceiling's model follow from the plant's sections:
+    /// every effect the plant has is named, every compensable one's values (defaults included)
+    /// land in the model, and the others do not.
+    #[test]
+    fn the_true_model_takes_every_compensable_section_of_the_plant() {
+        let text = "[inertia]\nj = 1.0\n[friction]\nc = 1.0\n[stribeck]\nlevel = 0.7\nspeed = 0.04\n\
+            [asymmetric_friction]\ndelta = 0.2\n[position_ripple]\namplitude = 0.3\nperiod = 0.1\nphase = 0.5\n\
+            [cable_spring]\nk = 6.0\nengage = 1.2\n[dry_friction]\nc = 0.25\n[backlash]\nwidth = 0.01\n";
+        let plant = PlantFile::parse(text, "plant.toml").unwrap();
+        let model = ModelFile::parse("[inertia]\nj = 1.0\n[friction]\nc = 1.0\n", "model.toml").unwrap();
+        let m = true_effect_model(&plant, &model).unwrap();
+        assert_eq!(
+            plant_effects(&plant),
+            ["stribeck", "asymmetric_friction", "position_ripple", "cable_spring", "backlash", "dry_friction"]
+        );
+        assert_eq!(m.value(ParamId::StribeckLevel), 0.7);
+        assert_eq!(m.value(ParamId::StribeckSpeed), 0.04);
+        assert_eq!(m.value(ParamId::AsymmetricDelta), 0.2);
+        assert_eq!(m.value(ParamId::RipplePhase), 0.5);
+        assert_eq!(m.value(ParamId::RippleAmplitude2), 0.0);
+        assert_eq!(m.value(ParamId::CableWidth), 0.01, "the plant's default width");
+        assert_eq!(m.value(ParamId::DryFrictionC), 0.25);
+        for e in compensable() {
+            let Some(values) = plant.effects.section(e) else { continue };
+            for (k, v) in &values {
+                let d = params::param_at(e.section().unwrap(), k).unwrap();
+                assert_eq!(m.explicit(d.id), v.as_float(), "{e}.{k}");
+            }
+        }
+        let plain = PlantFile::parse("[inertia]\nj = 1.0\n[backlash]\nwidth = 0.01\n", "plant.toml").unwrap();
+        assert!(true_effect_model(&plain, &model).is_none(), "backlash is no term the joint runs");
+    }
 
     #[test]
     fn non_compensable_sections_are_named_and_compensable_ones_kept() {

@@ -69,10 +69,9 @@ pub fn min_samples(model: &ModelFile) -> usize {
 /// Values of the smallest effect fit: the start (2), the model's terms (a weight's `s` among
 /// them), one effect value.
 fn fit_size(model: &ModelFile) -> usize {
-    use super::candidates::Col;
     let base = super::candidates::base_from_model(model);
     let s = terms::free_weight_s(&base.cols).is_some();
-    2 + base.cols.iter().filter(|c| **c != Col::Qdd).count() + usize::from(s) + 1
+    2 + base.cols.iter().filter(|c| terms::kept(**c, false)).count() + usize::from(s) + 1
 }
 
 /// Trajectory mode on a prepared log.

@@ -309,16 +309,9 @@ fn resid(ctx: &Ctx, r0: &[f64], ra: &[f64]) -> crate::diagnose::Resid {
 }
 
 fn not_applicable(ctx: &Ctx) -> Vec<NotApplicable> {
-    let mut v = vec![
-        NotApplicable {
-            effect: Vocab::LoadDependentFriction.name(),
-            why: "trajectory mode has no measured transmitted torque",
-        },
-        NotApplicable {
-            effect: Vocab::ThermalDrift.name(),
-            why: "a free response of seconds has no temperature course: a slow change of friction is a damping value",
-        },
-    ];
+    // the terms a free response cannot show, with the reason the kinds' table gives
+    let mut v: Vec<NotApplicable> =
+        Vocab::terms().filter_map(|e| Kind::of(e).err().map(|why| NotApplicable { effect: e.name(), why })).collect();
     for &(effect, why) in &ctx.skipped {
         v.push(NotApplicable { effect, why });
     }

@@ -75,6 +75,29 @@ impl Kind {
         self.effect().name()
     }
 
+    /// The kinds that fit vocabulary term `v` in trajectory mode, or why a free response cannot
+    /// show it. The match names every entry, so a term added to the vocabulary does not compile
+    /// here until trajectory mode fits it or says why not (the report's "not applicable" list
+    /// comes from here); a test checks [`Kind::ALL`] against it.
+    pub fn of(v: Vocab) -> Result<&'static [Kind], &'static str> {
+        match v {
+            Vocab::Stribeck => Ok(&[Kind::Stribeck]),
+            Vocab::AsymmetricFriction => Ok(&[Kind::Asymmetric]),
+            Vocab::LoadDependentFriction => Err("trajectory mode has no measured transmitted torque"),
+            Vocab::ThermalDrift => Err(
+                "a free response of seconds has no temperature course: a slow change of friction is a damping value",
+            ),
+            Vocab::PositionRipple => Ok(&[Kind::Ripple, Kind::Ripple2]),
+            Vocab::CableSpring => Ok(&[Kind::CableAbove, Kind::CableBelow, Kind::CableCubic, Kind::CableBump]),
+            Vocab::Backlash => Ok(&[Kind::Backlash]),
+            Vocab::Delay => Ok(&[Kind::Delay]),
+            Vocab::DryFriction => Ok(&[Kind::Dry]),
+            Vocab::PreslidingHysteresis => Ok(&[Kind::Presliding]),
+            // verdicts, and the start state every trajectory fit frees anyway
+            Vocab::Parameters | Vocab::InitialState | Vocab::None | Vocab::Unexplained => Ok(&[]),
+        }
+    }
+
     /// How many values the effect adds to the model (what parsimony counts).
     pub fn size(self, lay: &Layout) -> usize {
         match self {
@@ -90,6 +113,13 @@ impl Kind {
             Kind::Ripple2 => 6,
         }
     }
+}
+
+/// A model term trajectory mode fits: J only with a known input (a free response scales with
+/// D/J), and never a load-dependent friction, which a log without a measured load cannot move
+/// (the joint's term is 0 there).
+pub fn kept(c: Col, driven: bool) -> bool {
+    (driven || c != Col::Qdd) && c != Col::LoadSgn
 }
 
 /// The model's terms as the fits see them, and what bounds the effects' shapes.
@@ -125,7 +155,7 @@ impl Layout {
     pub fn new(model: &ModelFile, qmin: f64, qmax: f64, v_typ: f64, driven: bool) -> Layout {
         let base = base_from_model(model);
         let (cols, mut beta0): (Vec<Col>, Vec<f64>) =
-            base.cols.iter().zip(&base.beta0).filter(|(c, _)| driven || **c != Col::Qdd).map(|(c, b)| (*c, *b)).unzip();
+            base.cols.iter().zip(&base.beta0).filter(|(c, _)| kept(**c, driven)).map(|(c, b)| (*c, *b)).unzip();
         let v = |id| model.value(id);
         let weight_s = free_weight_s(&cols);
         beta0.extend(weight_s);
@@ -506,4 +536,25 @@ pub fn refit_values(model: &ModelFile, lay: &Layout, b: &[f64]) -> Vec<(String, 
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Kind::ALL`] holds exactly the kinds the vocabulary's terms map to, each under its own
+    /// term, and every term is either fitted or has a reason.
+    #[test]
+    fn trajectory_kinds_are_the_vocabularys_terms() {
+        let mut from_vocab: Vec<Kind> = Vocab::terms().filter_map(|v| Kind::of(v).ok()).flatten().copied().collect();
+        let mut all = Kind::ALL.to_vec();
+        from_vocab.sort();
+        all.sort();
+        assert_eq!(all, from_vocab);
+        for k in Kind::ALL {
+            assert!(Kind::of(k.effect()).is_ok_and(|ks| ks.contains(&k)), "{k:?}");
+        }
+        let not: Vec<&str> = Vocab::terms().filter(|&v| Kind::of(v).is_err()).map(Vocab::name).collect();
+        assert_eq!(not, ["load_dependent_friction", "thermal_drift"]);
+    }
 }
