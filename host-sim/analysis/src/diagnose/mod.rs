@@ -598,8 +598,8 @@ fn torque_mode(
     // Test units long against the residual's correlation: the noise's (AR(1) from the
     // variogram: (1 + ρ)/(1 − ρ) samples) and the derivative estimates' windows, twice over, at
     // least 20 samples (the 50 of a fixed rule left a 3000-sample log 12 units).
+    let (noise0, rho) = floor::variogram_noise(&r0);
     let unit_min = {
-        let (_, rho) = floor::variogram_noise(&r0);
         let noise_corr = (1.0 + rho) / (1.0 - rho).max(0.05);
         let window = |i: &crate::prep::DerivInfo| if i.white { 0.0 } else { i.half_window_s / dt };
         let corr = noise_corr.max(window(&prep.report.qd)).max(window(&prep.report.qdd));
@@ -622,7 +622,7 @@ fn torque_mode(
     // measured against that. So it is also taken with the model's terms refitted (bounded,
     // errors in variables removed) on the training rows, and the lower of the two counts.
     let floor = {
-        let at_file = torque_floor(&r0, &data, (&base.cols, &base.beta0), prep, &split.holdout);
+        let at_file = torque_floor_with(noise0, &data, (&base.cols, &base.beta0), prep, &split.holdout);
         // (on at most 150 000 training rows, as the selection's fits)
         let fit_idx = candidates::thin_idx(&split.train, 150_000);
         let rs = select::fit_and_score(&data, &base, &[], &fit_idx, &split, &regimes.bits, regimes.defs.len());
@@ -694,7 +694,17 @@ fn torque_floor(
     prep: &crate::prep::Prepared,
     idx: &[u32],
 ) -> f64 {
-    let (noise, _) = floor::variogram_noise(r0);
+    torque_floor_with(floor::variogram_noise(r0).0, d, (cols, beta), prep, idx)
+}
+
+/// [`torque_floor`] with the residual's noise already read from its variogram.
+fn torque_floor_with(
+    noise: f64,
+    d: &Data,
+    (cols, beta): (&[Col], &[f64]),
+    prep: &crate::prep::Prepared,
+    idx: &[u32],
+) -> f64 {
     let coef = |c: Col| cols.iter().position(|x| *x == c).map_or(0.0, |k| beta.get(k).copied().unwrap_or(0.0));
     let (j, a, b, c) = (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn));
     // white noise on a logged column is already in the residual's noise; an estimate's or a
