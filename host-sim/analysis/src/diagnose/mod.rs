@@ -1161,7 +1161,7 @@ fn build_report(
         selected,
         refit: refit_values(model, if sel.refit.significant || !sel.chosen.is_empty() { final_s } else { &sel.m0 }),
         test: TestInfo {
-            method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (up to 60 held-out sub-blocks; p = 2·min), Bonferroni over candidates, a 2 % minimum gain, nothing tested once the reference is within 5 % of the noise floor (2 % when the log has its own q̈ column, whose white noise is then removed from the fits' normal equations)",
+            method: "one-sided t-test on the per-unit log ratio of held-out MSE and a projection test of the held-out MSE difference (its variance from the units, Satterthwaite degrees of freedom), p = 2·min (up to 60 held-out units of at least twice the residual's correlation time); Bonferroni over candidates, a 2 % minimum gain against the refit and the file's model, nothing but a 15 % gain tested once the file's model is within 10 % of the noise floor; the floor read again from the residual of each fit that is significant but for it",
             alpha: select::ALPHA,
             alpha_each: sel.alpha_each,
             min_gain: select::MIN_GAIN,
