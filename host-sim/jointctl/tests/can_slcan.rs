@@ -385,12 +385,16 @@ fn push_on_the_second_sdo_channel_beside_a_controller_on_the_first() {
             "attempt {attempt}: controller beside the push: {} uploads, errors {:?}; sim dropped {} frames",
             r.done, r.errors, r.dropped
         );
-        if r.dropped == 0 {
+        // A run where the joint dropped frames, or the controller only timed out (a loaded
+        // host stalls one of the five processes past the 1 s SDO timeout; transfers that share
+        // a channel show up as aborts and wrong answers, not only as timeouts), is run again.
+        let only_timeouts = !r.errors.is_empty() && r.errors.iter().all(|e| e.contains("Timeout"));
+        if r.dropped == 0 && !only_timeouts {
             run = Some(r);
             break;
         }
     }
-    let r = run.expect("the simulated joint dropped frames in every attempt: the host is too loaded for this test");
+    let r = run.expect("every attempt dropped frames or timed out: the host is too loaded for this test");
     let (ok, v, err) = &r.push;
     assert!(ok, "{err}");
     assert_eq!((v["ok"].as_bool(), v["retries"].as_u64()), (Some(true), Some(0)), "{v}");
