@@ -12,6 +12,10 @@
 //!   times `σ(q̇)`, and near rest the Coulomb level times the sign's spread (`c²·(1 − E[sgn]²)`).
 //!   No model can take this part out of the residual, so it is part of the floor.
 
+thread_local! {
+    static DIFFS: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// Measurement-noise RMS of a residual from its robust variogram (see the module doc), and the
 /// lag-1 correlation it found.
 pub fn variogram_noise(r: &[f64]) -> (f64, f64) {
@@ -29,11 +33,17 @@ pub fn variogram_noise(r: &[f64]) -> (f64, f64) {
         threads,
         |_| 0,
         |&k| {
-            let mut d: Vec<f64> = (0..n - k).step_by(stride).map(|i| (r[i + k] - r[i]).abs()).collect();
-            let mid = d.len() / 2;
-            let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-            let s = 1.4826 * *m;
-            s * s
+            // one buffer per thread for all its lags (fresh 1.6 MB vectors per lag were page
+            // faults on a 1 M-sample log, a variogram being read several times per diagnosis)
+            DIFFS.with(|cell| {
+                let mut d = cell.borrow_mut();
+                d.clear();
+                d.extend((0..n - k).step_by(stride).map(|i| (r[i + k] - r[i]).abs()));
+                let mid = d.len() / 2;
+                let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+                let s = 1.4826 * *m;
+                s * s
+            })
         },
     );
     // For each ρ on a grid, V(k) = s2·2(1 − ρ^k) + c·k² is linear in (s2, c) ≥ 0.
