@@ -913,7 +913,8 @@ pub fn select(
     // from the residual of every candidate that is significant but for the floor, and the
     // lowest counts. (A log the model explains has no such candidate, and a fit of its noise
     // leaves the same noise.)
-    let floor = first
+    // (each fit's floor kept: the first effect chosen is read once)
+    let read: Vec<(Vec<Effect>, f64)> = first
         .iter()
         .filter(|s| {
             let (_, p, g) = compare(&refit_s, s);
@@ -924,8 +925,10 @@ pub fn select(
                 && g0 >= MIN_GAIN
                 && implausible(s, d).or_else(|| unphysical(s)).or_else(|| cancelling(s, d)).is_none()
         })
-        .map(reread)
-        .fold(floor, f64::min);
+        .map(|s| (s.effects.clone(), reread(s)))
+        .collect();
+    let floor = read.iter().map(|r| r.1).fold(floor, f64::min);
+    let floor_of = |s: &Scored| read.iter().find(|r| r.0 == s.effects).map_or_else(|| reread(s), |r| r.1);
     let open = |r: &Scored, floor: f64| r.rmse() > at_floor_factor(d) * floor;
     let at_floor = !open(&m0, floor);
     let (t, p, gain) = compare(&m0, &refit_s);
@@ -1037,7 +1040,7 @@ pub fn select(
         while chosen.len() < max_effects {
             let Some(cur) = chosen.last() else { break };
             // what the chosen effects explain is no noise either: the floor after them
-            floor = floor.min(reread(&cur.scored));
+            floor = floor.min(floor_of(&cur.scored));
             if !open(&cur.scored, floor) {
                 break;
             }
