@@ -455,12 +455,12 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
         return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least {min}", log.len())));
     }
     let clock = std::time::Instant::now();
-    let prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
+    let mut prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
     if std::env::var_os("DIAG_TIMING").is_some() {
         eprintln!("[diagnose] preparation stage: {:.3} s", clock.elapsed().as_secs_f64());
     }
     let mut d = match log.mode() {
-        LogMode::Torque => torque_mode(&prep, model, &params, &others, opts)?,
+        LogMode::Torque => torque_mode(&mut prep, model, &params, &others, opts)?,
         LogMode::Trajectory => trajectory::diagnose(&prep, model, &params, opts)?,
     };
     d.report.prep = Some(prep.report);
@@ -480,15 +480,16 @@ pub fn noise_floor(r: &[f64]) -> f64 {
     *m / (0.674_489_75 * 6f64.sqrt())
 }
 
+/// Takes the prepared log's columns (no copy of a log that can be millions of samples); the
+/// rest of `prep` is read.
 fn torque_mode(
-    prep: &crate::prep::Prepared,
+    prep: &mut crate::prep::Prepared,
     model: &ModelFile,
     params: &joint_core::params::ParamSet,
     others: &[String],
     opts: &Options,
 ) -> Result<Diagnosis, DiagError> {
-    let log = &prep.log;
-    let n = log.len();
+    let n = prep.log.len();
     let clock = std::time::Instant::now();
     let timing = std::env::var_os("DIAG_TIMING").is_some();
     let lap = |what: &str| {
@@ -496,15 +497,18 @@ fn torque_mode(
             eprintln!("[diagnose] {what}: {:.3} s", clock.elapsed().as_secs_f64());
         }
     };
-    let dt = crate::prep::median_step(&log.t);
-    let (qd, qdd) = (prep.qd().to_vec(), prep.qdd().to_vec());
-    let pred0 = joint_formats::predict::predicted(log, params, others)
+    let dt = crate::prep::median_step(&prep.log.t);
+    let pred0 = joint_formats::predict::predicted(&prep.log, params, others)
         .ok_or_else(|| DiagError::Input("cannot evaluate the model on this log".into()))?;
     lap("the model's prediction");
-    let (u, tau) = match (&log.u, &log.tau) {
-        (Some(u), Some(t)) => (u.clone(), t),
+    let log = &mut prep.log;
+    let (u, tau) = match (log.u.take(), log.tau.take()) {
+        (Some(u), Some(t)) => (u, t),
         _ => return Err(DiagError::Input("torque mode needs `u` and `tau`".into())),
     };
+    let (t, q, temp) = (std::mem::take(&mut log.t), std::mem::take(&mut log.q), log.temp.take());
+    let (qd, qdd) = (log.qd.take().unwrap_or_default(), log.qdd.take().unwrap_or_default());
+    let prep = &*prep;
     let base = base_from_model(model);
     // The file's friction law (spec §2): its `v_band` when it states one, else the pure sign.
     let band = model.explicit(ParamId::FrictionVBand).unwrap_or(0.0);
@@ -529,16 +533,19 @@ fn torque_mode(
             _ => crate::prep::expected_sign(v, band, prep.qd_err[i]),
         }
     });
+    // the joint's own load (its load cell), what a model's load-dependent friction reads in
+    // the prediction: the fixed rest below takes that term off with it
+    let own_load: Vec<f64> = tau.iter().map(|t| t.abs()).collect();
     let mut data = Data {
         n,
-        t: log.t.clone(),
-        q: log.q.clone(),
+        t,
+        q,
         qd,
         qdd,
         u,
-        tau: tau.clone(),
+        tau,
         y: Vec::new(),
-        temp: log.temp.clone(),
+        temp,
         dt,
         band,
         sgn: core_sgn,
@@ -546,9 +553,7 @@ fn torque_mode(
         ws: model.value(ParamId::WeightS),
         wsin: Vec::new(),
         wcos: Vec::new(),
-        // the joint's own load (its load cell), what a model's load-dependent friction reads in
-        // the prediction: the fixed rest below takes that term off with it
-        load: tau.iter().map(|t| t.abs()).collect(),
+        load: own_load,
         qdd_noise_var: prep.qdd_noise_var(),
         q_noise_var: prep.report.q_noise_sd.powi(2),
         qd_noise_var: prep.qd_err.iter().map(|e| e * e).sum::<f64>() / prep.qd_err.len().max(1) as f64,
@@ -567,7 +572,7 @@ fn torque_mode(
         par::with_row(p0, |x| {
             des0.row(&data, i, x);
             let lin: f64 = x.iter().zip(&base.beta0).map(|(a, b)| a * b).sum();
-            data.u[i] - tau[i] - (pred0[i] - lin)
+            data.u[i] - data.tau[i] - (pred0[i] - lin)
         })
     });
     data.y = y;
@@ -586,12 +591,12 @@ fn torque_mode(
                 .sum();
             // the model's torque less its friction: inertia, weight, springs, offset, table
             // (d − y is the fixed rest: gravity table, the core's rounding)
-            (data.y[i] - lin, data.u[i] - tau[i] - data.y[i] + lin - fric)
+            (data.y[i] - lin, data.u[i] - data.tau[i] - data.y[i] + lin - fric)
         })
     })
     .into_iter()
     .unzip();
-    data.load = transmitted_load(tau, &data.u, &non_friction);
+    data.load = transmitted_load(&data.tau, &data.u, &non_friction);
     lap("expected sign, design, file residual");
     let regimes = Regimes::build(&data.t, &data.q, &data.qd, &data.qdd, data.temp.as_deref(), dt);
     lap("regimes");
@@ -653,7 +658,7 @@ fn torque_mode(
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, &reread, opts.max_effects);
     let floor = sel.floor;
     lap("candidates and forward selection");
-    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, log);
+    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, &prep.log);
     lap("report");
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
