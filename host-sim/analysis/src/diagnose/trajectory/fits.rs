@@ -182,7 +182,12 @@ impl Problem<'_> {
         let (lo, hi) = self.bounds(effects);
         let pick = |v: &[f64]| free.iter().map(|&k| v[k]).collect::<Vec<f64>>();
         let (lo_f, hi_f, x0) = (pick(&lo), pick(&hi), pick(theta0));
-        let steps: Vec<f64> = x0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
+        let scale = |k: usize| match k {
+            0 => self.lay.span(),
+            1 => self.lay.v_typ,
+            _ => 1e-3,
+        };
+        let steps: Vec<f64> = free.iter().zip(&x0).map(|(&k, v)| 1e-6 * v.abs().max(scale(k))).collect();
         let (wq, wv) = self.prior_weights();
         let full = |x: &[f64]| {
             let mut th = theta0.to_vec();
