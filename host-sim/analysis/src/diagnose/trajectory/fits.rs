@@ -235,6 +235,8 @@ impl Problem<'_> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
         match effects.last() {
+            // A friction level is scanned, not descended (see [`Layout::level_grid`]).
+            Some(&last) if starts.len() > 2 && self.lay.level_grid(last) => self.scan(effects, starts, 3),
             Some(&last) if starts.len() > 2 => {
                 let len = self.lay.len(last);
                 let own: Vec<usize> =
@@ -253,6 +255,22 @@ impl Problem<'_> {
             }
             _ => starts,
         }
+    }
+
+    /// The `keep` starts whose simulation fits the whole training part best, each simulated once
+    /// as it is.
+    fn scan(&self, effects: &[Kind], starts: Vec<Vec<f64>>, keep: usize) -> Vec<Vec<f64>> {
+        let upto = self.train_idx.last().map_or(0, |i| i + 1);
+        let mut pre: Vec<(Vec<f64>, f64)> = starts
+            .into_iter()
+            .filter_map(|th| {
+                let s = self.simulate(&th, effects, upto, None)?;
+                let c: f64 = self.train_idx.iter().map(|&i| (s[i] - self.q[i]).powi(2)).sum();
+                Some((th, c))
+            })
+            .collect();
+        pre.sort_by(|a, b| a.1.total_cmp(&b.1));
+        pre.into_iter().take(keep).map(|(t, _)| t).collect()
     }
 
     /// Simulates `theta` over the whole window and scores it.

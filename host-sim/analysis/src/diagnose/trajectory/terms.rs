@@ -255,6 +255,20 @@ impl Layout {
         (lo, hi)
     }
 
+    /// Whether effect `k` is a friction level whose starts form a grid that is scanned (each
+    /// simulated once over the whole training part, the best three descended) rather than
+    /// descended from each: with the pure sign, a free decay stops where the level lets the
+    /// spring or weight no longer break it away, after a number of half-swings that steps with
+    /// the level, so the angle it rests at runs back and forth between ±c/K as the level grows
+    /// and the training residual (a rest often takes most of the log) has a minimum on every
+    /// step. Seed 7 case 72, a released pendulum without its Coulomb term (c = 0.37 N·m, about
+    /// five half-swings): the file's model with c = 0.25, 0.30, 0.37 held out 0.0130, 0.0155,
+    /// 0.0110 rad, and the fit from one start stopped at c = 0.19 or 0.06. A step is c/n wide
+    /// for n half-swings, so a ratio of 1.25 between levels puts a start on each of a dozen.
+    pub fn level_grid(&self, k: Kind) -> bool {
+        matches!(k, Kind::Dry | Kind::Asymmetric)
+    }
+
     /// Starts of effect `k`'s values (several where its shape makes the fit multimodal).
     pub fn effect_starts(&self, k: Kind, c_ref: f64) -> Vec<Vec<f64>> {
         let span = self.span();
@@ -272,7 +286,14 @@ impl Layout {
                 }
                 v
             }
-            Kind::Asymmetric => vec![vec![0.1 * c_ref.max(0.01 * tq)]],
+            // a level grid (see [`Layout::level_grid`]); the former single start first
+            Kind::Asymmetric => {
+                let c = c_ref.max(0.01 * tq);
+                std::iter::once(0.1)
+                    .chain([-0.1, 0.05, -0.05, 0.2, -0.2, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6, 0.8, -0.8])
+                    .map(|f| vec![f * c])
+                    .collect()
+            }
             // The period is where the fit is multimodal (a start more than ~10 % off locks onto
             // another period): starts every 15 % from 0.01 rad to `ripple_max`.
             Kind::Ripple => (0..40)
@@ -306,7 +327,10 @@ impl Layout {
                 .iter()
                 .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.q_rest + side * w * span]))
                 .collect(),
-            Kind::Dry => vec![vec![0.02 * tq]],
+            Kind::Dry => std::iter::once(0.02 * tq)
+                .chain((0..28).map(|i| 0.002 * tq * 1.25f64.powi(i)))
+                .map(|c| vec![c])
+                .collect(),
             Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
             Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
         }
