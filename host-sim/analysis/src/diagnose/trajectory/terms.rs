@@ -111,6 +111,9 @@ pub struct Layout {
     pub qmax: f64,
     /// the spring's rest angle (or the equilibrium of the weight), a backlash's start centre
     pub q_rest: f64,
+    /// the file's spring rest angle `q0` (0 without a spring): a dead zone's torque is taken
+    /// relative to it (see [`Law::position`])
+    pub spring_q0: f64,
     /// a typical speed of the motion (95th percentile of |q̇|), rad/s
     pub v_typ: f64,
     /// a torque scale: the restoring torque over half the angles travelled, N·m
@@ -154,6 +157,7 @@ impl Layout {
             qmin,
             qmax,
             q_rest,
+            spring_q0: if k > 0.0 { v(ParamId::SpringQ0) } else { 0.0 },
             v_typ: v_typ.max(1e-3),
             torque,
             // short periods (gear mesh, cogging, wave generator: ≤ 0.3 rad) with at least three
@@ -323,9 +327,13 @@ impl Layout {
                 .iter()
                 .flat_map(|f| [1.0, -1.0].map(|sg| vec![sg * 0.05 * tq, self.qmin + f * span, (0.1 * span).ln()]))
                 .collect(),
-            Kind::Backlash => [0.01, 0.04]
+            // The dead zone holds the spring's unloaded angle: centred on it, or ending there on
+            // either side; its width on a grid (a zone much narrower than the start sees no
+            // gradient from the crossings it misses, and the fit ran the centre off the motion
+            // with a width of 0.3 mrad, seed 7 cases 3 and 36).
+            Kind::Backlash => [0.005, 0.01, 0.02, 0.04, 0.08]
                 .iter()
-                .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.q_rest + side * w * span]))
+                .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.spring_q0 + side * w * span]))
                 .collect(),
             Kind::Dry => std::iter::once(0.02 * tq)
                 .chain((0..28).map(|i| 0.002 * tq * 1.25f64.powi(i)))
@@ -339,7 +347,14 @@ impl Layout {
     /// The force law of `θ` with `effects` (in θ's order after the model's terms).
     pub fn law(&self, th: &[f64], effects: &[Kind]) -> Law {
         let nb = self.nb();
-        let mut law = Law { j: self.j, band: self.band, dahl: self.file_sigma, span: self.span(), ..Law::default() };
+        let mut law = Law {
+            j: self.j,
+            band: self.band,
+            dahl: self.file_sigma,
+            span: self.span(),
+            pivot: self.spring_q0,
+            ..Law::default()
+        };
         let mut weight = (0.0, 0.0, 0.0);
         let mut has_weight = false;
         for (c, &b) in self.cols.iter().zip(th.iter().skip(2)) {
