@@ -213,9 +213,14 @@ impl Problem<'_> {
     /// The best fit of `effects` over `starts` (full θ vectors, [`Problem::prefilter`]ed),
     /// scored.
     pub fn fit(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Option<Fitted> {
+        let starts = self.prefilter(effects, free, starts);
+        self.fit_each(effects, free, starts)
+    }
+
+    /// The best fit of `effects` from each of `starts` as they are (already chosen).
+    pub fn fit_each(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Option<Fitted> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
-        let starts = self.prefilter(effects, free, starts);
         let mut best: Option<(Vec<f64>, lm::Fit)> = None;
         for th in starts {
             if let Some((t, f)) = self.lm(effects, &idx, &th, if effects.is_empty() { 30 } else { 15 }, None, prior) {
@@ -259,7 +264,7 @@ impl Problem<'_> {
 
     /// The `keep` starts whose simulation fits the whole training part best, each simulated once
     /// as it is.
-    fn scan(&self, effects: &[Kind], starts: Vec<Vec<f64>>, keep: usize) -> Vec<Vec<f64>> {
+    pub fn scan(&self, effects: &[Kind], starts: Vec<Vec<f64>>, keep: usize) -> Vec<Vec<f64>> {
         let upto = self.train_idx.last().map_or(0, |i| i + 1);
         let mut pre: Vec<(Vec<f64>, f64)> = starts
             .into_iter()

@@ -38,6 +38,7 @@ mod report;
 pub mod sim;
 mod split;
 mod terms;
+mod torque;
 
 use joint_core::params::{ParamId, ParamSet};
 use joint_formats::model_file::ModelFile;
@@ -310,7 +311,8 @@ impl<'a> Window<'a> {
         } else {
             // the effects on the file's own terms start from S's start while the data settle it,
             // else from the estimate (see [`fit_candidates`])
-            fit_candidates(&pb, &mut fits, if start_off { 0 } else { 1 })
+            let ripple_ee = self.ripple_starts(&pb, qdd, u);
+            fit_candidates(&pb, &mut fits, if start_off { 0 } else { 1 }, &ripple_ee)
         };
         lap("candidates");
         let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd);
@@ -331,6 +333,38 @@ impl<'a> Window<'a> {
             prior: Prior { sd_q: start_sd.0, sd_v: start_sd.1, ..pb.prior },
         };
         Ok(report::build(&ctx, &fits, &judged))
+    }
+}
+
+impl Window<'_> {
+    /// Ripple starts from the torque the file's model misses (see [`torque`]), on the
+    /// training samples that move.
+    fn ripple_starts(&self, pb: &Problem, qdd: &[f64], u: Option<&[f64]>) -> Vec<Vec<f64>> {
+        let lay = pb.lay;
+        if lay.applies(Kind::Ripple, u.is_some()).is_err() {
+            return Vec::new();
+        }
+        let n = self.n;
+        let seg = self.seg.clone();
+        let moving: Vec<bool> = seg
+            .clone()
+            .take(n)
+            .map(|i| !self.prep.rest[i] && !self.prep.ambiguous[i] && !self.prep.sign_unknown[i])
+            .collect();
+        let samples = torque::Samples {
+            q: &self.q()[..n],
+            qd: &self.qd()[..n],
+            qdd,
+            u,
+            qdd_err: &self.prep.qdd_err[seg][..n],
+            moving: &moving,
+        };
+        let mut th = lay.beta0.clone();
+        th.splice(0..0, [pb.prior.q, pb.prior.v]);
+        let lo = lay.effect_bounds(Kind::Ripple).0;
+        torque::Torque::new(&lay.law(&th, &[]), &samples, &pb.split.train)
+            .map(|tq| tq.ripple_starts(lo[2].exp(), lay.ripple_max, 3))
+            .unwrap_or_default()
     }
 }
 
@@ -412,7 +446,12 @@ pub(crate) type Skipped = Vec<(&'static str, &'static str)>;
 /// Every applicable effect fitted on top of the refit (`fits[2]`), two threads taking the next
 /// kind from a shared counter (the costliest first). Returns per family the indices of its
 /// variants' fits, and the effects not tried with the reason.
-fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>, own_start: usize) -> (Vec<Vec<usize>>, Skipped) {
+fn fit_candidates(
+    pb: &Problem,
+    fits: &mut Vec<Fitted>,
+    own_start: usize,
+    ripple_ee: &[Vec<f64>],
+) -> (Vec<Vec<usize>>, Skipped) {
     let lay = pb.lay;
     let refit = fits[2].theta.clone();
     let c_ref = lay.coulomb(fits[2].base(lay));
@@ -466,7 +505,21 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>, own_start: usize) -> (Ve
     let work = |(k, free): (Kind, Free)| -> Vec<Fitted> {
         let clock = std::time::Instant::now();
         let out: Vec<Fitted> = if k == Kind::Ripple {
-            let kept = pb.prefilter(&[k], Free::Own, starts_for(k, &file_terms));
+            let mut kept = pb.prefilter(&[k], Free::Own, starts_for(k, &file_terms));
+            // the torque residual's periods, each at its amplitude and at 2, 4 and 8 times it (the
+            // derivatives' smoothing shrinks a short ripple's torque), scanned on the whole
+            // training part; the best two join the grid's three
+            let ee: Vec<Vec<f64>> = ripple_ee
+                .iter()
+                .flat_map(|e| {
+                    [1.0, 2.0, 4.0, 8.0].map(|m| {
+                        let mut v = file_terms.clone();
+                        v.extend_from_slice(&[m * e[0], m * e[1], e[2]]);
+                        v
+                    })
+                })
+                .collect();
+            kept.extend(pb.scan(&[k], ee, 2));
             let on_refit: Vec<Vec<f64>> = kept
                 .iter()
                 .map(|th| {
@@ -475,7 +528,7 @@ fn fit_candidates(pb: &Problem, fits: &mut Vec<Fitted>, own_start: usize) -> (Ve
                     v
                 })
                 .collect();
-            [pb.fit(&[k], Free::All, on_refit), pb.fit(&[k], Free::Own, kept)].into_iter().flatten().collect()
+            [pb.fit_each(&[k], Free::All, on_refit), pb.fit_each(&[k], Free::Own, kept)].into_iter().flatten().collect()
         } else {
             let base = if free == Free::All { &refit } else { &file_terms };
             pb.fit(&[k], free, starts_for(k, base)).into_iter().collect()

@@ -110,6 +110,21 @@ impl Law {
         d
     }
 
+    /// The whole of `D(q, q̇)` at a state, the sign-like friction taken at `v` (0 at rest, as
+    /// the sign's expected value near it; a Dahl state as the sign it tends to).
+    pub fn torque_at(&self, q: f64, v: f64) -> f64 {
+        let sign_like = if self.c == 0.0 && self.delta == 0.0 && self.strib.is_empty() {
+            0.0
+        } else if self.band > 0.0 {
+            self.banded(v)
+        } else if v != 0.0 {
+            self.sliding(v, v.signum())
+        } else {
+            0.0
+        };
+        self.position(q) + self.smooth(v) + sign_like
+    }
+
     #[inline]
     fn smooth(&self, v: f64) -> f64 {
         self.a * v * v.abs() + self.b * v
