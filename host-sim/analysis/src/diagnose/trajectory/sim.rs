@@ -73,10 +73,13 @@ pub struct Law {
     pub dahl: Option<f64>,
     /// `(s, α, β)`: `α·sin(s·q) + β·cos(s·q)`
     pub weight: Option<(f64, f64, f64)>,
-    /// `k·q + konst`; with a backlash `(width, centre)` the spring is `k·(m + dz(q − m, w))`
+    /// `k·q + konst`; with a backlash `(width, centre)` the spring is `k·(pivot + dz(q − m, w))`:
+    /// it transmits nothing inside the dead zone, and `konst` (`c0 − k·q0` in a model file) keeps
+    /// the file's meaning when `pivot` is the file's spring rest angle `q0`
     pub k: f64,
     pub konst: f64,
     pub backlash: Option<(f64, f64)>,
+    pub pivot: f64,
     /// `(period, α, β)`: `α·sin(2πq/P) + β·cos(2πq/P)`
     pub ripples: Vec<(f64, f64, f64)>,
     pub cables: Vec<Cable>,
@@ -94,7 +97,7 @@ impl Law {
             d += al * sn + be * cs;
         }
         d += match self.backlash {
-            Some((w, m)) => self.k * (m + shapes::dead_zone(q - m, w)),
+            Some((w, m)) => self.k * (self.pivot + shapes::dead_zone(q - m, w)),
             None => self.k * q,
         };
         for &(p, al, be) in &self.ripples {
@@ -105,6 +108,21 @@ impl Law {
             d += c.torque(q);
         }
         d
+    }
+
+    /// The whole of `D(q, q̇)` at a state, the sign-like friction taken at `v` (0 at rest, as
+    /// the sign's expected value near it; a Dahl state as the sign it tends to).
+    pub fn torque_at(&self, q: f64, v: f64) -> f64 {
+        let sign_like = if self.c == 0.0 && self.delta == 0.0 && self.strib.is_empty() {
+            0.0
+        } else if self.band > 0.0 {
+            self.banded(v)
+        } else if v != 0.0 {
+            self.sliding(v, v.signum())
+        } else {
+            0.0
+        };
+        self.position(q) + self.smooth(v) + sign_like
     }
 
     #[inline]

@@ -141,6 +141,9 @@ pub struct Layout {
     pub qmax: f64,
     /// the spring's rest angle (or the equilibrium of the weight), a backlash's start centre
     pub q_rest: f64,
+    /// the file's spring rest angle `q0` (0 without a spring): a dead zone's torque is taken
+    /// relative to it (see [`Law::position`])
+    pub spring_q0: f64,
     /// a typical speed of the motion (95th percentile of |q̇|), rad/s
     pub v_typ: f64,
     /// a torque scale: the restoring torque over half the angles travelled, N·m
@@ -184,6 +187,7 @@ impl Layout {
             qmin,
             qmax,
             q_rest,
+            spring_q0: if k > 0.0 { v(ParamId::SpringQ0) } else { 0.0 },
             v_typ: v_typ.max(1e-3),
             torque,
             // short periods (gear mesh, cogging, wave generator: ≤ 0.3 rad) with at least three
@@ -285,6 +289,20 @@ impl Layout {
         (lo, hi)
     }
 
+    /// Whether effect `k` is a friction level whose starts form a grid that is scanned (each
+    /// simulated once over the whole training part, the best three descended) rather than
+    /// descended from each: with the pure sign, a free decay stops where the level lets the
+    /// spring or weight no longer break it away, after a number of half-swings that steps with
+    /// the level, so the angle it rests at runs back and forth between ±c/K as the level grows
+    /// and the training residual (a rest often takes most of the log) has a minimum on every
+    /// step. Seed 7 case 72, a released pendulum without its Coulomb term (c = 0.37 N·m, about
+    /// five half-swings): the file's model with c = 0.25, 0.30, 0.37 held out 0.0130, 0.0155,
+    /// 0.0110 rad, and the fit from one start stopped at c = 0.19 or 0.06. A step is c/n wide
+    /// for n half-swings, so a ratio of 1.25 between levels puts a start on each of a dozen.
+    pub fn level_grid(&self, k: Kind) -> bool {
+        matches!(k, Kind::Dry | Kind::Asymmetric)
+    }
+
     /// Starts of effect `k`'s values (several where its shape makes the fit multimodal).
     pub fn effect_starts(&self, k: Kind, c_ref: f64) -> Vec<Vec<f64>> {
         let span = self.span();
@@ -302,7 +320,14 @@ impl Layout {
                 }
                 v
             }
-            Kind::Asymmetric => vec![vec![0.1 * c_ref.max(0.01 * tq)]],
+            // a level grid (see [`Layout::level_grid`]); the former single start first
+            Kind::Asymmetric => {
+                let c = c_ref.max(0.01 * tq);
+                std::iter::once(0.1)
+                    .chain([-0.1, 0.05, -0.05, 0.2, -0.2, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6, 0.8, -0.8])
+                    .map(|f| vec![f * c])
+                    .collect()
+            }
             // The period is where the fit is multimodal (a start more than ~10 % off locks onto
             // another period): starts every 15 % from 0.01 rad to `ripple_max`.
             Kind::Ripple => (0..40)
@@ -332,11 +357,18 @@ impl Layout {
                 .iter()
                 .flat_map(|f| [1.0, -1.0].map(|sg| vec![sg * 0.05 * tq, self.qmin + f * span, (0.1 * span).ln()]))
                 .collect(),
-            Kind::Backlash => [0.01, 0.04]
+            // The dead zone holds the spring's unloaded angle: centred on it, or ending there on
+            // either side; its width on a grid (a zone much narrower than the start sees no
+            // gradient from the crossings it misses, and the fit ran the centre off the motion
+            // with a width of 0.3 mrad, seed 7 cases 3 and 36).
+            Kind::Backlash => [0.005, 0.01, 0.02, 0.04, 0.08]
                 .iter()
-                .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.q_rest + side * w * span]))
+                .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.spring_q0 + side * w * span]))
                 .collect(),
-            Kind::Dry => vec![vec![0.02 * tq]],
+            Kind::Dry => std::iter::once(0.02 * tq)
+                .chain((0..28).map(|i| 0.002 * tq * 1.25f64.powi(i)))
+                .map(|c| vec![c])
+                .collect(),
             Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
             Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
         }
@@ -345,7 +377,14 @@ impl Layout {
     /// The force law of `θ` with `effects` (in θ's order after the model's terms).
     pub fn law(&self, th: &[f64], effects: &[Kind]) -> Law {
         let nb = self.nb();
-        let mut law = Law { j: self.j, band: self.band, dahl: self.file_sigma, span: self.span(), ..Law::default() };
+        let mut law = Law {
+            j: self.j,
+            band: self.band,
+            dahl: self.file_sigma,
+            span: self.span(),
+            pivot: self.spring_q0,
+            ..Law::default()
+        };
         let mut weight = (0.0, 0.0, 0.0);
         let mut has_weight = false;
         for (c, &b) in self.cols.iter().zip(th.iter().skip(2)) {
