@@ -27,11 +27,17 @@ fn wait_for(p: &Path) {
 
 /// A `socat` pty pair in a temporary folder: (folder, socat, end A, end B); both ends exist.
 fn pty_pair() -> (tempfile::TempDir, Kill, std::path::PathBuf, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let (socat, a, b) = pty_pair_in(dir.path(), "");
+    (dir, socat, a, b)
+}
+
+/// A `socat` pty pair as `dir/A<tag>` and `dir/B<tag>`: (socat, end A, end B); both ends exist.
+fn pty_pair_in(dir: &std::path::Path, tag: &str) -> (Kill, std::path::PathBuf, std::path::PathBuf) {
     if Command::new("socat").arg("-V").output().is_err() {
         panic!("socat missing: apt-get install socat");
     }
-    let dir = tempfile::tempdir().unwrap();
-    let (a, b) = (dir.path().join("A"), dir.path().join("B"));
+    let (a, b) = (dir.join(format!("A{tag}")), dir.join(format!("B{tag}")));
     let socat = Kill(
         Command::new("socat")
             .args([
@@ -46,7 +52,7 @@ fn pty_pair() -> (tempfile::TempDir, Kill, std::path::PathBuf, std::path::PathBu
     );
     wait_for(&a);
     wait_for(&b);
-    (dir, socat, a, b)
+    (socat, a, b)
 }
 
 fn jointctl(args: &[&str]) -> std::process::Output {
@@ -294,22 +300,7 @@ fn two_masters_over_slcan(push_args: &[&str]) -> TwoMasters {
     let dir = tempfile::tempdir().unwrap();
     let mut pairs = Vec::new();
     for k in 0..3 {
-        let (a, b) = (dir.path().join(format!("A{k}")), dir.path().join(format!("B{k}")));
-        let socat = Kill(
-            Command::new("socat")
-                .args([
-                    "-d",
-                    "-d",
-                    &format!("pty,raw,echo=0,link={}", a.display()),
-                    &format!("pty,raw,echo=0,link={}", b.display()),
-                ])
-                .stderr(Stdio::null())
-                .spawn()
-                .unwrap(),
-        );
-        wait_for(&a);
-        wait_for(&b);
-        pairs.push((socat, a, b));
+        pairs.push(pty_pair_in(dir.path(), &k.to_string()));
     }
     hub(&pairs.iter().map(|(_, a, _)| a.clone()).collect::<Vec<_>>());
     let sim = Command::new(env!("CARGO_BIN_EXE_jointctl"))

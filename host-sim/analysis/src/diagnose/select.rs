@@ -555,8 +555,9 @@ pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
     let logs: Vec<f64> = units().map(|(a, b, _)| (a / b).ln()).collect();
     let diffs: Vec<f64> = units().map(|(a, b, n)| (a - b) / n).collect();
     let gain = 1.0 - cand.mse() / reference.mse().max(1e-300);
-    // in torque mode the projection test takes the difference test's place: both look for a
-    // gain in a few units, and the projection's variance is the noise's, not the effect's
+    // with the held-out residuals (both modes) the projection test takes the difference test's
+    // place: both look for a gain in a few units, and the projection's variance is the noise's,
+    // not the effect's
     let tests = match projection_test(reference, cand) {
         Some(t3) => vec![unit_t(&logs), t3],
         None => vec![unit_t(&logs), unit_t(&diffs)],
@@ -577,7 +578,7 @@ pub fn compare(reference: &Scored, cand: &Scored) -> (f64, f64, f64) {
 /// passing on their noise alone. Unlike a t-test over the units' differences, an effect that
 /// acts in a few units (friction at reversals, a cable at one end of the range) is not
 /// measured against its own unevenness from unit to unit, only against the noise.
-/// `None` without the residuals (trajectory mode) or without a correction.
+/// `None` without the residuals (a score that did not keep them) or without a correction.
 fn projection_test(reference: &Scored, cand: &Scored) -> Option<(f64, f64)> {
     let (r, e) = (reference.resid.as_slice(), cand.resid.as_slice());
     if r.is_empty() || r.len() != e.len() || reference.unit_n.len() != cand.unit_n.len() {

@@ -123,8 +123,9 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         selected,
         refit: nest(refit_values(ctx.model, ctx.lay, refit_base)),
         test: TestInfo {
-            method: "one-sided t-tests on the per-unit log ratio and difference of held-out MSE (six interleaved held-out blocks of 20, up to four units each, \
-                     or one per sample when fewer; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
+            method: "one-sided t-test on the per-unit log ratio of held-out MSE and a projection test of the held-out MSE difference \
+                     (its variance from the units, Satterthwaite degrees of freedom; six interleaved held-out blocks of 20, up to four \
+                     units each, or one per sample when fewer; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
                      nothing tested once the file's model is within 10 % of the noise floor; initial_state only when the \
                      freed start differs from the log's estimate beyond its uncertainty (χ², 2 dof, p < 0.001)",
             alpha: ALPHA,
