@@ -268,11 +268,17 @@ impl Layout {
         let span = self.span();
         let per = (0.008f64.ln(), (1.5 * self.ripple_max).max(0.01).ln());
         let width = ((1e-3f64).ln(), (0.5 * span).max(2e-3).ln());
+        // A ripple's sine and cosine parts within 20 torque scales: a ripple that holds the joint
+        // in its wells is a fraction of the torque scale (seed 7 case 0: 4.9 N·m on a 37 N·m
+        // pendulum), while the few LM steps of the grid's prefilter ran a period that fits
+        // nothing to thousands of N·m on a 1.2 N·m pendulum (the Jensen swing 02), a simulation
+        // that needed its finest sub-steps (40 s instead of 7 for a fit no better).
+        let amp = if self.torque > 0.0 { 20.0 * self.torque } else { inf };
         let (lo, hi): (Vec<f64>, Vec<f64>) = match k {
             Kind::Stribeck => (vec![0.0, (1e-3f64).ln(), 0.5], vec![inf, (20.0 * self.v_typ).ln(), 2.0]),
             Kind::Asymmetric => (vec![-inf], vec![inf]),
-            Kind::Ripple => (vec![-inf, -inf, per.0], vec![inf, inf, per.1]),
-            Kind::Ripple2 => (vec![-inf, -inf, per.0, -inf, -inf, per.0], vec![inf, inf, per.1, inf, inf, per.1]),
+            Kind::Ripple => (vec![-amp, -amp, per.0], vec![amp, amp, per.1]),
+            Kind::Ripple2 => (vec![-amp, -amp, per.0, -amp, -amp, per.0], vec![amp, amp, per.1, amp, amp, per.1]),
             Kind::CableAbove | Kind::CableBelow => {
                 (vec![0.0, self.qmin - 0.1 * span, width.0], vec![inf, self.qmax + 0.1 * span, width.1])
             }
