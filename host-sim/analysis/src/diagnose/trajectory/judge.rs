@@ -22,6 +22,7 @@
 
 use super::fits::Fitted;
 use super::terms::Layout;
+use crate::diagnose::candidates::Col;
 use crate::diagnose::select::{compare, Scored, ALPHA, AT_FLOOR, MIN_GAIN, UNEXPLAINED};
 use joint_formats::vocab::Effect as Vocab;
 
@@ -262,7 +263,7 @@ pub fn second(lay: &Layout, fits: &[Fitted], k: usize, first: usize, alpha: f64)
 
 /// Explanations the held-out data cannot tell from the verdict (they beat F too, and the
 /// verdict does not beat them), and for `unexplained` the candidates that came closest.
-pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<Vocab>, Vec<Vocab>) {
+pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: usize) -> (Vec<Vocab>, Vec<Vocab>) {
     let all: Vec<&Outcome> = [&j.params, &j.initial].into_iter().chain(&j.effects).collect();
     if j.verdict == Vocab::Unexplained {
         let mut v: Vec<&&Outcome> =
@@ -292,7 +293,35 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored) -> (Vec<Vocab>, Vec<Voca
             alts.push(o.name);
         }
     }
+    if j.verdict == Vocab::Parameters
+        && !alts.contains(&Vocab::AsymmetricFriction)
+        && fits.get(j.params.fit).is_some_and(|r| offset_as_asymmetry(lay, r, n_train))
+    {
+        alts.push(Vocab::AsymmetricFriction);
+    }
     (alts, Vec::new())
+}
+
+/// Whether the refit `r` moved the model's constant torque by an amount a direction-dependent
+/// Coulomb level explains: with the pure sign, `δ·|sign q̇|` is a constant torque while the
+/// joint moves and shifts its static band `[−c, c]` to `[−c − δ, c − δ]` just as an offset
+/// does, so a free or driven response cannot tell `c0 + δ` from `c ± δ` (issue 13.6: name the
+/// other explanation); with a sign band the two differ only inside the band, where the
+/// asymmetric candidate's own fit did not win either (the verdict is `parameters`). Counted when the shift stands clear of its standard error (five of them:
+/// the error comes from `JᵀJ` with white residuals, and a simulated angle's residual is not
+/// white) and of 5 % of the level, and below the refitted level (beyond it one direction's
+/// friction would be negative: no asymmetry).
+fn offset_as_asymmetry(lay: &Layout, r: &Fitted, n_train: usize) -> bool {
+    if lay.applies(super::terms::Kind::Asymmetric, true).is_err() {
+        return false;
+    }
+    let Some(k) = lay.cols.iter().position(|c| *c == Col::Const) else { return false };
+    let (Some(&file), Some(&refit)) = (lay.beta0.get(k), r.base(lay).get(k)) else { return false };
+    let level = lay.coulomb(r.base(lay));
+    let shift = (refit - file).abs();
+    let sd = (r.train_sse / n_train.max(1) as f64).sqrt();
+    let se = r.lm.as_ref().and_then(|f| f.std_err(2 + k, sd));
+    level > 0.0 && shift < level && shift >= 0.05 * level && se.is_some_and(|se| shift > 5.0 * se)
 }
 
 #[cfg(test)]

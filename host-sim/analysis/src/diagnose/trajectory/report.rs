@@ -61,7 +61,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             p_value: o.p,
         })
         .collect();
-    let (alts, closest) = judge::company(j, fits, &f.scored);
+    let (alts, closest) = judge::company(j, fits, &f.scored, ctx.lay, ctx.split.n_train());
     let verdict_name = j.verdict.to_string();
     let verdict = Verdict {
         effect: verdict_name.clone(),
