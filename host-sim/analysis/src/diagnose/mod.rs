@@ -167,14 +167,15 @@ pub struct Verdict {
 pub struct Alternative {
     pub effect: String,
     /// what log would tell them apart
-    pub test: &'static str,
+    pub test: String,
 }
 
-/// What would separate effect `a` from effect `b` (either order).
-pub fn separating_test(a: Vocab, b: Vocab) -> &'static str {
+/// What would separate effect `a` from effect `b` (either order): the pairs a log confuses most
+/// have their own test; any other pair gets each effect's signature, the motion that shows it.
+pub fn separating_test(a: Vocab, b: Vocab) -> String {
     use Vocab as V;
     let pair = |x: Vocab, y: Vocab| (a == x && b == y) || (a == y && b == x);
-    if pair(V::AsymmetricFriction, V::Parameters) {
+    let own = if pair(V::AsymmetricFriction, V::Parameters) {
         "a log with the joint at rest after moving each way: while it moves, a direction-dependent friction level is a constant offset"
     } else if pair(V::Stribeck, V::PreslidingHysteresis) || pair(V::Stribeck, V::DryFriction) {
         "slow constant-velocity plateaus near rest in both directions, and small reversals: the friction curve against speed and after a reversal"
@@ -186,8 +187,33 @@ pub fn separating_test(a: Vocab, b: Vocab) -> &'static str {
         "motion with fast torque changes (steps, a chirp to higher frequency): a lag shows against the torque's changes"
     } else if pair(V::LoadDependentFriction, V::Parameters) {
         "the same speeds under different external loads (or with and without a payload)"
+    } else if pair(V::DryFriction, V::Parameters) {
+        "a free decay to rest, or slow moves each way: a Coulomb level takes the same amount off every swing (a straight envelope) and stops the joint off its rest angle, a viscous one the same ratio (an exponential envelope)"
     } else {
-        "a longer log, or one that excites both (more speeds, positions and reversals)"
+        return format!("for {a}: {}; for {b}: {}", signature(a), signature(b));
+    };
+    own.to_string()
+}
+
+/// The motion that shows effect `v` apart from the others (what a log must contain to pin it).
+pub fn signature(v: Vocab) -> &'static str {
+    use Vocab as V;
+    match v {
+        V::Parameters => "a log spanning the speeds, accelerations and angles the model's terms scale with",
+        V::Stribeck => "constant-speed plateaus at several slow speeds each way (friction rising towards rest)",
+        V::AsymmetricFriction => {
+            "rests after moving each way (a direction-dependent level; while moving it is an offset)"
+        }
+        V::LoadDependentFriction => "the same speeds under different external loads",
+        V::ThermalDrift => "a logged temperature that changes, or the same motion cold and warm",
+        V::PositionRipple => "a slow constant-speed sweep across the range (a torque repeating with the angle)",
+        V::CableSpring => "static poses across the whole range (a torque curve against the angle)",
+        V::Backlash => "slow reversals under a steady load (no torque transmitted across the dead zone)",
+        V::Delay => "fast torque changes, steps or a chirp (a lag against the torque's changes)",
+        V::DryFriction => "a free decay to rest (a straight envelope, a stop off the rest angle)",
+        V::PreslidingHysteresis => "small reversals of a few mrad (friction building up over the angle after each)",
+        V::InitialState => "a log that starts at rest, or with its first state logged",
+        V::None | V::Unexplained => "a longer log",
     }
 }
 
@@ -1454,6 +1480,25 @@ fn fit_warmup(d: &Data) -> (f64, f64, f64) {
 #[cfg(test)]
 mod vocabulary_tests {
     use super::*;
+
+    /// Every pair a verdict can have as alternatives gets a test that says what log separates
+    /// them (never a generic "a longer log"), the same either way round.
+    #[test]
+    fn every_pair_of_explanations_has_a_separating_test() {
+        let all: Vec<Vocab> = Vocab::terms().chain([Vocab::Parameters, Vocab::InitialState]).collect();
+        for &a in &all {
+            for &b in &all {
+                if a == b {
+                    continue;
+                }
+                let t = separating_test(a, b);
+                assert!(!t.contains("a longer log"), "{a} vs {b}: {t}");
+                let u = separating_test(b, a);
+                assert!(t == u || (t.contains(a.name()) && u.contains(a.name())), "{a} vs {b}: {t} / {u}");
+            }
+        }
+        assert!(separating_test(Vocab::DryFriction, Vocab::Parameters).contains("envelope"));
+    }
 
     /// Torque mode tries every effect term of the vocabulary, each as one kind, in the
     /// vocabulary's order, and writes it as the vocabulary's section.
