@@ -156,49 +156,21 @@ fn a_coulomb_spring_that_stops_is_its_own_model() {
 /// The paper's spring with a pure Coulomb level c = 0.05 N·m released from 0.2 rad, 400 samples
 /// at 200 Hz, 0.2 mrad of noise on a 0.1 mrad encoder.
 fn coulomb_spring_log() -> JointLog {
-    let (k, j, c) = (K, J, 0.05);
-    let w = (k / j).sqrt();
-    let rate = 200.0;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-    let (mut t, mut q) = (Vec::new(), Vec::new());
-    // half-cycle by half-cycle: centre ±c/K, amplitude about it
-    let (mut start, mut x0, mut t_seg) = (0.0f64, 0.2f64, 0.0f64);
-    let half = std::f64::consts::PI / w;
-    for i in 0..400 {
-        let ti = i as f64 / rate;
-        while ti > t_seg + half && (k * x0.abs() > c) {
-            let centre = c / k * x0.signum();
-            let end = centre - (x0 - centre);
-            t_seg += half;
-            x0 = end;
-            start = t_seg;
-        }
-        let x = if k * x0.abs() <= c {
-            x0
-        } else {
-            let centre = c / k * x0.signum();
-            centre + (x0 - centre) * (w * (ti - start)).cos()
-        };
-        t.push(ti);
-        q.push(((x + 2e-4 * normal(&mut rng)) / 1e-4).round() * 1e-4);
-    }
-    JointLog { t, q, ..JointLog::default() }
+    coulomb_spring(0.05, 0.05, 0.2, 9)
 }
 
-/// A spring with a Coulomb level that differs by direction (`c+` moving up, `c−` moving down),
-/// half-cycle by half-cycle in closed form: moving down from x0 > 0 the centre is `c−/K`, moving
-/// up from x0 < 0 it is `−c+/K`, and the joint stops where the spring cannot break the level of
-/// the way it would go. Read against a file with one level, a free response cannot tell that
-/// from an offset (issue 13.6): the verdict is one of the two and names the other, with the
-/// test that separates them.
-#[test]
-fn an_asymmetric_level_read_as_an_offset_names_the_other_explanation() {
-    let (k, j, c_up, c_down) = (K, J, 0.065, 0.035);
+/// A spring with a Coulomb level that may differ by direction (`c_up` moving up, `c_down` moving
+/// down), released from `x0` at rest, half-cycle by half-cycle in closed form: moving down from
+/// x > 0 the centre is `c_down/K`, moving up from x < 0 it is `−c_up/K`, and the joint stops where
+/// the spring cannot break the level of the way it would go. 400 samples at 200 Hz, 0.2 mrad of
+/// noise on a 0.1 mrad encoder.
+fn coulomb_spring(c_up: f64, c_down: f64, x0: f64, seed: u64) -> JointLog {
+    let (k, j) = (K, J);
     let w = (k / j).sqrt();
     let rate = 200.0;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (mut t, mut q) = (Vec::new(), Vec::new());
-    let (mut start, mut x0, mut t_seg) = (0.0f64, 0.25f64, 0.0f64);
+    let (mut start, mut x0, mut t_seg) = (0.0f64, x0, 0.0f64);
     let half = std::f64::consts::PI / w;
     let moves = |x: f64| if x > 0.0 { k * x > c_down } else { k * -x > c_up };
     let centre = |x: f64| if x > 0.0 { c_down / k } else { -c_up / k };
@@ -214,10 +186,19 @@ fn an_asymmetric_level_read_as_an_offset_names_the_other_explanation() {
         t.push(ti);
         q.push(((x + 2e-4 * normal(&mut rng)) / 1e-4).round() * 1e-4);
     }
-    let log = JointLog { t, q, ..JointLog::default() };
+    JointLog { t, q, ..JointLog::default() }
+}
+
+/// A spring with a Coulomb level that differs by direction (`c+` 0.065 N·m moving up, `c−`
+/// 0.035 N·m moving down, [`coulomb_spring`]). Read against a file with one level, a free response cannot tell that
+/// from an offset (issue 13.6): the verdict is one of the two and names the other, with the
+/// test that separates them.
+#[test]
+fn an_asymmetric_level_read_as_an_offset_names_the_other_explanation() {
+    let log = coulomb_spring(0.065, 0.035, 0.25, 17);
     // the file's level is neither side's nor their mean: a refit must move the level and the
     // offset together, and the asymmetric candidate on the file's own level cannot match
-    let d = verdict(&log, &model(k, 0.0, "[friction]\nc = 0.06\n"));
+    let d = verdict(&log, &model(K, 0.0, "[friction]\nc = 0.06\n"));
     let v = &d.report.verdict;
     eprintln!("asymmetric level: {v:?}");
     let alts: Vec<&str> = v.alternatives.iter().map(|a| a.effect.as_str()).collect();
