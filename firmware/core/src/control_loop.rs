@@ -13,6 +13,14 @@
 //! The one loop of every user of the core: the boards' control tasks, the closed-loop
 //! experiments of `jointctl` and another firmware built on the core (docs/porting.md). The
 //! encoder's error type is the caller's: any error is a tick without a fresh angle.
+//!
+//! What the loop steps is a [`LoopTarget`]: on a board the CANopen [`Node`] (the committed set,
+//! the NMT state's mode, the host's commands, the safety layer); in host-sim's offline
+//! simulator a bare controller under the scenario's mode (velocity sweeps and position holds
+//! that a test rig commands and the node does not offer). A joint whose sensor also gives the
+//! velocity (a tachometer, an encoder chip's own estimate, the simulator's velocity sensor)
+//! ticks with [`ControlLoop::tick_sensed`]: q̇ is that reading and q̈ its filtered derivative,
+//! by the same differentiator and cut-off as the angle-only path.
 
 use crate::canopen::{ControlStep, NmtState, Node, ParamStorage};
 use crate::control::{Differentiator, Output};
@@ -33,6 +41,45 @@ pub struct TickOutput {
     pub drive: bool,
 }
 
+/// What a [`ControlLoop`] steps each tick.
+pub trait LoopTarget {
+    /// The parameter set in force: the loop's period and filter cut-offs follow its
+    /// `controller_rate_hz` and `accel_cutoff`.
+    fn params(&self) -> &ParamSet;
+    /// One control step on the estimated state; returns the output to apply.
+    fn control(&mut self, now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output;
+    /// Latches a fault the loop detected (an overrun, a tick without a fresh reading).
+    fn raise(&mut self, f: Faults);
+    /// The faults latched now.
+    fn faults(&self) -> Faults;
+    /// Whether the output stage drives the bridge after this tick.
+    fn drive(&self) -> bool;
+}
+
+impl<S: ParamStorage, C: ControlStep> LoopTarget for Node<S, C> {
+    #[inline]
+    fn params(&self) -> &ParamSet {
+        Node::params(self)
+    }
+    #[inline]
+    fn control(&mut self, now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output {
+        Node::control(self, now_us, q, qd, qdd, dt)
+    }
+    #[inline]
+    fn raise(&mut self, f: Faults) {
+        self.safety_mut().raise(f);
+    }
+    #[inline]
+    fn faults(&self) -> Faults {
+        self.safety().faults()
+    }
+    /// Operational and the watchdog's gain above zero; otherwise the switches are opened.
+    #[inline]
+    fn drive(&self) -> bool {
+        self.nmt_state() == NmtState::Operational && self.safety().gain() > 0.0
+    }
+}
+
 /// The loop's state between ticks.
 pub struct ControlLoop {
     dq: Differentiator,
@@ -45,6 +92,8 @@ pub struct ControlLoop {
     accel_cutoff: f32,
     last_tick_us: Option<u64>,
     last_q: f32,
+    /// The last valid reading of a velocity sensor ([`ControlLoop::tick_sensed`]).
+    last_qd: f32,
 }
 
 impl ControlLoop {
@@ -59,6 +108,7 @@ impl ControlLoop {
             accel_cutoff: 0.0,
             last_tick_us: None,
             last_q: 0.0,
+            last_qd: 0.0,
         };
         s.apply_params(p);
         s
@@ -92,23 +142,42 @@ impl ControlLoop {
         self.last_tick_us = None;
     }
 
-    /// One tick at `now_us` with the encoder's reading. Returns the node's output; the
-    /// caller restarts its ticker when [`ControlLoop::nominal_period_us`] changed (a commit
-    /// of a new `controller_rate_hz`).
-    pub fn tick<S: ParamStorage, C: ControlStep, E>(
+    /// One tick at `now_us` with the encoder's reading: q̇ and q̈ estimated from the angle.
+    /// Returns the target's output; the caller restarts its ticker when
+    /// [`ControlLoop::nominal_period_us`] changed (a commit of a new `controller_rate_hz`).
+    pub fn tick<T: LoopTarget, E>(&mut self, target: &mut T, now_us: u64, position: Result<f32, E>) -> TickOutput {
+        self.run(target, now_us, position, None)
+    }
+
+    /// One tick with the angle and a velocity sensor's reading: q̇ is the reading, q̈ its
+    /// derivative through the acceleration filter. A velocity error is handled as an angle
+    /// error is: `COMMAND_INVALID` latches and the last valid reading stands in.
+    pub fn tick_sensed<T: LoopTarget, E>(
         &mut self,
-        node: &mut Node<S, C>,
+        target: &mut T,
         now_us: u64,
         position: Result<f32, E>,
+        velocity: Result<f32, E>,
     ) -> TickOutput {
-        if node.params().get(ParamId::ControlRateHz).to_bits() != self.rate_bits {
-            self.apply_params(node.params());
+        self.run(target, now_us, position, Some(velocity))
+    }
+
+    #[inline(always)]
+    fn run<T: LoopTarget, E>(
+        &mut self,
+        target: &mut T,
+        now_us: u64,
+        position: Result<f32, E>,
+        velocity: Option<Result<f32, E>>,
+    ) -> TickOutput {
+        if target.params().get(ParamId::ControlRateHz).to_bits() != self.rate_bits {
+            self.apply_params(target.params());
         }
         // A tick that comes more than three periods late means the loop was stalled (a
         // flash erase, a runaway task): latch it, the safety layer fades the torque.
         if let Some(last) = self.last_tick_us {
             if now_us.wrapping_sub(last) > 3 * self.period_us {
-                node.safety_mut().raise(Faults::LOOP_OVERRUN);
+                target.raise(Faults::LOOP_OVERRUN);
             }
         }
         self.last_tick_us = Some(now_us);
@@ -122,15 +191,24 @@ impl ControlLoop {
             // "sensor" fault bit; COMMAND_INVALID (the loop's input is not valid) latches, is
             // reported by EMCY and fades the torque to zero until the host clears it.
             Err(_) => {
-                node.safety_mut().raise(Faults::COMMAND_INVALID);
+                target.raise(Faults::COMMAND_INVALID);
                 self.last_q
             }
         };
-        let qd = self.dq.update(q, self.dt, self.vel_cutoff);
+        let qd = match velocity {
+            None => self.dq.update(q, self.dt, self.vel_cutoff),
+            Some(Ok(v)) => {
+                self.last_qd = v;
+                v
+            }
+            Some(Err(_)) => {
+                target.raise(Faults::COMMAND_INVALID);
+                self.last_qd
+            }
+        };
         let qdd = self.dqd.update(qd, self.dt, self.accel_cutoff);
-        let out = node.control(now_us, q, qd, qdd, self.dt);
-        let drive = node.nmt_state() == NmtState::Operational && node.safety().gain() > 0.0;
-        TickOutput { out, q, qd, faults: node.safety().faults(), drive }
+        let out = target.control(now_us, q, qd, qdd, self.dt);
+        TickOutput { out, q, qd, faults: target.faults(), drive: target.drive() }
     }
 }
 
@@ -233,6 +311,58 @@ mod tests {
         assert!(!r.faults.contains(Faults::LOOP_OVERRUN));
         let r = l.tick(&mut n, 60_000, Ok::<f32, &str>(0.0));
         assert!(r.faults.contains(Faults::LOOP_OVERRUN));
+    }
+
+    /// A bare target: the controller in a fixed mode, what the offline simulator steps.
+    struct Bare {
+        p: ParamSet,
+        c: crate::control::Controller,
+        faults: Faults,
+        seen: Option<(f32, f32, f32, f32)>,
+    }
+
+    impl LoopTarget for Bare {
+        fn params(&self) -> &ParamSet {
+            &self.p
+        }
+        fn control(&mut self, _now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output {
+            self.seen = Some((q, qd, qdd, dt));
+            let inp = crate::control::Input { q, qd, qdd, others: [0.0; 3], assist_cmd: 0.0, tau_load: 0.0 };
+            self.c.step(&self.p, crate::control::Mode::Assist, &inp, dt)
+        }
+        fn raise(&mut self, f: Faults) {
+            self.faults.insert(f);
+        }
+        fn faults(&self) -> Faults {
+            self.faults
+        }
+        fn drive(&self) -> bool {
+            self.faults.is_empty()
+        }
+    }
+
+    #[test]
+    fn a_sensed_velocity_is_used_as_read_and_differentiated_once() {
+        let p = check(&trunk_right()).unwrap();
+        let mut b = Bare { p: p.clone(), c: crate::control::Controller::new(), faults: Faults::NONE, seen: None };
+        let mut l = ControlLoop::new(&p);
+        // the same readings through a lone differentiator at the loop's period and cut-off
+        let mut d = Differentiator::new();
+        let dt = l.nominal_period_us() as f32 * 1.0e-6;
+        for k in 0..200u64 {
+            let t = k as f32 * dt;
+            let (q, v) = (0.3 * joint_core::math::sin(2.0 * t), 0.6 * joint_core::math::cos(2.0 * t) + 0.01);
+            let r = l.tick_sensed(&mut b, k * 1000, Ok::<f32, ()>(q), Ok(v));
+            let qdd = d.update(v, dt, p.get(ParamId::AccelCutoff));
+            assert_eq!(b.seen, Some((q, v, qdd, dt)), "tick {k}");
+            assert_eq!(r.qd, v);
+            assert!(r.drive && r.faults.is_empty());
+        }
+        // a failed velocity reading: the last valid one stands in and the fault latches
+        let r = l.tick_sensed(&mut b, 200_000, Ok::<f32, ()>(0.1), Err(()));
+        assert!(r.faults.contains(Faults::COMMAND_INVALID));
+        assert_eq!(r.qd, b.seen.unwrap().1);
+        assert!(!r.drive);
     }
 
     #[test]

@@ -5,34 +5,35 @@
 //! Per control tick k (t = k/rate):
 //! 1. the sensors read the state of `t − delay` (no `[delay]`: the current state): angle with
 //!    noise and quantisation, velocity with noise; the other joints' angles likewise;
-//! 2. the controller gets that q and q̇, and q̈ from the core's `Differentiator` on the sensed q̇
-//!    (cut-off `controller.accel_cutoff`), and the load cell's reading of the same instant (the
-//!    row's `tau`; 0 in a log without torque columns, a joint without a load cell), and returns
-//!    the output torque u, applied at once;
+//! 2. the boards' loop, the core's [`ControlLoop`], ticks on that angle and velocity
+//!    ([`ControlLoop::tick_sensed`]: q̇ as the velocity sensor reads it, q̈ its derivative
+//!    through the `controller.accel_cutoff` filter, at the loop's whole-µs period) and steps the
+//!    core's controller under the scenario's mode with the other joints' angles and the load
+//!    cell's reading of the same instant (the row's `tau`; 0 in a log without torque columns, a
+//!    joint without a load cell); its output torque u is applied at once;
 //! 3. the log row: t, the sensed q, q̇, q̈ (true q̈ + `qdd_noise`, of the sensed instant), u (+
 //!    `u_noise`), tau = −τ_ext (+ `tau_noise`), temp (thermal drift only), `q_<name>`;
 //! 4. the plant advances `plant_rate/rate` RK4 steps with u and the operator held.
 //!
 //! Other joints named by the plant's gravity table follow smooth random paths inside their grid.
 //!
-//! Why the step and not the boards' loop (the core's `ControlLoop`, which `jointctl sim` and the
-//! closed-loop experiments run): the loop estimates q̇ and q̈ from the angle alone, as an
-//! encoder-only board does, while a plant file here describes the sensors its logs carry, an
-//! angle with white noise (`q_noise`), a velocity sensor, an acceleration estimate. Tried in
-//! issue 18 (`ControlLoop` around the same step, its mode the scenario's): on the diagnosis
-//! tests' joint (`q_noise` 1e-4 rad, 20 s of sweep, poses and hand at 1 kHz) the loop's q̇
-//! estimate differentiates that noise, and the torque changed by 0.77 N·m rms from one tick to
-//! the next instead of 0.053; the exact model's log was no longer at its noise floor (diagnose:
-//! `unexplained` instead of `none`), four `diagnose_cli` tests and the withheld-effect bench
-//! (6 of its model-exact cases named an effect) failed. With an encoder's 9.6 µrad quantisation
-//! in place of the noise the loop's log was diagnosed `none` (0.044 N·m rms per tick). So the
-//! loop would change what these plants mean, not only the numbers; a plant that wants the
-//! board's loop is a closed-loop experiment.
+//! The loop is the one every user of the core runs (the boards, the QEMU images, `jointctl sim`,
+//! the closed-loop experiments); what differs is what it reads and steps. A plant file describes
+//! the sensors its logs carry, a velocity sensor among them, so the simulated joint ticks with
+//! the velocity it reads, as a board with a velocity sensor would; the boards' encoder-only
+//! estimate (q̇ from the angle) is `jointctl sim` and the closed-loop experiments. Tried in issue
+//! 18: the encoder-only estimate on these plants' white angle noise (`q_noise` 1e-4 rad at 1 kHz)
+//! made the torque change by 0.77 N·m rms per tick instead of 0.053, and the exact model's log
+//! was no longer at its noise floor; that is a different sensor, not the same loop. And the
+//! loop steps a bare controller ([`LoopTarget`] for `Rig`), not the CANopen node: the scenarios
+//! command velocity sweeps and position holds, a test rig's modes the node does not offer.
 
 use std::collections::VecDeque;
 
-use joint_core::control::{Controller, Differentiator, Input};
-use joint_core::params::{ParamId, ParamSet};
+use joint_core::control::{Controller, Input, Mode, Output};
+use joint_core::control_loop::{ControlLoop, LoopTarget};
+use joint_core::params::{check, ParamId, ParamSet};
+use joint_core::safety::Faults;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -136,7 +137,8 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
     let (k_h, b_h) = operator_impedance(plant_file, &plant);
     let scfg =
         ScenarioCfg { lo, hi, k_h, b_h, free_start: cfg.free_start.unwrap_or(lo + 0.75 * (hi - lo)), sweep_accel: 3.0 };
-    let mut run = Run::new(plant_file, &plant, ctrl, cfg, &timing, &scfg);
+    let rig = Rig::new(loop_params(ctrl, timing.rate)?);
+    let mut run = Run::new(plant_file, &plant, rig, cfg, &timing, &scfg);
     for (si, kind) in cfg.scenarios.iter().enumerate() {
         let mut scenario: Option<Scenario> = None;
         for k in 0..timing.ticks_per_scenario {
@@ -152,6 +154,64 @@ pub fn simulate(plant_file: &PlantFile, ctrl: &ParamSet, cfg: &SimConfig) -> Res
         operator_damping: b_h,
     };
     Ok((run.log, info))
+}
+
+/// The controller's set with `controller_rate_hz` at the run's rate (the loop's period and
+/// filters follow it, as on a board after that set is committed); refused as a board would
+/// refuse it.
+fn loop_params(ctrl: &ParamSet, rate: f64) -> Result<ParamSet, SimError> {
+    let hz = rate as f32;
+    if ctrl.get(ParamId::ControlRateHz).to_bits() == hz.to_bits() {
+        return Ok(ctrl.clone());
+    }
+    let mut raw = ctrl.raw().clone();
+    raw.set(ParamId::ControlRateHz, hz);
+    check(&raw)
+        .map_err(|e| SimError::Config(format!("control rate {rate} Hz with the controller's parameter set: {e}")))
+}
+
+/// What the loop steps in a simulated run: the core's controller under the scenario's mode,
+/// with the other joints' sensed angles and the load cell's reading of this tick.
+struct Rig {
+    params: ParamSet,
+    controller: Controller,
+    mode: Mode,
+    others: [f32; 3],
+    tau_load: f32,
+    faults: Faults,
+}
+
+impl Rig {
+    fn new(params: ParamSet) -> Rig {
+        Rig {
+            params,
+            controller: Controller::new(),
+            mode: Mode::Off,
+            others: [0.0; 3],
+            tau_load: 0.0,
+            faults: Faults::NONE,
+        }
+    }
+}
+
+impl LoopTarget for Rig {
+    fn params(&self) -> &ParamSet {
+        &self.params
+    }
+    fn control(&mut self, _now_us: u64, q: f32, qd: f32, qdd: f32, dt: f32) -> Output {
+        let inp = Input { q, qd, qdd, others: self.others, assist_cmd: 0.0, tau_load: self.tau_load };
+        self.controller.step(&self.params, self.mode, &inp, dt)
+    }
+    fn raise(&mut self, f: Faults) {
+        self.faults.insert(f);
+    }
+    fn faults(&self) -> Faults {
+        self.faults
+    }
+    /// The rig applies the controller's torque; a latched fault stops the run instead.
+    fn drive(&self) -> bool {
+        true
+    }
 }
 
 /// The rates, step sizes and range of a run, checked.
@@ -267,7 +327,6 @@ struct RowNoise {
 /// The state of one simulation run between control ticks.
 struct Run<'a> {
     plant: &'a Plant,
-    ctrl: &'a ParamSet,
     cfg: &'a SimConfig,
     timing: &'a Timing,
     scfg: &'a ScenarioCfg,
@@ -281,8 +340,9 @@ struct Run<'a> {
     /// fine steps of sensor delay (the plant's `[delay]`)
     delay_steps: usize,
     x: State,
-    controller: Controller,
-    diff: Differentiator,
+    /// the boards' loop and what it steps
+    ctl: ControlLoop,
+    rig: Rig,
     hist: VecDeque<Rec>,
     tick: usize,
     log: JointLog,
@@ -292,7 +352,7 @@ impl<'a> Run<'a> {
     fn new(
         plant_file: &PlantFile,
         plant: &'a Plant,
-        ctrl: &'a ParamSet,
+        rig: Rig,
         cfg: &'a SimConfig,
         timing: &'a Timing,
         scfg: &'a ScenarioCfg,
@@ -332,7 +392,6 @@ impl<'a> Run<'a> {
         };
         Run {
             plant,
-            ctrl,
             cfg,
             timing,
             scfg,
@@ -344,8 +403,8 @@ impl<'a> Run<'a> {
             others_hist: VecDeque::new(),
             delay_steps,
             x: State::at_rest(q_init),
-            controller: Controller::new(),
-            diff: Differentiator::new(),
+            ctl: ControlLoop::new(&rig.params),
+            rig,
             hist: VecDeque::with_capacity(delay_steps + timing.sub + 2),
             tick: 0,
             log,
@@ -377,7 +436,7 @@ impl<'a> Run<'a> {
         let now = Rec { t, x: self.x, u: 0.0, op: cmd.operator };
         let at = self.sensed_rec(&sensed, now);
         let tau = self.log.tau.is_some().then(|| -at.op.torque(at.x.q, at.x.qd) + noise.tau);
-        let u = self.control(&sensed, cmd.mode, tau.unwrap_or(0.0));
+        let u = self.control(t, &sensed, cmd.mode, tau.unwrap_or(0.0))?;
         self.hist.push_back(Rec { t, x: self.x, u, op: cmd.operator });
         self.log_row(t, &sensed, Rec { u, ..now }, noise, tau);
         self.integrate(t, u, &cmd.operator)
@@ -426,24 +485,25 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// 2. The firmware core's control step on what was sensed (`tau`: the load cell's reading);
+    /// 2. The core's control loop on what was sensed (`tau`: the load cell's reading);
     ///    returns the output torque.
-    fn control(&mut self, s: &Sensed, mode: joint_core::control::Mode, tau: f64) -> f64 {
-        let dt_ctrl = self.timing.dt_ctrl;
-        let qdd_est = self.diff.update(s.qd as f32, dt_ctrl as f32, self.ctrl.get(ParamId::AccelCutoff));
-        let mut inp = Input {
-            q: s.q as f32,
-            qd: s.qd as f32,
-            qdd: qdd_est,
-            others: [0.0; 3],
-            assist_cmd: 0.0,
-            tau_load: tau as f32,
-        };
-        for (dst, src) in inp.others.iter_mut().zip(s.others.iter()) {
+    fn control(&mut self, t: f64, s: &Sensed, mode: Mode, tau: f64) -> Result<f64, SimError> {
+        let rig = &mut self.rig;
+        rig.mode = mode;
+        rig.tau_load = tau as f32;
+        rig.others = [0.0; 3];
+        for (dst, src) in rig.others.iter_mut().zip(s.others.iter()) {
             *dst = *src as f32;
         }
-        let out = self.controller.step(self.ctrl, mode, &inp, dt_ctrl as f32);
-        f64::from(out.tau_out)
+        let now_us = (t * 1.0e6).round() as u64;
+        let r = self.ctl.tick_sensed(rig, now_us, Ok::<f32, ()>(s.q as f32), Ok(s.qd as f32));
+        if r.faults != Faults::NONE {
+            return Err(SimError::Config(format!(
+                "the control loop latched fault bits {:#06x} at t = {t:.4} s",
+                r.faults.bits()
+            )));
+        }
+        Ok(f64::from(r.out.tau_out))
     }
 
     /// 3. The log row, from the sensed instant with the inputs in force then (`now`: this
