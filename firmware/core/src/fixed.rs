@@ -529,14 +529,17 @@ fn scaled(x: f32, frac: i32) -> i64 {
         return 0;
     }
     // A normal x is mant·2^(exp − 150); a subnormal (exp 0) is below 2^-126: rounds to 0.
-    let mant = i64::from((b & 0x7f_ffff) | 0x80_0000);
+    let mant = (b & 0x7f_ffff) | 0x80_0000;
     let sh = exp - 150 + frac;
     let mag = if exp == 0 || sh < -25 {
         0
     } else if sh < 0 {
-        (mant + (1 << (-sh - 1))) >> -sh
+        // Rounded in 32 bits: mant < 2²⁴ and the half < 2²⁴. A shift by a variable count is one
+        // instruction there and a library call in 64 bits on the M0+ (two per conversion, and
+        // the step converts every input, the table's corner values and the series' terms).
+        i64::from((mant + (1 << (-sh - 1))) >> -sh)
     } else if sh <= 38 {
-        mant << sh
+        i64::from(mant) << sh
     } else {
         1 << 62
     };
@@ -792,5 +795,48 @@ mod tests {
         assert_eq!(scaled(0.001, 31), 2_147_484);
         assert_eq!(Gain::new(f32::NAN), Gain::default());
         assert_eq!(exp_neg_q26(i64::MAX), 0);
+    }
+
+    #[test]
+    fn scaled_rounds_in_32_bits_as_in_64() {
+        // The 64-bit rounding `scaled` had before its right shifts moved to 32 bits.
+        fn wide(x: f32, frac: i32) -> i64 {
+            let b = x.to_bits();
+            let exp = ((b >> 23) & 0xff) as i32;
+            let mant = i64::from((b & 0x7f_ffff) | 0x80_0000);
+            let sh = exp - 150 + frac;
+            let mag = if exp == 0xff || exp == 0 || sh < -25 {
+                0
+            } else if sh < 0 {
+                (mant + (1 << (-sh - 1))) >> -sh
+            } else if sh <= 38 {
+                mant << sh
+            } else {
+                1 << 62
+            };
+            if b >> 31 == 1 {
+                -mag
+            } else {
+                mag
+            }
+        }
+        let mut rng = crate::vectors::XorShift32::new(7);
+        for exp in 0..=255u32 {
+            for k in 0..1000u32 {
+                // the smallest, the largest and a middle mantissa, then random ones
+                let mant = match k {
+                    0 => 0,
+                    1 => 0x7f_ffff,
+                    2 => 0x40_0000,
+                    _ => rng.next_u32() & 0x7f_ffff,
+                };
+                for sign in [0, 1u32 << 31] {
+                    let x = f32::from_bits(sign | exp << 23 | mant);
+                    for frac in [16, 31] {
+                        assert_eq!(scaled(x, frac), wide(x, frac), "{x:e} ({:#010x}), frac {frac}", x.to_bits());
+                    }
+                }
+            }
+        }
     }
 }
