@@ -317,25 +317,23 @@ impl Controller {
             None
         };
 
-        let mut out = Output { bad_input: sane.is_none(), ..Output::default() };
-        let target = match sane {
+        let bad_input = sane.is_none();
+        let (target, c_c, assist) = match sane {
             None => {
                 self.integ = 0.0;
-                0.0
+                (0.0, 0.0, 0.0)
             }
             Some(Input { q, qd, qdd, others, assist_cmd, tau_load }) => {
                 let c_c = disturbance_stateful(p, &mut self.dahl, q, qd, qdd, &others, tau_load);
-                out.c_c = c_c;
                 match mode {
                     Mode::Off => {
                         self.integ = 0.0;
-                        0.0
+                        (0.0, c_c, 0.0)
                     }
                     Mode::Assist => {
                         self.integ = 0.0;
                         let assist = p.get(ParamId::AssistK) * q + assist_cmd;
-                        out.assist = assist;
-                        assist + p.get(ParamId::Fraction) * c_c
+                        (assist + p.get(ParamId::Fraction) * c_c, c_c, assist)
                     }
                     Mode::Velocity(v) => {
                         let v =
@@ -355,7 +353,7 @@ impl Controller {
                             + t.c0
                             + t.spring.torque(q, v)
                             + t.extra_torque(q, v, tau_load);
-                        p.get(ParamId::VelKp) * err + self.integ + ff
+                        (p.get(ParamId::VelKp) * err + self.integ + ff, c_c, 0.0)
                     }
                     Mode::Position(x) => {
                         self.integ = 0.0;
@@ -363,7 +361,7 @@ impl Controller {
                         let t = p.terms();
                         let ff =
                             gravity(p, q, &others) + t.c0 + t.spring.torque(q, 0.0) + t.extra_torque(q, 0.0, tau_load);
-                        p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff
+                        (p.get(ParamId::PosKp) * (x - q) - p.get(ParamId::PosKd) * qd + ff, c_c, 0.0)
                     }
                 }
             }
@@ -383,14 +381,13 @@ impl Controller {
         } else {
             limited_target
         };
-        // The output differs from the law's target exactly when a limit acted: a torque-limited
-        // target lies outside ±limit where the output cannot be, and a rate-limited output
-        // stops short of the (possibly limited) target.
-        out.limited = tau != target;
         self.prev_tau = tau;
-        out.tau_out = tau;
-        out.u_motor = tau * p.inv_ratio_m1();
-        out
+        // Built once, here, from the law's values (zeroed first and filled in as the law ran, it
+        // cost the M4F step 2 instructions more). The output differs from the law's target
+        // exactly when a limit acted: a torque-limited target lies outside ±limit where the
+        // output cannot be, and a rate-limited output stops short of the (possibly limited)
+        // target.
+        Output { tau_out: tau, u_motor: tau * p.inv_ratio_m1(), c_c, assist, limited: tau != target, bad_input }
     }
 }
 

@@ -529,14 +529,17 @@ fn scaled(x: f32, frac: i32) -> i64 {
         return 0;
     }
     // A normal x is mant·2^(exp − 150); a subnormal (exp 0) is below 2^-126: rounds to 0.
-    let mant = i64::from((b & 0x7f_ffff) | 0x80_0000);
+    let mant = (b & 0x7f_ffff) | 0x80_0000;
     let sh = exp - 150 + frac;
     let mag = if exp == 0 || sh < -25 {
         0
     } else if sh < 0 {
-        (mant + (1 << (-sh - 1))) >> -sh
+        // Rounded in 32 bits: mant < 2²⁴ and the half < 2²⁴. A shift by a variable count is one
+        // instruction there and a library call in 64 bits on the M0+ (two per conversion, and
+        // the step converts every input, the table's corner values and the series' terms).
+        i64::from((mant + (1 << (-sh - 1))) >> -sh)
     } else if sh <= 38 {
-        mant << sh
+        i64::from(mant) << sh
     } else {
         1 << 62
     };
@@ -626,28 +629,29 @@ impl ControllerFx {
         }
     }
 
-    /// The effect terms at (q, q̇) with `inp`'s measured load, read only when there are effect
-    /// terms and handed to the out-of-line sum as the f32's bits (converted there).
+    /// The effect terms at (q, q̇) with the measured load `load` (the load cell's f32, N·m),
+    /// which only their out-of-line sum converts and reads: without effect terms it is not used.
     #[inline]
-    fn extra_w(&self, q: Fx, qd: Fx) -> Wide {
+    fn extra_w(&self, q: Fx, qd: Fx, load: f32) -> Wide {
         if !self.p.extra.any {
             return 0;
         }
         let t = &self.p.terms;
-        self.p.extra.torque_w(q, qd, sign_smooth_fx(qd, t.v_band, t.inv_band))
+        self.p.extra.torque_w(q, qd, sign_smooth_fx(qd, t.v_band, t.inv_band), load)
     }
 
     /// `C_c` of the Q16.16 step: `J·q̈ + friction (or viscous + Dahl) + gravity + C_0 + spring +
-    /// effect terms`, every term of [`crate::control::disturbance_stateful`].
+    /// effect terms`, every term of [`crate::control::disturbance_stateful`]; `extra` is the
+    /// effect terms' sum at (q, q̇) ([`ControllerFx::extra_w`]).
     #[inline]
-    fn disturbance(&mut self, p: &ParamSet, angles: &[Fx; 4], qd: Fx, qdd: Fx) -> Fx {
+    fn disturbance(&mut self, p: &ParamSet, angles: &[Fx; 4], qd: Fx, qdd: Fx, extra: Wide) -> Fx {
         let [q, ..] = *angles;
         let t = &self.p.terms;
         let fric = if t.dahl_on { viscous_w(t, qd) + w(self.dahl.update(t, q, qd)) } else { friction_w(t, qd) };
         sat(fric
             + self.gravity_w(p, angles)
             + spring_w(&self.p.terms, q, qd)
-            + self.extra_w(q, qd)
+            + extra
             + self.p.j.mul_wide(qdd.to_bits())
             + w(self.p.c0))
     }
@@ -666,12 +670,6 @@ impl ControllerFx {
         // dt in Q1.31: 0 < dt ≤ 1 s, else the rate limiter freezes for this step (as in f32).
         // 0 < dt ≤ 1 in one unsigned compare of the bits, as the f32 step does.
         let dt_q31: i64 = if dt.to_bits().wrapping_sub(1) < 1.0f32.to_bits() { scaled(dt, 31) } else { 0 };
-        // The measured load goes to the effect terms' out-of-line sum in their own struct, read
-        // only when there are effect terms: carried through the terms, it cost the step without
-        // them 5 to 15 instructions on the M4F (scripts/fw-bench.sh).
-        if self.p.extra.any {
-            self.p.extra.load_bits = inp.tau_load.to_bits();
-        }
         let finite = is_finite(inp.q)
             && is_finite(inp.qd)
             && is_finite(inp.qdd)
@@ -684,9 +682,14 @@ impl ControllerFx {
             Fx::ZERO
         } else {
             let (q, qd, qdd) = (fx(inp.q), fx(inp.qd), fx(inp.qdd));
+            // The effect terms first, where the inputs are read: the load is read inside their
+            // branch only, and only their sum goes on through the step (staged in the parameters
+            // behind a branch of its own, it cost a step without effect terms that branch, 4
+            // instructions on the M0+, and the registers it moved).
+            let extra = self.extra_w(q, qd, inp.tau_load);
             let [o0, o1, o2] = inp.others;
             let angles = [q, fx(o0), fx(o1), fx(o2)];
-            let c_c = self.disturbance(p, &angles, qd, qdd);
+            let c_c = self.disturbance(p, &angles, qd, qdd, extra);
             out.c_c = to_f32(c_c);
             match mode {
                 Mode::Off => {
@@ -708,8 +711,11 @@ impl ControllerFx {
                     let integ = Fx::from_bits(sat32(i64::from(self.integ.to_bits()) + di));
                     self.integ = clamp_fx(integ, -limit, limit);
                     let fric = if t.dahl_on { viscous_w(t, v) + w(self.dahl.force()) } else { friction_w(t, v) };
-                    let ff =
-                        sat(fric + self.gravity_w(p, &angles) + w(self.p.c0) + spring_w(t, q, v) + self.extra_w(q, v));
+                    let ff = sat(fric
+                        + self.gravity_w(p, &angles)
+                        + w(self.p.c0)
+                        + spring_w(t, q, v)
+                        + self.extra_w(q, v, inp.tau_load));
                     self.p.vel_kp.times(err).saturating_add(self.integ).saturating_add(ff)
                 }
                 Mode::Position(x) => {
@@ -719,7 +725,7 @@ impl ControllerFx {
                     let ff = sat(self.gravity_w(p, &angles)
                         + w(self.p.c0)
                         + spring_w(t, q, Fx::ZERO)
-                        + self.extra_w(q, Fx::ZERO));
+                        + self.extra_w(q, Fx::ZERO, inp.tau_load));
                     self.p.pos_kp.times(x.saturating_sub(q)).saturating_sub(self.p.pos_kd.times(qd)).saturating_add(ff)
                 }
             }
@@ -792,5 +798,48 @@ mod tests {
         assert_eq!(scaled(0.001, 31), 2_147_484);
         assert_eq!(Gain::new(f32::NAN), Gain::default());
         assert_eq!(exp_neg_q26(i64::MAX), 0);
+    }
+
+    #[test]
+    fn scaled_rounds_in_32_bits_as_in_64() {
+        // The 64-bit rounding `scaled` had before its right shifts moved to 32 bits.
+        fn wide(x: f32, frac: i32) -> i64 {
+            let b = x.to_bits();
+            let exp = ((b >> 23) & 0xff) as i32;
+            let mant = i64::from((b & 0x7f_ffff) | 0x80_0000);
+            let sh = exp - 150 + frac;
+            let mag = if exp == 0xff || exp == 0 || sh < -25 {
+                0
+            } else if sh < 0 {
+                (mant + (1 << (-sh - 1))) >> -sh
+            } else if sh <= 38 {
+                mant << sh
+            } else {
+                1 << 62
+            };
+            if b >> 31 == 1 {
+                -mag
+            } else {
+                mag
+            }
+        }
+        let mut rng = crate::vectors::XorShift32::new(7);
+        for exp in 0..=255u32 {
+            for k in 0..1000u32 {
+                // the smallest, the largest and a middle mantissa, then random ones
+                let mant = match k {
+                    0 => 0,
+                    1 => 0x7f_ffff,
+                    2 => 0x40_0000,
+                    _ => rng.next_u32() & 0x7f_ffff,
+                };
+                for sign in [0, 1u32 << 31] {
+                    let x = f32::from_bits(sign | exp << 23 | mant);
+                    for frac in [16, 31] {
+                        assert_eq!(scaled(x, frac), wide(x, frac), "{x:e} ({:#010x}), frac {frac}", x.to_bits());
+                    }
+                }
+            }
+        }
     }
 }

@@ -172,8 +172,6 @@ pub struct ExtraFx {
     pub cable_inv_2w: Gain,
     pub dry_c: Fx,
     pub load_mu: Fx,
-    /// the step's measured load, the f32's bits, set by the step before [`ExtraFx::torque_w`]
-    pub load_bits: u32,
 }
 
 /// The largest measured load the load-dependent friction takes, N·m ([`crate::model::INPUT_LIMITS`]).
@@ -197,16 +195,15 @@ impl ExtraFx {
             cable_inv_2w: Gain::new(if e.cable_width > 0.0 { 0.5 / e.cable_width } else { 0.0 }),
             dry_c: fx(e.dry_c),
             load_mu: fx(e.load_mu),
-            load_bits: 0,
         }
     }
 
-    /// Sum of the terms at (q, q̇), `sgn` the smoothed sign of q̇, with the measured load of
-    /// [`ExtraFx::load_bits`] (converted here: NaN and ±∞ become 0, no load) ([`Extra::torque`]).
+    /// Sum of the terms at (q, q̇), `sgn` the smoothed sign of q̇, `load` the measured load (N·m,
+    /// converted here: NaN and ±∞ become 0, no load) ([`Extra::torque`]).
     /// Out of line like its f32 twin: inlined, its registers cost the step without effect terms.
     #[inline(never)]
     #[cold]
-    pub(crate) fn torque_w(&self, q: Fx, qd: Fx, sgn: Fx) -> Wide {
+    pub(crate) fn torque_w(&self, q: Fx, qd: Fx, sgn: Fx, load: f32) -> Wide {
         if !self.any {
             return 0;
         }
@@ -231,8 +228,7 @@ impl ExtraFx {
             mul_wide(self.cable_k, x - w(self.cable_width) / 2)
         };
         // mu ≤ 1 times |load| ≤ 1e4 N·m: a Q16 product below 2³¹, then times |sgn| ≤ 1
-        let load_friction =
-            mul_wide(sgn, mul(self.load_mu, fx(f32::from_bits(self.load_bits)).saturating_abs().min(LOAD_MAX)));
+        let load_friction = mul_wide(sgn, mul(self.load_mu, fx(load).saturating_abs().min(LOAD_MAX)));
         stribeck + asym + ripple + cable + mul(self.dry_c, sgn) + load_friction
     }
 }
@@ -255,5 +251,5 @@ pub fn series_fx(s: &RawSeries, angles: &[Fx; 4]) -> Fx {
 
 /// The effect terms' total saturated to Q16.16 (for tests and hosts that want one term).
 pub fn extra_fx(e: &ExtraFx, q: Fx, qd: Fx, sgn: Fx, load: f32) -> Fx {
-    sat(ExtraFx { load_bits: load.to_bits(), ..*e }.torque_w(q, qd, sgn))
+    sat(e.torque_w(q, qd, sgn, load))
 }
