@@ -55,3 +55,46 @@ fn a_two_harmonic_ripple_is_emitted_and_compensated_whole() {
     assert!(with < 0.07, "the emitted model leaves {with} N·m (noise 0.05)");
     assert!(without > 0.1, "the second harmonic was not needed ({without})");
 }
+
+/// Two ripples of independent periods (a mesh and its motor's cogging, 1.8 apart) over 0.7 rad
+/// of travel: each period comes out within 0.1 % and the fit leaves the noise. The first period,
+/// searched with the second's sinusoid still in the residual, came out 0.52 % off (0.13771 for
+/// 0.137) before it was refined again with the second in place; on a bench log of this shape
+/// that error left a held-out RMSE 1.8× the floor after the ripple, enough to hide a second
+/// effect (1.03× with the refinement).
+#[test]
+fn two_ripple_periods_are_both_found_to_a_tenth_of_a_percent() {
+    let plant = PlantFile::parse(
+        &format!("{MODEL}[sensors]\ntau_noise = 0.02\n[joint_range]\nmin = 0.0\nmax = 0.7\n"),
+        "plant",
+    )
+    .unwrap();
+    let model = ModelFile::parse(MODEL, "model").unwrap();
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand],
+        seconds: 8.0,
+        rate: Some(1000.0),
+        range: Some((0.0, 0.7)),
+        ..SimConfig::default()
+    };
+    let (mut log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
+    let (p1, p2, tau) = (0.137, 0.0772, std::f64::consts::TAU);
+    let ripple = |q: f64| 0.10 * (tau * q / p1 + 5.97).sin() + 0.082 * (tau * q / p2 + 1.84).sin();
+    let q = log.q.clone();
+    for (u, q) in log.u.as_mut().unwrap().iter_mut().zip(&q) {
+        *u += ripple(*q);
+    }
+    let d = diagnose(&log, &model, &Options::default()).unwrap();
+    let v = &d.report.verdict;
+    assert_eq!(v.effect, "position_ripple", "{v:?}");
+    let sel = d.report.selected.first().unwrap();
+    let (a, b) = (sel.params["period"], sel.params["period_b"]);
+    // either may be reported first
+    let (f1, f2) = if (a - p1).abs() < (b - p1).abs() { (a, b) } else { (b, a) };
+    println!(
+        "periods {f1:.5} ({p1}), {f2:.5} ({p2}); held-out RMSE after {:.4} N·m (noise 0.02)",
+        v.holdout_rmse_after
+    );
+    assert!((f1 / p1 - 1.0).abs() < 1e-3 && (f2 / p2 - 1.0).abs() < 1e-3, "periods {f1}, {f2}");
+    assert!(v.holdout_rmse_after < 1.15 * 0.02, "held-out RMSE after {} (noise 0.02)", v.holdout_rmse_after);
+}

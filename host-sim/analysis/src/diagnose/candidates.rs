@@ -1028,10 +1028,30 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                     best2 = Some((gx, r));
                 }
             }
-            Some(match best2 {
-                Some((g, r)) if !near(g) && n * (r_first / r).ln() > 3.0 * n.ln() => with(g),
-                _ => first,
-            })
+            match best2 {
+                Some((g, r)) if !near(g) && n * (r_first / r).ln() > 3.0 * n.ln() => {
+                    // The first period was refined alone, with the second one's sinusoid still
+                    // in the residual, which biases it (two periods 1.8 apart: 0.7 % off, a
+                    // phase error of a third of a radian across the travel, enough residual to
+                    // hide a second effect). Refined again with the second in place, then the
+                    // second with the first's new value; each step kept only where it lowers
+                    // the training RSS.
+                    let make = |f: f64, g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
+                    let (mut fb, mut gb, mut rb) = (f, g, r);
+                    for _ in 0..2 {
+                        let (fx, rf) = golden(fb - 0.5 * df, fb + 0.5 * df, 16, |x| rss_of(make(x, gb)));
+                        if rf < rb {
+                            (fb, rb) = (fx, rf);
+                        }
+                        let (gx, rg) = golden(gb - 0.5 * df, gb + 0.5 * df, 16, |x| rss_of(make(fb, x)));
+                        if rg < rb {
+                            (gb, rb) = (gx, rg);
+                        }
+                    }
+                    Some(if near(gb) { with(g) } else { make(fb, gb) })
+                }
+                _ => Some(first),
+            }
         }
         Kind::Cable => {
             // A harness taut past an angle (either side), or a progressive spring about one.
