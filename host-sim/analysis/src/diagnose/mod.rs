@@ -684,11 +684,15 @@ fn torque_mode(
     let sel = select::select(&data, &base, &split, &regimes.bits, regimes.defs.len(), floor, &reread, opts.max_effects);
     let floor = sel.floor;
     lap("candidates and forward selection");
-    let report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, &prep.log);
+    let mut report = build_report("torque", &data, &base, model, &regimes, &split, &sel, &r0, floor, creep, &prep.log);
     lap("report");
     let final_s =
         sel.chosen.last().map(|o| &o.scored).unwrap_or(if sel.refit.significant { &sel.refit.scored } else { &sel.m0 });
-    let emitted_model = emit_model(model, &base, final_s, &data);
+    let weight_kept = weight_undetermined(model, final_s, &data, &split);
+    if let Some(why) = &weight_kept {
+        report.warnings.push(format!("{why}: --emit-model keeps the file's weight and offset"));
+    }
+    let emitted_model = emit_model(model, &base, final_s, &data, weight_kept.as_deref());
     let mut plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     plots.evidence = torque_evidence(&data, &sel.m0, final_s, &split, &report.verdict.effects);
     Ok(Diagnosis { report, emitted_model, plots })
@@ -1292,13 +1296,52 @@ fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Spl
 
 /// The model TOML with the final model's refitted values and its effect sections, in the plant
 /// file's section names, so `jointctl simulate --plant` runs it.
-fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String {
+/// Why the log does not determine the final fit's weight apart from the offset, if it does not.
+/// Over a short arc `A·sin(s·q + φ)` and `c0` trade against each other (a 0.4 rad arc is
+/// nearly a straight line plus a constant): the refit may put hundreds of N·m on the pair that
+/// cancel where the joint went and not elsewhere. The weight's sine and cosine coefficients'
+/// standard errors come from the energy of each column the others do not explain on the
+/// training rows (thinned to 20 000) and the held-out residual variance; the weight counts as
+/// determined when both are within a quarter of the file's amplitude (a 95 % interval within
+/// half of it; the errors assume white residuals and are optimistic for correlated ones). A
+/// model without a weight, or a fit that kept the file's weight, has nothing to say.
+fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split) -> Option<String> {
+    let a0 = model.value(ParamId::WeightAmplitude).abs();
+    let (bs, bc) = (coef(fin, Col::SinSq(d.ws))?, coef(fin, Col::CosSq(d.ws))?);
+    let (phi0, s) = (model.value(ParamId::WeightPhi), model.value(ParamId::WeightS));
+    let (fs, fc) = (a0 * phi0.cos(), a0 * phi0.sin());
+    if (bs - fs).abs() <= 1e-9 * a0.max(1e-12) && (bc - fc).abs() <= 1e-9 * a0.max(1e-12) {
+        return None;
+    }
+    let idx = candidates::thin_idx(&split.train, 20_000);
+    let stride = split.train.len() as f64 / idx.len().max(1) as f64;
+    let (se_s, se_c) = select::weight_se(&fin.design, d, &idx, fin.mse() / stride)?;
+    let se = se_s.max(se_c);
+    if se <= 0.25 * a0 && se.is_finite() {
+        return None;
+    }
+    let (lo, hi) =
+        idx.iter().map(|&i| d.q[i as usize]).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| (a.min(q), b.max(q)));
+    Some(format!(
+        "the log does not determine the weight apart from the offset: over q in [{lo:.3}, {hi:.3}] rad ({:.2} rad of the weight's phase) the refit's weight (amplitude {:.4} N·m, c0 {:.4} N·m; the file's {a0:.4} and {:.4}) is known to ±{se:.3} N·m per part",
+        s.abs() * (hi - lo),
+        bs.hypot(bc),
+        coef(fin, Col::Const).unwrap_or(0.0),
+        model.value(ParamId::OffsetC0),
+    ))
+}
+
+fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kept: Option<&str>) -> String {
     let _ = base;
     let mut mf = model.clone();
     let vals = refit_values(model, fin);
+    let kept = [ParamId::WeightAmplitude, ParamId::WeightPhi, ParamId::WeightS, ParamId::OffsetC0];
     for (sec, kv) in &vals {
         for (k, v) in kv {
             if let Some(desc) = joint_core::params::param_at(sec, k) {
+                if weight_kept.is_some() && kept.contains(&desc.id) {
+                    continue;
+                }
                 // Keep the file loadable: the table forbids negative coefficients.
                 let v = v.clamp(f64::from(desc.min), f64::from(desc.max));
                 mf.set(desc.id, v, None);
@@ -1306,6 +1349,9 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data) -> String 
         }
     }
     let mut out = String::from("# written by `jointctl diagnose --emit-model`: the model refitted on the training part of the log,\n# plus the selected effects as plant sections (readable by `jointctl simulate --plant`).\n");
+    if let Some(why) = weight_kept {
+        out.push_str(&format!("# [weight] and [offset] are the file's: {why}.\n"));
+    }
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
     for k in 0..fin.effects.len() {

@@ -475,6 +475,29 @@ pub fn unexcited(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
         .collect()
 }
 
+/// How well the rows `idx` determine the weight apart from the other columns (the offset
+/// above all, over a short arc): the standard errors of the sine and cosine coefficients, from
+/// the energy of each column the others do not explain and the residual variance `sigma2`.
+/// `None` when the design has no weight.
+pub fn weight_se(des: &Design, d: &Data, idx: &[u32], sigma2: f64) -> Option<(f64, f64)> {
+    use super::candidates::Col;
+    let ks = des.cols.iter().position(|c| matches!(c, Col::SinSq(_)))?;
+    let kc = des.cols.iter().position(|c| matches!(c, Col::CosSq(_)))?;
+    let g = des.gram(d, idx);
+    let p = g.p;
+    let at = |r: usize, c: usize| g.g.get(r.min(c) * p + r.max(c)).copied().unwrap_or(0.0);
+    let se = |k: usize| {
+        let others: Vec<usize> = (0..p).filter(|&j| j != k && at(j, j) > 0.0).collect();
+        let e = residual_energy(&at, k, &others);
+        if e > 0.0 {
+            (sigma2 / e).sqrt()
+        } else {
+            f64::INFINITY
+        }
+    };
+    Some((se(ks), se(kc)))
+}
+
 /// `G_kk − G_kO·G_OO⁻¹·G_Ok`: the energy of column `k` the columns `others` do not explain.
 /// `G_OO` gets a ridge of 1e-10 of its largest diagonal (columns collinear among themselves,
 /// a constant sine beside the offset, then share the work instead of making it singular);
