@@ -1306,10 +1306,12 @@ fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Spl
 /// half of it; the errors assume white residuals and are optimistic for correlated ones). A
 /// model without a weight, or a fit that kept the file's weight, has nothing to say.
 fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split) -> Option<String> {
-    let a0 = model.value(ParamId::WeightAmplitude).abs();
+    let amp0 = model.value(ParamId::WeightAmplitude);
+    let a0 = amp0.abs();
     let (bs, bc) = (coef(fin, Col::SinSq(d.ws))?, coef(fin, Col::CosSq(d.ws))?);
     let (phi0, s) = (model.value(ParamId::WeightPhi), model.value(ParamId::WeightS));
-    let (fs, fc) = (a0 * phi0.cos(), a0 * phi0.sin());
+    // the file's own coefficients, as the design's prior has them (a negative amplitude too)
+    let (fs, fc) = (amp0 * phi0.cos(), amp0 * phi0.sin());
     if (bs - fs).abs() <= 1e-9 * a0.max(1e-12) && (bc - fc).abs() <= 1e-9 * a0.max(1e-12) {
         return None;
     }
