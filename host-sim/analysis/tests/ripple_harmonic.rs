@@ -9,15 +9,18 @@ use host_sim::scenario::ScenarioKind;
 use host_sim::sim::{simulate, SimConfig};
 use joint_analysis::diagnose::{diagnose, Options};
 use joint_core::params::ParamId;
+use joint_formats::log::JointLog;
 use joint_formats::model_file::ModelFile;
 use joint_formats::predict;
 
 const MODEL: &str = "[friction]\na = 0.5\nb = 2.0\nc = 1.0\nv_band = 0.01\n[weight]\namplitude = 2.5\ns = 0.802\nphi = 0.0\n[inertia]\nj = 0.4\n[offset]\nc0 = -0.3\n";
 
-#[test]
-fn a_two_harmonic_ripple_is_emitted_and_compensated_whole() {
+/// The joint of `MODEL` with white torque noise `tau_noise`, swept and moved by hand over
+/// `0..max` rad for 8 s each at 1 kHz, with `ripple(q)` added to its torque (a ripple the model
+/// lacks); returns the log and the model.
+fn rippled_log(tau_noise: f64, max: f64, ripple: impl Fn(f64) -> f64) -> (JointLog, ModelFile) {
     let plant = PlantFile::parse(
-        &format!("{MODEL}[sensors]\ntau_noise = 0.05\n[joint_range]\nmin = 0.0\nmax = 2.0\n"),
+        &format!("{MODEL}[sensors]\ntau_noise = {tau_noise}\n[joint_range]\nmin = 0.0\nmax = {max}\n"),
         "plant",
     )
     .unwrap();
@@ -26,17 +29,23 @@ fn a_two_harmonic_ripple_is_emitted_and_compensated_whole() {
         scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand],
         seconds: 8.0,
         rate: Some(1000.0),
-        range: Some((0.0, 2.0)),
+        range: Some((0.0, max)),
         ..SimConfig::default()
     };
     let (mut log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
-    // the joint's torque carries a ripple the model lacks: two harmonics of one period
-    let (period, tau) = (0.25, std::f64::consts::TAU);
-    let ripple = |q: f64| 0.3 * (tau * q / period + 0.4).sin() + 0.15 * (2.0 * tau * q / period - 1.0).sin();
     let q = log.q.clone();
     for (u, q) in log.u.as_mut().unwrap().iter_mut().zip(&q) {
         *u += ripple(*q);
     }
+    (log, model)
+}
+
+#[test]
+fn a_two_harmonic_ripple_is_emitted_and_compensated_whole() {
+    // the joint's torque carries a ripple the model lacks: two harmonics of one period
+    let (period, tau) = (0.25, std::f64::consts::TAU);
+    let (log, model) =
+        rippled_log(0.05, 2.0, |q| 0.3 * (tau * q / period + 0.4).sin() + 0.15 * (2.0 * tau * q / period - 1.0).sin());
     let d = diagnose(&log, &model, &Options::default()).unwrap();
     assert_eq!(d.report.verdict.effect, "position_ripple", "{:?}", d.report.verdict);
     let emitted = ModelFile::parse(&d.emitted_model, "emitted").unwrap();
@@ -64,26 +73,9 @@ fn a_two_harmonic_ripple_is_emitted_and_compensated_whole() {
 /// effect (1.03× with the refinement).
 #[test]
 fn two_ripple_periods_are_both_found_to_a_tenth_of_a_percent() {
-    let plant = PlantFile::parse(
-        &format!("{MODEL}[sensors]\ntau_noise = 0.02\n[joint_range]\nmin = 0.0\nmax = 0.7\n"),
-        "plant",
-    )
-    .unwrap();
-    let model = ModelFile::parse(MODEL, "model").unwrap();
-    let cfg = SimConfig {
-        scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand],
-        seconds: 8.0,
-        rate: Some(1000.0),
-        range: Some((0.0, 0.7)),
-        ..SimConfig::default()
-    };
-    let (mut log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
     let (p1, p2, tau) = (0.137, 0.0772, std::f64::consts::TAU);
-    let ripple = |q: f64| 0.10 * (tau * q / p1 + 5.97).sin() + 0.082 * (tau * q / p2 + 1.84).sin();
-    let q = log.q.clone();
-    for (u, q) in log.u.as_mut().unwrap().iter_mut().zip(&q) {
-        *u += ripple(*q);
-    }
+    let (log, model) =
+        rippled_log(0.02, 0.7, |q| 0.10 * (tau * q / p1 + 5.97).sin() + 0.082 * (tau * q / p2 + 1.84).sin());
     let d = diagnose(&log, &model, &Options::default()).unwrap();
     let v = &d.report.verdict;
     assert_eq!(v.effect, "position_ripple", "{v:?}");

@@ -1020,7 +1020,8 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                 }
             }
             let near = |g: f64| (1..=2).any(|k| (g - f * f64::from(k)).abs() < 2.0 * df);
-            let with = |g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
+            let make = |f: f64, g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
+            let with = |g: f64| make(f, g);
             let mut best2: Option<(f64, f64)> = None;
             for &(g, _) in peaks_of(&spectrum(&left)).iter().filter(|(g, _)| !near(*g)).take(3) {
                 let (gx, r) = golden(g - df, g + df, 16, |g| rss_of(with(g)));
@@ -1036,7 +1037,6 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                     // hide a second effect). Refined again with the second in place, then the
                     // second with the first's new value; each step kept only where it lowers
                     // the training RSS.
-                    let make = |f: f64, g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
                     let (mut fb, mut gb, mut rb) = (f, g, r);
                     for _ in 0..2 {
                         let (fx, rf) = golden(fb - 0.5 * df, fb + 0.5 * df, 16, |x| rss_of(make(x, gb)));

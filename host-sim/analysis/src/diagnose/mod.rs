@@ -1294,8 +1294,6 @@ fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Spl
     p
 }
 
-/// The model TOML with the final model's refitted values and its effect sections, in the plant
-/// file's section names, so `jointctl simulate --plant` runs it.
 /// Why the log does not determine the final fit's weight apart from the offset, if it does not.
 /// Over a short arc `A·sin(s·q + φ)` and `c0` trade against each other (a 0.4 rad arc is
 /// nearly a straight line plus a constant): the refit may put hundreds of N·m on the pair that
@@ -1306,19 +1304,20 @@ fn plot_data(d: &Data, m0: &Scored, fin: &Scored, regimes: &Regimes, split: &Spl
 /// half of it; the errors assume white residuals and are optimistic for correlated ones). A
 /// model without a weight, or a fit that kept the file's weight, has nothing to say.
 fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split) -> Option<String> {
-    let amp0 = model.value(ParamId::WeightAmplitude);
-    let a0 = amp0.abs();
-    let (bs, bc) = (coef(fin, Col::SinSq(d.ws))?, coef(fin, Col::CosSq(d.ws))?);
-    let (phi0, s) = (model.value(ParamId::WeightPhi), model.value(ParamId::WeightS));
-    // the file's own coefficients, as the design's prior has them (a negative amplitude too)
-    let (fs, fc) = (amp0 * phi0.cos(), amp0 * phi0.sin());
-    if (bs - fs).abs() <= 1e-9 * a0.max(1e-12) && (bc - fc).abs() <= 1e-9 * a0.max(1e-12) {
+    let des = &fin.design;
+    let ks = des.cols.iter().position(|c| *c == Col::SinSq(d.ws))?;
+    let kc = des.cols.iter().position(|c| *c == Col::CosSq(d.ws))?;
+    let (bs, bc) = (fin.beta[ks], fin.beta[kc]);
+    // the fit kept the file's weight (the design's prior: the file's own coefficients)
+    if bs == des.prior[ks] && bc == des.prior[kc] {
         return None;
     }
     let idx = candidates::thin_idx(&split.train, 20_000);
     let stride = split.train.len() as f64 / idx.len().max(1) as f64;
-    let (se_s, se_c) = select::weight_se(&fin.design, d, &idx, fin.mse() / stride)?;
-    let se = se_s.max(se_c);
+    let g = des.gram(d, &idx);
+    let sigma2 = fin.mse() / stride;
+    let se = select::coef_se(&g, ks, sigma2).max(select::coef_se(&g, kc, sigma2));
+    let (a0, s) = (model.value(ParamId::WeightAmplitude).abs(), model.value(ParamId::WeightS));
     if se <= 0.25 * a0 && se.is_finite() {
         return None;
     }
@@ -1333,6 +1332,10 @@ fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split)
     ))
 }
 
+/// The model TOML with the final model's refitted values and its effect sections, in the plant
+/// file's section names, so `jointctl simulate --plant` runs it.
+/// `weight_kept`: why the log does not determine the weight ([`weight_undetermined`]); the
+/// file's weight and offset are written then, with that reason.
 fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kept: Option<&str>) -> String {
     let _ = base;
     let mut mf = model.clone();

@@ -475,27 +475,20 @@ pub fn unexcited(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
         .collect()
 }
 
-/// How well the rows `idx` determine the weight apart from the other columns (the offset
-/// above all, over a short arc): the standard errors of the sine and cosine coefficients, from
-/// the energy of each column the others do not explain and the residual variance `sigma2`.
-/// `None` when the design has no weight.
-pub fn weight_se(des: &Design, d: &Data, idx: &[u32], sigma2: f64) -> Option<(f64, f64)> {
-    use super::candidates::Col;
-    let ks = des.cols.iter().position(|c| matches!(c, Col::SinSq(_)))?;
-    let kc = des.cols.iter().position(|c| matches!(c, Col::CosSq(_)))?;
-    let g = des.gram(d, idx);
+/// The standard error of column `k`'s coefficient in the least-squares fit whose Gram is `g`,
+/// at residual variance `sigma2`: from the energy of the column that the other columns do not
+/// explain ([`residual_energy`]); infinite for a column they explain whole. What tells a weight
+/// apart from the offset over a short arc, or not.
+pub fn coef_se(g: &super::fit::Gram, k: usize, sigma2: f64) -> f64 {
     let p = g.p;
     let at = |r: usize, c: usize| g.g.get(r.min(c) * p + r.max(c)).copied().unwrap_or(0.0);
-    let se = |k: usize| {
-        let others: Vec<usize> = (0..p).filter(|&j| j != k && at(j, j) > 0.0).collect();
-        let e = residual_energy(&at, k, &others);
-        if e > 0.0 {
-            (sigma2 / e).sqrt()
-        } else {
-            f64::INFINITY
-        }
-    };
-    Some((se(ks), se(kc)))
+    let others: Vec<usize> = (0..p).filter(|&j| j != k && at(j, j) > 0.0).collect();
+    let e = residual_energy(&at, k, &others);
+    if e > 0.0 {
+        (sigma2 / e).sqrt()
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// `G_kk − G_kO·G_OO⁻¹·G_Ok`: the energy of column `k` the columns `others` do not explain.
