@@ -267,11 +267,19 @@ impl<'a> Window<'a> {
         // The floor: the angle noise, and what reading a sampled input between its samples
         // leaves open (a step's edge spanning a few samples): half the difference between a
         // line and the cubic between the samples, the usual share of two readings' spread.
-        let spread_ms =
-            u.and_then(|u| sim::input_spread(&lay.law(&th0, &[]), t, u, (th0[0], th0[1]), n)).map_or(0.0, |s| {
-                let held: Vec<f64> = s.iter().zip(&sp.held).filter(|(_, h)| **h).map(|(d, _)| d * d).collect();
-                0.25 * held.iter().sum::<f64>() / held.len().max(1) as f64
-            });
+        // And when, within its interval, an input that jumps between two samples changed
+        // ([`sim::edge_spread`]).
+        let held_mean = |v: &[f64]| {
+            let held: Vec<f64> = v.iter().zip(&sp.held).filter(|(_, h)| **h).map(|(x, _)| *x).collect();
+            held.iter().sum::<f64>() / held.len().max(1) as f64
+        };
+        let law0 = lay.law(&th0, &[]);
+        let spread_ms = u.map_or(0.0, |u| {
+            let shape = sim::input_spread(&law0, t, u, (th0[0], th0[1]), n)
+                .map_or(0.0, |s| 0.25 * held_mean(&s.iter().map(|d| d * d).collect::<Vec<f64>>()));
+            let edges = sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n).map_or(0.0, |v| held_mean(&v));
+            shape + edges
+        });
         // On a short log the preparation stage's noise estimate has no spectrum to stand on: on
         // the null bench (seed 11) it read from 0.28× to 8× the true angle noise on 20–300
         // samples, and taking it whenever it was the smaller made six logs the file's model

@@ -200,15 +200,18 @@ struct Input {
     u1: f64,
     m0: f64,
     m1: f64,
+    /// the curve read this much earlier (s; negative: later), held at the interval's ends
+    /// ([`edge_spread`])
+    shift: f64,
 }
 
 impl Input {
-    const ZERO: Input = Input { t0: 0.0, dt: 1.0, u0: 0.0, u1: 0.0, m0: 0.0, m1: 0.0 };
+    const ZERO: Input = Input { t0: 0.0, dt: 1.0, u0: 0.0, u1: 0.0, m0: 0.0, m1: 0.0, shift: 0.0 };
 
     fn line(t: &[f64], u: &[f64], i: usize) -> Input {
         let (t0, dt) = (t[i - 1], t[i] - t[i - 1]);
         let m = (u[i] - u[i - 1]) / dt;
-        Input { t0, dt, u0: u[i - 1], u1: u[i], m0: m, m1: m }
+        Input { t0, dt, u0: u[i - 1], u1: u[i], m0: m, m1: m, shift: 0.0 }
     }
 
     fn between(t: &[f64], u: &[f64], i: usize) -> Input {
@@ -239,12 +242,12 @@ impl Input {
                 m1 *= s;
             }
         }
-        Input { t0, dt, u0, u1, m0, m1 }
+        Input { t0, dt, u0, u1, m0, m1, shift: 0.0 }
     }
 
     #[inline]
     fn at(&self, t: f64) -> f64 {
-        let s = (t - self.t0) / self.dt;
+        let s = ((t + self.shift - self.t0) / self.dt).clamp(0.0, 1.0);
         let (s2, s3) = (s * s, s * s * s);
         (2.0 * s3 - 3.0 * s2 + 1.0) * self.u0
             + (s3 - 2.0 * s2 + s) * self.dt * self.m0
@@ -264,7 +267,7 @@ struct Y {
 /// The simulated angle at samples `0..n` of `t` from `(q0, v0)`; `u` the known input (held
 /// linear between samples). `None` if the integration diverges.
 pub fn run(law: &Law, t: &[f64], u: Option<&[f64]>, start: (f64, f64), n: usize) -> Option<Vec<f64>> {
-    simulate(law, t, u, start, n, Plan::Choose(&mut Vec::new()), false)
+    simulate(law, t, u, start, n, Plan::Choose(&mut Vec::new()), Reading::Cubic)
 }
 
 /// How much the response depends on how the logged input is read between its samples: the
@@ -272,9 +275,90 @@ pub fn run(law: &Law, t: &[f64], u: Option<&[f64]>, start: (f64, f64), n: usize)
 /// Where the input changes within a few samples (a step's edge at a low rate) the two differ
 /// by about what no model can know; the diagnosis counts it into the noise floor.
 pub fn input_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize) -> Option<Vec<f64>> {
-    let cubic = simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), false)?;
-    let line = simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), true)?;
+    let cubic = simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Cubic)?;
+    let line = simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Line)?;
     Some(line.iter().zip(&cubic).map(|(a, b)| a - b).collect())
+}
+
+/// How much the response depends on when, within its sample interval, the input changed
+/// where it changed in one: a step whose edge is shorter than a sample is logged as a jump
+/// between two samples, and the log cannot tell whether the edge came just after the first
+/// or just before the second (an edge uniform over the interval: T²/12 of timing variance),
+/// which moves the whole response after it. What no model can know goes into the noise floor
+/// (issue 13: on the null bench, step inputs at 50–80 Hz left the file's own model up to
+/// 1.9× the floor and were named `cable_spring`, `delay`, `unexplained`).
+///
+/// Interval `i` is an edge by the share `f` of its edge's change that falls within it (the
+/// edge: the run of same-signed changes around it): an input the samples resolve spreads that
+/// change over several intervals, a jump between flat stretches puts all of it in one (`f` =
+/// 1). Past a third, `w = (f − 1/3)/(2/3)` clamped to [0, 1] is the part whose time the samples
+/// do not place: its curve may have come up to `w·T/2` earlier or later (0.55 for a ramp of 1.1
+/// samples split 0.3/0.7, 0.25 for one split evenly over two intervals, 0.04 at the middle of
+/// a quintic edge over five samples, 0 for any input smooth at this rate, so a delay of a
+/// smooth input is not hidden). Two pairs of readings bound the response per sample: all
+/// edges early against all late (`Δc`), rising edges early and falling ones late against the reverse (`Δd`: a pulse's width); for edges `k` of sensitivities `a_k`, `(Δc² +
+/// Δd²)/2` is `Σ a_k²·T²` exactly for one or two edges. Returns that over 12 (rad²) per sample.
+pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize) -> Option<Vec<f64>> {
+    let n = n.min(t.len()).min(u.len());
+    // the change over interval i (samples i − 1 → i), and the monotone run of changes it is in
+    let delta: Vec<f64> = (0..n)
+        .map(|i| match (t.get(i.wrapping_sub(1)), t.get(i), u.get(i.wrapping_sub(1)), u.get(i)) {
+            (Some(&t0), Some(&t1), Some(&u0), Some(&u1)) if t1 > t0 => u1 - u0,
+            _ => 0.0,
+        })
+        .collect();
+    let mut run_sum = vec![0.0; n];
+    let mut i = 1;
+    while i < n {
+        let sign = delta[i].signum();
+        let mut j = i;
+        let mut sum = 0.0;
+        while j < n && delta[j] != 0.0 && delta[j].signum() == sign {
+            sum += delta[j].abs();
+            j += 1;
+        }
+        let j = j.max(i + 1);
+        for r in &mut run_sum[i..j] {
+            *r = sum;
+        }
+        i = j;
+    }
+    // per interval: the largest shift (s) and its direction
+    let mut half = vec![0.0; n];
+    let mut rising = vec![false; n];
+    let mut any = false;
+    for i in 1..n {
+        if !(delta[i] != 0.0 && run_sum[i] > 0.0) {
+            continue;
+        }
+        let f = delta[i].abs() / run_sum[i];
+        let w = (1.5 * f - 0.5).clamp(0.0, 1.0);
+        if w > 0.0 {
+            half[i] = w * 0.5 * (t[i] - t[i - 1]);
+            rising[i] = delta[i] > 0.0;
+            any = true;
+        }
+    }
+    if !any {
+        return Some(vec![0.0; n]);
+    }
+    let run = |sign: &dyn Fn(usize) -> f64| -> Option<Vec<f64>> {
+        let by: Vec<f64> = half.iter().enumerate().map(|(i, h)| h * sign(i)).collect();
+        simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Shifted(&by))
+    };
+    let early = run(&|_| 1.0)?;
+    let late = run(&|_| -1.0)?;
+    let wide = run(&|i| if rising[i] { 1.0 } else { -1.0 })?;
+    let narrow = run(&|i| if rising[i] { -1.0 } else { 1.0 })?;
+    Some(
+        (0..n)
+            .map(|i| {
+                let c = early.get(i).zip(late.get(i)).map_or(0.0, |(a, b)| a - b);
+                let d = wide.get(i).zip(narrow.get(i)).map_or(0.0, |(a, b)| a - b);
+                (c * c + d * d) / 24.0
+            })
+            .collect(),
+    )
 }
 
 /// The sub-steps of each sample interval (and whether its band is treated as stiff), fixed
@@ -283,7 +367,7 @@ pub fn input_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize
 /// finite-difference Jacobian would read that jump as a slope.
 pub fn plan(law: &Law, t: &[f64], u: Option<&[f64]>, start: (f64, f64), n: usize) -> Option<Vec<u8>> {
     let mut p = Vec::with_capacity(n);
-    simulate(law, t, u, start, n, Plan::Choose(&mut p), false)?;
+    simulate(law, t, u, start, n, Plan::Choose(&mut p), Reading::Cubic)?;
     Some(p)
 }
 
@@ -296,7 +380,7 @@ pub fn run_planned(
     n: usize,
     plan: &[u8],
 ) -> Option<Vec<f64>> {
-    simulate(law, t, u, start, n, Plan::Follow(plan), false)
+    simulate(law, t, u, start, n, Plan::Follow(plan), Reading::Cubic)
 }
 
 /// Whether sub-steps are chosen (and recorded) or followed.
@@ -308,6 +392,17 @@ enum Plan<'p> {
 /// The flag of a planned entry that marks a stiff band.
 const STIFF: u8 = 0x80;
 
+/// How the logged input is read between its samples.
+#[derive(Clone, Copy)]
+enum Reading<'a> {
+    /// [`Input::between`]: what every fit uses
+    Cubic,
+    /// a line between the samples
+    Line,
+    /// the cubic, read earlier by the interval's entry here (s; negative: later)
+    Shifted(&'a [f64]),
+}
+
 fn simulate(
     law: &Law,
     t: &[f64],
@@ -315,7 +410,7 @@ fn simulate(
     start: (f64, f64),
     n: usize,
     mut plan: Plan,
-    linear_input: bool,
+    reading: Reading,
 ) -> Option<Vec<f64>> {
     let n = n.min(t.len());
     let mut out = Vec::with_capacity(n);
@@ -333,10 +428,13 @@ fn simulate(
             out.push(y.q);
             continue;
         }
-        let inp = match u {
-            Some(u) if linear_input => Input::line(t, u, i),
-            Some(u) => Input::between(t, u, i),
-            None => Input::ZERO,
+        let inp = match (u, reading) {
+            (Some(u), Reading::Line) => Input::line(t, u, i),
+            (Some(u), Reading::Cubic) => Input::between(t, u, i),
+            (Some(u), Reading::Shifted(by)) => {
+                Input { shift: by.get(i).copied().unwrap_or(0.0), ..Input::between(t, u, i) }
+            }
+            (None, _) => Input::ZERO,
         };
         let (sub, stiff_band) = match &mut plan {
             Plan::Follow(p) => {
