@@ -187,6 +187,8 @@ pub fn separating_test(a: Vocab, b: Vocab) -> String {
         "motion with fast torque changes (steps, a chirp to higher frequency): a lag shows against the torque's changes"
     } else if pair(V::LoadDependentFriction, V::Parameters) {
         "the same speeds under different external loads (or with and without a payload)"
+    } else if pair(V::InitialState, V::Parameters) {
+        "a log whose first state is known (samples at rest before the motion, or q̇ logged from the first sample) and that runs at least one full swing: a start off bends the first swing only, a term off every one"
     } else if pair(V::DryFriction, V::Parameters) {
         "a free decay to rest, or slow moves each way: a Coulomb level takes the same amount off every swing (a straight envelope) and stops the joint off its rest angle, a viscous one the same ratio (an exponential envelope)"
     } else {
@@ -1549,6 +1551,7 @@ mod vocabulary_tests {
             }
         }
         assert!(separating_test(Vocab::DryFriction, Vocab::Parameters).contains("envelope"));
+        assert!(separating_test(Vocab::InitialState, Vocab::Parameters).contains("first swing only"));
     }
 
     /// Torque mode tries every effect term of the vocabulary, each as one kind, in the

@@ -188,6 +188,15 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
             String::new()
         }
     );
+    if !r.verdict.alternatives.is_empty() {
+        say!(o, "this log cannot tell the verdict from:");
+        for a in &r.verdict.alternatives {
+            say!(o, "  {}: to tell them apart, {}", a.effect, a.test);
+        }
+    }
+    if !r.verdict.closest.is_empty() {
+        say!(o, "closest candidates (none explains the gap): {}", r.verdict.closest.join(", "));
+    }
     if !r.not_determined.is_empty() {
         say!(o, "not determined by this log (every refit keeps the file's values):");
         for u in &r.not_determined {

@@ -293,6 +293,21 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: u
             alts.push(o.name);
         }
     }
+    // A start off against terms off: P keeps the start within its prior and gives the model's
+    // terms new values; where it beats the assumed start as clearly as S does and S does not
+    // beat it, this log cannot tell the two apart (a short stretch of a free release: a start
+    // velocity bends it as a stiffer spring does; development seeds 9010–9015: four
+    // `parameters` logs of under 60 samples called `initial_state` with P fitting better).
+    if j.verdict == Vocab::InitialState && !alts.contains(&Vocab::Parameters) {
+        if let (Some(r0), Some(s), Some(p)) = (fits.first(), fits.get(1), fits.get(j.params.fit)) {
+            if j.params.implausible.is_none()
+                && sig(compare(&r0.scored, &p.scored), j.alpha_each)
+                && !sig(compare(&p.scored, &s.scored), j.alpha_each)
+            {
+                alts.push(Vocab::Parameters);
+            }
+        }
+    }
     if j.verdict == Vocab::Parameters
         && !alts.contains(&Vocab::AsymmetricFriction)
         && fits.get(j.params.fit).is_some_and(|r| offset_as_asymmetry(lay, r, n_train))
