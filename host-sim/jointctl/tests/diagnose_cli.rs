@@ -476,8 +476,8 @@ fn a_log_that_excites_nothing_lists_what_it_cannot_determine() {
 #[test]
 fn the_text_report_names_the_alternatives_and_their_separating_test() {
     use rand::{Rng, SeedableRng};
-    let (k, b, j) = (7.3035, 0.0416, 0.0085);
-    let (wn, zeta) = ((k / j as f64).sqrt(), b / (2.0 * (k * j as f64).sqrt()));
+    let (k, b, j): (f64, f64, f64) = (7.3035, 0.0416, 0.0085);
+    let (wn, zeta) = ((k / j).sqrt(), b / (2.0 * (k * j).sqrt()));
     let wd = wn * (1.0 - zeta * zeta).sqrt();
     let mut seen = 0;
     for seed in 2..=3u64 {
