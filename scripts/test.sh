@@ -33,8 +33,8 @@ bash scripts/qemu-test.sh m0
 echo "== control step cost on QEMU (instructions, -icount; full step budget ≤ 400 on the M4F, Q16.16 ≤ 2500 on the M0+; no row above scripts/fw-bench-baseline.txt)"
 bash scripts/fw-bench.sh --self-test
 bash scripts/fw-bench.sh
-echo "== core lints (no unwrap/expect/panic/indexing in shipping code)"
-cargo clippy -q -p joint-core --lib -- -D warnings
+echo "== core lints (no unwrap/expect/panic/indexing in shipping code; its tests linted too, with their allows)"
+cargo clippy -q -p joint-core --all-targets -- -D warnings
 echo "== board image lints (G431 classic and CAN FD, G0B1)"
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf --features fd -- -D warnings

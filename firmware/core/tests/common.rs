@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 // Shared by the core's integration tests (each test file includes it with `mod common;`).
 #![allow(dead_code)]
 

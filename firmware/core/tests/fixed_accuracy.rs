@@ -230,10 +230,10 @@ fn accuracy_table_of_the_q16_terms_against_f64() {
                 s.phase[0] = draw(r, 100.0, true);
                 let mut angles = [Fx::ZERO; 4];
                 let mut arg = h(s.phase[0]);
-                for j in 0..4 {
+                for (j, a) in angles.iter_mut().enumerate() {
                     s.mult[0][j] = (r.next_u32() % 9) as i8 - 4;
                     let x = draw(r, 1e3, true);
-                    angles[j] = fx(x);
+                    *a = fx(x);
                     arg += f64::from(s.mult[0][j]) * h(x);
                 }
                 (series_fx(&s, &angles), h(s.amplitude[0]) * arg.sin())

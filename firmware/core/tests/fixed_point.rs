@@ -1,5 +1,6 @@
 //! The fixed-point path against the f32 path over the operating range of the papers' joints,
 //! and its pre-sliding (Dahl) state against the f32 one over a joint's motion.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 mod common;
 use common::*;
