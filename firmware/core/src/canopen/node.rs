@@ -1816,9 +1816,12 @@ fn check_len(info: &SubInfo, n: usize) -> Result<(), Abort> {
                 _ => 0,
             };
             let unit = if info.key == Key::SeriesTerms { TERM_BYTES } else { 4 };
+            // `%` rather than `is_multiple_of` (Rust 1.87): the workspace declares 1.85.
+            #[allow(clippy::manual_is_multiple_of)]
+            let ragged = n % unit != 0;
             if n > max {
                 Err(Abort::TooLong)
-            } else if !n.is_multiple_of(unit) {
+            } else if ragged {
                 Err(Abort::TypeLength)
             } else {
                 Ok(())
