@@ -320,6 +320,7 @@ fn a_push_before_the_release_is_cut_off_and_named() {
 /// The paper's joint at rest, driven from `t_on` by a step of `h` N·m whose edge lasts
 /// `ramp` s, in closed form (the step response averaged over the edge), `rate` Hz for `secs`,
 /// white angle noise `sd` and a 20-bit encoder; the input logged as sampled.
+#[allow(clippy::too_many_arguments)] // the joint, the step, the rate and the noise
 fn stepped(k: f64, h: f64, t_on: f64, ramp: f64, rate: f64, secs: f64, sd: f64, seed: u64) -> JointLog {
     let (wn, zeta) = ((k / J).sqrt(), B / (2.0 * (k * J).sqrt()));
     let wd = wn * (1.0 - zeta * zeta).sqrt();

@@ -469,12 +469,12 @@ fn a_log_that_excites_nothing_lists_what_it_cannot_determine() {
     assert!((j - 0.4).abs() < 1e-9 && (amp - 2.5).abs() < 0.01, "J {j}, amplitude {amp}");
 }
 
-/// The text report names what the log cannot tell the verdict from, with the log that would
-/// separate them, as the JSON's `verdict.alternatives` does: a fifth of a swing of a free
+/// The text and HTML reports name what the log cannot tell the verdict from, with the log that
+/// would separate them, as the JSON's `verdict.alternatives` does: a fifth of a swing of a free
 /// release (the elastic-joint paper's joint, closed form) whose file has K 20 % off, where a
 /// start velocity and a stiffer spring bend the swing alike.
 #[test]
-fn the_text_report_names_the_alternatives_and_their_separating_test() {
+fn the_text_and_html_reports_name_the_alternatives_and_their_separating_test() {
     use rand::{Rng, SeedableRng};
     let (k, b, j): (f64, f64, f64) = (7.3035, 0.0416, 0.0085);
     let (wn, zeta) = ((k / j).sqrt(), b / (2.0 * (k * j).sqrt()));
@@ -497,13 +497,26 @@ fn the_text_report_names_the_alternatives_and_their_separating_test() {
         std::fs::write(&m, format!("[spring]\nk = {}\nb = {b}\nq0 = 0.0\n[inertia]\nj = {j}\n", 1.2 * k)).unwrap();
         let v = run_json(&l, &m, &[]);
         let alts = v["verdict"]["alternatives"].as_array().cloned().unwrap_or_default();
-        let o = jointctl(&["diagnose", "--log", l.to_str().unwrap(), "--model", m.to_str().unwrap()]);
+        let html = dir.path().join("report.html");
+        let o = jointctl(&[
+            "diagnose",
+            "--log",
+            l.to_str().unwrap(),
+            "--model",
+            m.to_str().unwrap(),
+            "--report",
+            html.to_str().unwrap(),
+        ]);
         let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+        let page = std::fs::read_to_string(&html).unwrap();
         assert_eq!(text.contains("this log cannot tell the verdict from:"), !alts.is_empty(), "{text}");
+        assert_eq!(page.contains("id=\"alternatives\""), !alts.is_empty());
         for a in &alts {
-            let line =
-                format!("  {}: to tell them apart, {}", a["effect"].as_str().unwrap(), a["test"].as_str().unwrap());
+            let (effect, test) = (a["effect"].as_str().unwrap(), a["test"].as_str().unwrap());
+            let line = format!("  {effect}: to tell them apart, {test}");
             assert!(text.contains(&line), "{line} not in\n{text}");
+            let item = format!("<li><b>{effect}</b>: to tell them apart, {test}</li>");
+            assert!(page.contains(&item), "{item} not in the HTML report");
             seen += 1;
         }
     }

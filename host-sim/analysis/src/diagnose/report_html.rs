@@ -153,6 +153,45 @@ pub fn render(d: &Diagnosis) -> String {
         r.split.holdout,
         r.split.method
     );
+    // What the text report says under the verdict: what this log cannot tell it from (and the
+    // log that would), the closest candidates of an `unexplained`, the terms the log does not
+    // determine, and the warnings (a short log's `none` means "cannot tell").
+    if !r.verdict.alternatives.is_empty() {
+        o.push_str("<div id=\"alternatives\"><p>This log cannot tell the verdict from:</p><ul>");
+        for a in &r.verdict.alternatives {
+            let _ = write!(o, "<li><b>{}</b>: to tell them apart, {}</li>", esc(&a.effect), esc(&a.test));
+        }
+        o.push_str("</ul></div>\n");
+    }
+    if !r.verdict.closest.is_empty() {
+        let _ = writeln!(
+            o,
+            "<p id=\"closest\">Closest candidates (none explains the gap): {}</p>",
+            esc(&r.verdict.closest.join(", "))
+        );
+    }
+    if !r.not_determined.is_empty() {
+        o.push_str(
+            "<div id=\"not-determined\"><p>Not determined by this log (every refit keeps the file's values):</p><ul>",
+        );
+        for u in &r.not_determined {
+            let _ = write!(
+                o,
+                "<li><b>{}</b>: {} — to pin it: {}</li>",
+                esc(&u.params.join(", ")),
+                esc(&u.why),
+                esc(u.test)
+            );
+        }
+        o.push_str("</ul></div>\n");
+    }
+    if !r.warnings.is_empty() {
+        o.push_str("<ul id=\"warnings\">");
+        for w in &r.warnings {
+            let _ = write!(o, "<li>warning: {}</li>", esc(w));
+        }
+        o.push_str("</ul>\n");
+    }
     if !p.evidence.is_empty() {
         o.push_str("<h2>Evidence for the verdict</h2>\n");
         for (k, e) in p.evidence.iter().enumerate() {
