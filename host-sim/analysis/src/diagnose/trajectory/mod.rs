@@ -269,15 +269,16 @@ impl<'a> Window<'a> {
         // line and the cubic between the samples, the usual share of two readings' spread.
         // And when, within its interval, an input that jumps between two samples changed
         // ([`sim::edge_spread`]).
-        let held_mean = |v: &[f64]| {
-            let held: Vec<f64> = v.iter().zip(&sp.held).filter(|(_, h)| **h).map(|(x, _)| *x).collect();
-            held.iter().sum::<f64>() / held.len().max(1) as f64
+        let held_mean = |v: &mut dyn Iterator<Item = f64>| {
+            let (sum, k) = v.zip(&sp.held).filter(|(_, h)| **h).fold((0.0, 0usize), |(s, k), (x, _)| (s + x, k + 1));
+            sum / k.max(1) as f64
         };
         let law0 = lay.law(&th0, &[]);
         let spread_ms = u.map_or(0.0, |u| {
             let shape = sim::input_spread(&law0, t, u, (th0[0], th0[1]), n)
-                .map_or(0.0, |s| 0.25 * held_mean(&s.iter().map(|d| d * d).collect::<Vec<f64>>()));
-            let edges = sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n).map_or(0.0, |v| held_mean(&v));
+                .map_or(0.0, |s| 0.25 * held_mean(&mut s.iter().map(|d| d * d)));
+            let edges =
+                sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n).map_or(0.0, |v| held_mean(&mut v.into_iter()));
             shape + edges
         });
         // On a short log the preparation stage's noise estimate has no spectrum to stand on: on

@@ -296,8 +296,9 @@ pub fn input_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize
 /// samples split 0.3/0.7, 0.25 for one split evenly over two intervals, 0.04 at the middle of
 /// a quintic edge over five samples, 0 for any input smooth at this rate, so a delay of a
 /// smooth input is not hidden). Two pairs of readings bound the response per sample: all
-/// edges early against all late (`Δc`), rising edges early and falling ones late against the reverse (`Δd`: a pulse's width); for edges `k` of sensitivities `a_k`, `(Δc² +
-/// Δd²)/2` is `Σ a_k²·T²` exactly for one or two edges. Returns that over 12 (rad²) per sample.
+/// edges early against all late (`Δc`), rising edges early and falling ones late against the
+/// reverse (`Δd`: a pulse's width); for edges `k` of sensitivities `a_k`, `(Δc² + Δd²)/2` is
+/// `Σ a_k²·T²` exactly for one or two edges. Returns that over 12 (rad²) per sample.
 pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize) -> Option<Vec<f64>> {
     let n = n.min(t.len()).min(u.len());
     // the change over interval i (samples i − 1 → i), and the monotone run of changes it is in
@@ -323,33 +324,28 @@ pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize)
         }
         i = j;
     }
-    // per interval: the largest shift (s) and its direction
-    let mut half = vec![0.0; n];
-    let mut rising = vec![false; n];
-    let mut any = false;
-    for i in 1..n {
-        if !(delta[i] != 0.0 && run_sum[i] > 0.0) {
-            continue;
-        }
-        let f = delta[i].abs() / run_sum[i];
-        let w = (1.5 * f - 0.5).clamp(0.0, 1.0);
-        if w > 0.0 {
-            half[i] = w * 0.5 * (t[i] - t[i - 1]);
-            rising[i] = delta[i] > 0.0;
-            any = true;
-        }
-    }
-    if !any {
+    // per interval: the largest shift (s); its direction is the change's sign
+    let half: Vec<f64> = (0..n)
+        .map(|i| {
+            if i == 0 || delta[i] == 0.0 || !(run_sum[i] > 0.0) {
+                return 0.0;
+            }
+            let w = (1.5 * delta[i].abs() / run_sum[i] - 0.5).clamp(0.0, 1.0);
+            w * 0.5 * (t[i] - t[i - 1])
+        })
+        .collect();
+    if half.iter().all(|h| *h == 0.0) {
         return Some(vec![0.0; n]);
     }
+    let rising = |i: usize| delta[i] > 0.0;
     let run = |sign: &dyn Fn(usize) -> f64| -> Option<Vec<f64>> {
         let by: Vec<f64> = half.iter().enumerate().map(|(i, h)| h * sign(i)).collect();
         simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Shifted(&by))
     };
     let early = run(&|_| 1.0)?;
     let late = run(&|_| -1.0)?;
-    let wide = run(&|i| if rising[i] { 1.0 } else { -1.0 })?;
-    let narrow = run(&|i| if rising[i] { -1.0 } else { 1.0 })?;
+    let wide = run(&|i| if rising(i) { 1.0 } else { -1.0 })?;
+    let narrow = run(&|i| if rising(i) { -1.0 } else { 1.0 })?;
     Some(
         (0..n)
             .map(|i| {
