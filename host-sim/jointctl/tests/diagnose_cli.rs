@@ -495,8 +495,7 @@ fn the_text_and_html_reports_name_the_alternatives_and_their_separating_test() {
         let (l, m) = (dir.path().join("log.csv"), dir.path().join("model.toml"));
         JointLog { t, q, ..JointLog::default() }.write_file(&l).unwrap();
         std::fs::write(&m, format!("[spring]\nk = {}\nb = {b}\nq0 = 0.0\n[inertia]\nj = {j}\n", 1.2 * k)).unwrap();
-        let v = run_json(&l, &m, &[]);
-        let alts = v["verdict"]["alternatives"].as_array().cloned().unwrap_or_default();
+        // one run: the JSON, the text and the HTML of the same diagnosis
         let html = dir.path().join("report.html");
         let o = jointctl(&[
             "diagnose",
@@ -506,7 +505,13 @@ fn the_text_and_html_reports_name_the_alternatives_and_their_separating_test() {
             m.to_str().unwrap(),
             "--report",
             html.to_str().unwrap(),
+            "--json",
+            dir.path().join("out.json").to_str().unwrap(),
         ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("out.json")).unwrap()).unwrap();
+        let alts = v["verdict"]["alternatives"].as_array().cloned().unwrap_or_default();
         let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
         let page = std::fs::read_to_string(&html).unwrap();
         assert_eq!(text.contains("this log cannot tell the verdict from:"), !alts.is_empty(), "{text}");
