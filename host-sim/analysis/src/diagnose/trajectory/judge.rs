@@ -54,6 +54,8 @@ pub struct Judged {
     pub f_is_s: bool,
     /// S's start against the estimate: χ² (2 dof)
     pub start_chi2: f64,
+    /// the estimated start's uncertainty (angle, velocity) that [`start_chi2`] weighs against
+    pub start_prior: (f64, f64),
     pub initial: Outcome,
     pub params: Outcome,
     pub effects: Vec<Outcome>,
@@ -211,7 +213,20 @@ pub fn judge(
     } else {
         Vocab::None
     };
-    Judged { alpha_each, floor, floor_dof, f_is_s, start_chi2, initial, params, effects, own, chosen, verdict }
+    Judged {
+        alpha_each,
+        floor,
+        floor_dof,
+        f_is_s,
+        start_chi2,
+        start_prior: (start_sd.0, start_sd.1),
+        initial,
+        params,
+        effects,
+        own,
+        chosen,
+        verdict,
+    }
 }
 
 /// The variant of one effect family that speaks for it: the best held-out fit among its
@@ -293,18 +308,39 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: u
             alts.push(o.name);
         }
     }
-    // A start off against terms off: P keeps the start within its prior and gives the model's
-    // terms new values; where it beats the assumed start as clearly as S does and S does not
-    // beat it, this log cannot tell the two apart (a short stretch of a free release: a start
-    // velocity bends it as a stiffer spring does; development seeds 9010–9015: four
-    // `parameters` logs of under 60 samples called `initial_state` with P fitting better).
-    if j.verdict == Vocab::InitialState && !alts.contains(&Vocab::Parameters) {
+    // A start off against terms off or an effect: where P or an effect beats the assumed start
+    // as clearly as S does, S does not beat it, and its own start stays within the estimate's
+    // uncertainty (χ² as S's test, with the fit's own standard errors), this log cannot tell the
+    // two apart (a short stretch of a free release: a start velocity bends it as a stiffer
+    // spring does, or a cable, a Coulomb level, a ripple; development seeds 9010–9015: four
+    // `parameters` logs of under 60 samples called `initial_state` with P fitting better; seeds
+    // 9016–9020: a cable spring and a ripple on 49–50 samples called `initial_state` with
+    // nothing, or only `parameters`, named). A fit that moved its start as far as S did explains
+    // the log by the start, not by its own values: without the χ² bound P was named beside
+    // seven `initial_state` logs whose start alone was off, five of them 1 100–5 000 samples
+    // long. An effect fitted on top of the refit counts only where it adds to the refit.
+    if j.verdict == Vocab::InitialState {
         if let (Some(r0), Some(s), Some(p)) = (fits.first(), fits.get(1), fits.get(j.params.fit)) {
-            if j.params.implausible.is_none()
-                && sig(compare(&r0.scored, &p.scored), j.alpha_each)
-                && !sig(compare(&p.scored, &s.scored), j.alpha_each)
-            {
-                alts.push(Vocab::Parameters);
+            // the start's distance from the estimate with the fit's own standard errors (a
+            // fit that also frees a term trading with the start pins it less than S does)
+            let own_sd = |e: &Fitted| {
+                let se = |k: usize| e.lm.as_ref().and_then(|f| f.std_err(k, j.floor)).unwrap_or(0.0);
+                (j.start_prior.0, j.start_prior.1, se(0), se(1))
+            };
+            let as_good = |o: &Outcome| {
+                let e = &fits[o.fit];
+                o.implausible.is_none()
+                    && start_chi2(r0, e, own_sd(e)) <= START_CHI2
+                    && sig(compare(&r0.scored, &e.scored), j.alpha_each)
+                    && !sig(compare(&e.scored, &s.scored), j.alpha_each)
+                    && (o.fit == j.params.fit
+                        || e.free != super::fits::Free::All
+                        || compare(&p.scored, &e.scored).2 >= MIN_GAIN)
+            };
+            for o in std::iter::once(&j.params).chain(&j.effects).chain(&j.own) {
+                if o.name != Vocab::InitialState && !alts.contains(&o.name) && as_good(o) {
+                    alts.push(o.name);
+                }
             }
         }
     }
