@@ -221,12 +221,11 @@ impl Problem<'_> {
     pub fn fit_each(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Option<Fitted> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
+        let iters = if effects.is_empty() { 30 } else { 15 };
         let mut best: Option<(Vec<f64>, lm::Fit)> = None;
-        for th in starts {
-            if let Some((t, f)) = self.lm(effects, &idx, &th, if effects.is_empty() { 30 } else { 15 }, None, prior) {
-                if best.as_ref().is_none_or(|b| f.cost < b.1.cost) {
-                    best = Some((t, f));
-                }
+        for (t, f) in on_threads(&starts, |th| self.lm(effects, &idx, th, iters, None, prior)).into_iter().flatten() {
+            if best.as_ref().is_none_or(|b| f.cost < b.1.cost) {
+                best = Some((t, f));
             }
         }
         let (theta, f) = best?;
@@ -251,10 +250,12 @@ impl Problem<'_> {
                 let (iters, keep) = if starts.len() > 8 { (4, 3) } else { (3, 2) };
                 let cut = self.train_idx.len() * 2 / 5;
                 let early: Vec<usize> = self.train_idx.iter().copied().take(cut.max(30)).collect();
-                let mut pre: Vec<(Vec<f64>, f64)> = starts
-                    .iter()
-                    .filter_map(|th| self.lm(effects, &own, th, iters, Some(&early), prior).map(|(t, f)| (t, f.cost)))
-                    .collect();
+                let mut pre: Vec<(Vec<f64>, f64)> = on_threads(&starts, |th| {
+                    self.lm(effects, &own, th, iters, Some(&early), prior).map(|(t, f)| (t, f.cost))
+                })
+                .into_iter()
+                .flatten()
+                .collect();
                 pre.sort_by(|a, b| a.1.total_cmp(&b.1));
                 pre.into_iter().take(keep).map(|(t, _)| t).collect()
             }
@@ -266,14 +267,12 @@ impl Problem<'_> {
     /// as it is.
     pub fn scan(&self, effects: &[Kind], starts: Vec<Vec<f64>>, keep: usize) -> Vec<Vec<f64>> {
         let upto = self.train_idx.last().map_or(0, |i| i + 1);
-        let mut pre: Vec<(Vec<f64>, f64)> = starts
-            .into_iter()
-            .filter_map(|th| {
-                let s = self.simulate(&th, effects, upto, None)?;
-                let c: f64 = self.train_idx.iter().map(|&i| (s[i] - self.q[i]).powi(2)).sum();
-                Some((th, c))
-            })
-            .collect();
+        let costs = on_threads(&starts, |th| {
+            let s = self.simulate(th, effects, upto, None)?;
+            Some(self.train_idx.iter().map(|&i| (s[i] - self.q[i]).powi(2)).sum::<f64>())
+        });
+        let mut pre: Vec<(Vec<f64>, f64)> =
+            starts.into_iter().zip(costs).filter_map(|(th, c)| c.map(|c| (th, c))).collect();
         pre.sort_by(|a, b| a.1.total_cmp(&b.1));
         pre.into_iter().take(keep).map(|(t, _)| t).collect()
     }
@@ -326,4 +325,11 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
     let mut scored = s.into_scored(vec![], design, theta);
     scored.resid = std::sync::Arc::new(resid);
     scored
+}
+
+/// `work` on every start, on two threads where there are two cores, the results in the starts'
+/// order (each start's fit is the same computation on either path, so the best one is too).
+fn on_threads<T: Send>(starts: &[Vec<f64>], work: impl Fn(&Vec<f64>) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
+    crate::diagnose::par::costliest_first(starts, threads, |_| 0, work)
 }
