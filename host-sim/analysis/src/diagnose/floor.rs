@@ -27,7 +27,7 @@ pub fn variogram_noise(r: &[f64]) -> (f64, f64) {
     let stride = (n / 200_000).max(1);
     // each lag on its own (up to 30 medians of 200 000 differences): on the available cores
     let lags: Vec<usize> = (1..=max_lag).collect();
-    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).clamp(1, 8);
+    let threads = super::par::cores(8);
     let v: Vec<f64> = super::par::costliest_first(
         &lags,
         threads,

@@ -38,6 +38,11 @@ where
     out.into_iter().map(|(_, t)| t).collect()
 }
 
+/// The threads to spread work over: the available cores, at most `max`.
+pub(crate) fn cores(max: usize) -> usize {
+    std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).clamp(1, max)
+}
+
 /// `f` over `0..n` in contiguous chunks on the available cores, the per-sample results in
 /// sample order: the same numbers as one loop (each sample is computed alone).
 pub(crate) fn per_sample<T, F>(n: usize, f: F) -> Vec<T>
@@ -45,7 +50,7 @@ where
     T: Send,
     F: Fn(usize) -> T + Sync,
 {
-    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).clamp(1, 8);
+    let threads = cores(8);
     if threads == 1 || n < 50_000 {
         return (0..n).map(&f).collect();
     }

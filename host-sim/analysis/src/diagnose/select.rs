@@ -805,7 +805,7 @@ fn try_kinds(
     bits: &[u32],
     n_regimes: usize,
 ) -> Vec<Scored> {
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 8);
+    let threads = super::par::cores(8);
     let (d, base, chosen) = (round.d, round.base, round.chosen.as_slice());
     // One grid context for the round, shared by every kind's search.
     let mut grid = GridCtx::new(d, base, chosen, grid_idx);

@@ -330,6 +330,6 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
 /// `work` on every start, on two threads where there are two cores, the results in the starts'
 /// order (each start's fit is the same computation on either path, so the best one is too).
 fn on_threads<T: Send>(starts: &[Vec<f64>], work: impl Fn(&Vec<f64>) -> T + Sync) -> Vec<T> {
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
+    let threads = crate::diagnose::par::cores(2);
     crate::diagnose::par::costliest_first(starts, threads, |_| 0, work)
 }

@@ -613,7 +613,7 @@ where
         Kind::CableAbove | Kind::CableBelow => 2,
         _ => 3,
     };
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).clamp(1, 2);
+    let threads = crate::diagnose::par::cores(2);
     crate::diagnose::par::costliest_first(jobs, threads, cost, |&j| work(j))
 }
 
