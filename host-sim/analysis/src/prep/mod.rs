@@ -554,6 +554,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // not independent from sample to sample, so the noise formula alone is too hopeful there).
     // A faster move crosses k steps inside the window and the staircase's error averages down
     // as 1/k: the floor holds near zero speed, where it matters, and fades with speed.
+    let mut step_bound = vec![0.0; n];
     if quantum > 0.0 {
         let step = quantum * 12f64.sqrt();
         let crossed = |i: usize, w: f64| (qd.values[i].abs() * 2.0 * w / step).max(1.0);
@@ -561,6 +562,34 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let w = qd.info.half_window_s.max(dt);
             let floor = step / (2.0 * w);
             qd_err.iter_mut().enumerate().for_each(|(i, e)| *e = e.max(floor / crossed(i, w)));
+            // Whether the joint moves at all is another question than how fast: a single step
+            // anywhere in the window moves the estimate by up to the estimator's step response
+            // (the largest partial sum of its derivative weights, times the step), about three
+            // times `floor`. An estimate within that (and a little beyond: k steps past the one)
+            // may be a joint that stands. It is a bound, not a random error: it decides only
+            // whether a pure sign is known, never the expected sign or the floor (as an error it
+            // smears a banded friction's sign and leaves a Stribeck-like bump: 19 `none` logs
+            // of the development seeds were named `stribeck` that way). Near a stretch's ends
+            // the window is one-sided and its weights larger: the response grows with them (as
+            // the noise gain's square root).
+            let (peak, centre_noise) =
+                qd_recipe.and_then(|r| lpr::weights(r.h, dt).map(|w| (r, w))).map_or((0.0, 0.0), |(r, (w1, _))| {
+                    let mut acc = 0.0f64;
+                    let peak = w1.iter().rev().fold(0.0f64, |m, x| {
+                        acc += x;
+                        m.max(acc.abs())
+                    }) * step;
+                    (peak, r.sigma * w1.iter().map(|x| x * x).sum::<f64>().sqrt())
+                });
+            if std::env::var_os("DIAG_TRACE").is_some() {
+                eprintln!("[trace] staircase: one step over the window {floor:.3e}, the estimator's step response {peak:.3e} rad/s");
+            }
+            for (i, b) in step_bound.iter_mut().enumerate() {
+                let edge = if centre_noise > 0.0 { (qd.noise[i] / centre_noise).max(1.0) } else { 1.0 };
+                let peak = peak * edge;
+                let beyond = ((qd.values[i].abs() - peak) * 2.0 * w / step).max(1.0);
+                *b = peak / (beyond * beyond);
+            }
         }
         if qdd.info.source == "derived from q" {
             let w = qdd.info.half_window_s.max(dt);
@@ -581,8 +610,77 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // that it moves: a dwell shorter than a rest (two moves the same way) passes for a slow
     // move there, and a pure sign predicts ±c where the joint stood (0, or anything in ±c).
     // Only a direction next to a rest (q has left the rest's band) says it moves.
-    let sign_unknown: Vec<bool> =
-        (0..n).map(|i| !rest[i] && before_through[i] == 0 && qd.values[i].abs() < 3.0 * qd_err[i]).collect();
+    // A q̇ estimated from q whose sign no step of q inside its window shares (q only went down
+    // there, or only up) is the estimator's, not the motion's: a local polynomial's derivative
+    // weights change sign across the window, so a clean encoder staircase creeping to a near stop
+    // can come out the wrong way at several times its stated error. Its sign is unknown too.
+    // Near a stretch's ends the window is one-sided and the fit an extrapolation: a log that
+    // starts as a move starts from rest, or ends in a short dwell, gets a q̇ of either sign
+    // there at several times its stated error. There the sign counts as known only where q
+    // itself confirms it: over the widest window centred on the sample that fits in the
+    // stretch, the mean of q after the sample stands beyond three standard errors from the
+    // mean before it, the same way.
+    let against_q = match qd_recipe {
+        Some(r) => {
+            let mut a = against_steps(&log.q, &qd.values, &rest, &segments, r.h);
+            let noise = q_noise.max(quantum);
+            for seg in &segments {
+                // running sums of q from the stretch's first angle (sums(k) = Σ q[s..s+k] − k·q[s])
+                let (s0, q0) = (seg.start, log.q[seg.start]);
+                let mut sums = Vec::with_capacity(seg.len() + 1);
+                sums.push(0.0);
+                let mut acc = 0.0;
+                for &x in &log.q[seg.clone()] {
+                    acc += x - q0;
+                    sums.push(acc);
+                }
+                let confirmed = |i: usize| {
+                    let m = (i - seg.start).min(seg.end - 1 - i).min(r.h);
+                    if m == 0 {
+                        return false;
+                    }
+                    let k = i - s0;
+                    let d = ((sums[k + 1 + m] - sums[k + 1]) - (sums[k] - sums[k - m])) / m as f64;
+                    d.abs() > 3.0 * noise * (2.0 / m as f64).sqrt() && d * qd.values[i] > 0.0
+                };
+                let head = seg.start..(seg.start + r.h).min(seg.end);
+                let tail = seg.end.saturating_sub(r.h).max(head.end)..seg.end;
+                for i in head.chain(tail) {
+                    if !rest[i] && !confirmed(i) {
+                        a[i] = true;
+                    }
+                }
+            }
+            a
+        }
+        None => vec![false; n],
+    };
+    // The step response bounds the estimate only where the joint may stand: where q holds
+    // within one count (and its white noise) for 0.1 s on one side of the sample (a dwell the
+    // rest detector's run is too long for, a near stop). A reversal at speed passes through
+    // q̇ = 0 without holding, and there the estimate's sign is what it says.
+    let white = (q_noise * q_noise - quantum * quantum).max(0.0).sqrt();
+    let still_band = quantum * 12f64.sqrt() + 6.0 * white;
+    let still_len = ((0.1 / dt).round() as usize).max(3);
+    let holds_still = |i: usize| {
+        let Some(seg) = segments.iter().find(|r| r.contains(&i)) else { return false };
+        let range = |w: &[f64]| {
+            let (lo, hi) = w.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+            hi - lo
+        };
+        let before = &log.q[i.saturating_sub(still_len).max(seg.start)..=i];
+        let after = &log.q[i..(i + still_len + 1).min(seg.end)];
+        (before.len() > still_len && range(before) <= still_band)
+            || (after.len() > still_len && range(after) <= still_band)
+    };
+    let sign_unknown: Vec<bool> = (0..n)
+        .map(|i| {
+            let v = qd.values[i].abs();
+            !rest[i]
+                && before_through[i] == 0
+                && (v < 3.0 * qd_err[i] || against_q[i] || v < 3.0 * step_bound[i] && holds_still(i))
+        })
+        .collect();
     let mut out = log.into_owned();
     out.qd = Some(qd.values);
     out.qdd = Some(qdd.values);
@@ -809,6 +907,39 @@ const GAUSS_HERMITE_20: [(f64, f64); 20] = [
     (4.603682449550744, 4.399340992273181e-10),
     (5.387480890011233, 2.229393645534151e-13),
 ];
+
+/// Samples whose q̇ estimate has a sign that no step of q within `h` samples either side has:
+/// q moved inside the window, and only the other way. Noise or dither steps q both ways, so
+/// this marks only a clean staircase (a quantised encoder without noise), where it is the
+/// derivative estimator's overshoot. Rest samples are never marked.
+fn against_steps(q: &[f64], qd: &[f64], rest: &[bool], segments: &[std::ops::Range<usize>], h: usize) -> Vec<bool> {
+    let mut out = vec![false; q.len()];
+    for seg in segments {
+        let (s, e) = (seg.start, seg.end);
+        if e - s < 2 {
+            continue;
+        }
+        // prefix counts of rises and falls: step k is q[k+1] − q[k]
+        let mut up = vec![0u32; e - s];
+        let mut down = vec![0u32; e - s];
+        for k in s..e - 1 {
+            let j = k - s;
+            let d = q[k + 1] - q[k];
+            up[j + 1] = up[j] + u32::from(d > 0.0);
+            down[j + 1] = down[j] + u32::from(d < 0.0);
+        }
+        for i in s..e {
+            if rest[i] || qd[i] == 0.0 {
+                continue;
+            }
+            // steps between samples lo..hi
+            let (lo, hi) = (i.saturating_sub(h).max(s) - s, (i + h).min(e - 1) - s);
+            let (u, d) = (up[hi] - up[lo], down[hi] - down[lo]);
+            out[i] = if qd[i] > 0.0 { u == 0 && d > 0 } else { d == 0 && u > 0 };
+        }
+    }
+    out
+}
 
 /// The first and last samples of every rest run that may still be a stop's creep or a start's
 /// first creep: at least `reach`, and as long as the adjacent move's own slow-down says it
@@ -1408,6 +1539,26 @@ mod tests {
 
     fn log_of(t: Vec<f64>, q: Vec<f64>) -> JointLog {
         JointLog { t, q, ..JointLog::default() }
+    }
+
+    #[test]
+    fn an_estimate_against_every_step_of_q_in_its_window_is_marked() {
+        // q steps down twice in the window; an estimate upwards is against it, downwards not
+        let q = [3.0, 3.0, 2.0, 2.0, 2.0, 2.0, 1.0, 1.0, 1.0];
+        let whole = 0..q.len();
+        let seg = std::slice::from_ref(&whole);
+        let rest = [false; 9];
+        let up = against_steps(&q, &[0.1; 9], &rest, seg, 2);
+        let down = against_steps(&q, &[-0.1; 9], &rest, seg, 2);
+        // (the last sample's window, 6..=8, holds no step)
+        assert_eq!(up, [true, true, true, true, true, true, true, true, false]);
+        assert!(down.iter().all(|m| !m));
+        // a sample whose window holds no step at all says nothing either way
+        assert!(!against_steps(&q, &[0.1; 9], &rest, seg, 1)[4]);
+        // dither (q going both ways) never marks; nor does rest
+        let dithered = [2.0, 1.0, 2.0, 1.0, 1.0, 2.0, 1.0, 0.0, 1.0];
+        assert!(against_steps(&dithered, &[0.1; 9], &rest, seg, 2).iter().all(|m| !m));
+        assert!(against_steps(&q, &[0.1; 9], &[true; 9], seg, 2).iter().all(|m| !m));
     }
 
     #[test]
