@@ -614,43 +614,12 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // there, or only up) is the estimator's, not the motion's: a local polynomial's derivative
     // weights change sign across the window, so a clean encoder staircase creeping to a near stop
     // can come out the wrong way at several times its stated error. Its sign is unknown too.
-    // Near a stretch's ends the window is one-sided and the fit an extrapolation: a log that
-    // starts as a move starts from rest, or ends in a short dwell, gets a q̇ of either sign
-    // there at several times its stated error. There the sign counts as known only where q
-    // itself confirms it: over the widest window centred on the sample that fits in the
-    // stretch, the mean of q after the sample stands beyond three standard errors from the
-    // mean before it, the same way.
+    // Near a stretch's ends the window is one-sided and the fit an extrapolation: there the sign
+    // counts as known only where q itself confirms it ([`unconfirmed_ends`]).
     let against_q = match qd_recipe {
         Some(r) => {
             let mut a = against_steps(&log.q, &qd.values, &rest, &segments, r.h);
-            let noise = q_noise.max(quantum);
-            for seg in &segments {
-                // running sums of q from the stretch's first angle (sums(k) = Σ q[s..s+k] − k·q[s])
-                let (s0, q0) = (seg.start, log.q[seg.start]);
-                let mut sums = Vec::with_capacity(seg.len() + 1);
-                sums.push(0.0);
-                let mut acc = 0.0;
-                for &x in &log.q[seg.clone()] {
-                    acc += x - q0;
-                    sums.push(acc);
-                }
-                let confirmed = |i: usize| {
-                    let m = (i - seg.start).min(seg.end - 1 - i).min(r.h);
-                    if m == 0 {
-                        return false;
-                    }
-                    let k = i - s0;
-                    let d = ((sums[k + 1 + m] - sums[k + 1]) - (sums[k] - sums[k - m])) / m as f64;
-                    d.abs() > 3.0 * noise * (2.0 / m as f64).sqrt() && d * qd.values[i] > 0.0
-                };
-                let head = seg.start..(seg.start + r.h).min(seg.end);
-                let tail = seg.end.saturating_sub(r.h).max(head.end)..seg.end;
-                for i in head.chain(tail) {
-                    if !rest[i] && !confirmed(i) {
-                        a[i] = true;
-                    }
-                }
-            }
+            unconfirmed_ends(&log.q, &qd.values, &rest, &segments, (r.h, q_noise.max(quantum)), &mut a);
             a
         }
         None => vec![false; n],
@@ -662,25 +631,25 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let white = (q_noise * q_noise - quantum * quantum).max(0.0).sqrt();
     let still_band = quantum * 12f64.sqrt() + 6.0 * white;
     let still_len = ((0.1 / dt).round() as usize).max(3);
-    let holds_still = |i: usize| {
-        let Some(seg) = segments.iter().find(|r| r.contains(&i)) else { return false };
-        let range = |w: &[f64]| {
-            let (lo, hi) = w.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
-            hi - lo
-        };
-        let before = &log.q[i.saturating_sub(still_len).max(seg.start)..=i];
-        let after = &log.q[i..(i + still_len + 1).min(seg.end)];
-        (before.len() > still_len && range(before) <= still_band)
-            || (after.len() > still_len && range(after) <= still_band)
+    let range = |w: &[f64]| {
+        let (lo, hi) = w.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        hi - lo
     };
-    let sign_unknown: Vec<bool> = (0..n)
-        .map(|i| {
+    let mut sign_unknown = vec![false; n];
+    for seg in &segments {
+        let holds_still = |i: usize| {
+            let before = &log.q[i.saturating_sub(still_len).max(seg.start)..=i];
+            let after = &log.q[i..(i + still_len + 1).min(seg.end)];
+            (before.len() > still_len && range(before) <= still_band)
+                || (after.len() > still_len && range(after) <= still_band)
+        };
+        for i in seg.clone() {
             let v = qd.values[i].abs();
-            !rest[i]
+            sign_unknown[i] = !rest[i]
                 && before_through[i] == 0
-                && (v < 3.0 * qd_err[i] || against_q[i] || v < 3.0 * step_bound[i] && holds_still(i))
-        })
-        .collect();
+                && (v < 3.0 * qd_err[i] || against_q[i] || v < 3.0 * step_bound[i] && holds_still(i));
+        }
+    }
     let mut out = log.into_owned();
     out.qd = Some(qd.values);
     out.qdd = Some(qdd.values);
@@ -939,6 +908,49 @@ fn against_steps(q: &[f64], qd: &[f64], rest: &[bool], segments: &[std::ops::Ran
         }
     }
     out
+}
+
+/// Marks the samples within `h` of a stretch's ends whose q̇ sign q does not confirm. There the
+/// window is one-sided and the fit an extrapolation: a log that starts as a move starts from
+/// rest, or ends in a short dwell, gets a q̇ of either sign at several times its stated error.
+/// The sign counts as known only where, over the widest window centred on the sample that fits
+/// in the stretch, the mean of q after the sample stands beyond three standard errors (`noise`
+/// per sample) from the mean before it, the same way. Rest samples are never marked.
+fn unconfirmed_ends(
+    q: &[f64],
+    qd: &[f64],
+    rest: &[bool],
+    segments: &[std::ops::Range<usize>],
+    (h, noise): (usize, f64),
+    marks: &mut [bool],
+) {
+    for seg in segments {
+        // running sums of q from the stretch's first angle (sums(k) = Σ q[s..s+k] − k·q[s])
+        let (s0, q0) = (seg.start, q[seg.start]);
+        let mut sums = Vec::with_capacity(seg.len() + 1);
+        sums.push(0.0);
+        let mut acc = 0.0;
+        for &x in &q[seg.clone()] {
+            acc += x - q0;
+            sums.push(acc);
+        }
+        let confirmed = |i: usize| {
+            let m = (i - seg.start).min(seg.end - 1 - i).min(h);
+            if m == 0 {
+                return false;
+            }
+            let k = i - s0;
+            let d = ((sums[k + 1 + m] - sums[k + 1]) - (sums[k] - sums[k - m])) / m as f64;
+            d.abs() > 3.0 * noise * (2.0 / m as f64).sqrt() && d * qd[i] > 0.0
+        };
+        let head = seg.start..(seg.start + h).min(seg.end);
+        let tail = seg.end.saturating_sub(h).max(head.end)..seg.end;
+        for i in head.chain(tail) {
+            if !rest[i] && !confirmed(i) {
+                marks[i] = true;
+            }
+        }
+    }
 }
 
 /// The first and last samples of every rest run that may still be a stop's creep or a start's
