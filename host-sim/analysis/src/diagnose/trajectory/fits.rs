@@ -324,6 +324,7 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
     };
     let mut scored = s.into_scored(vec![], design, theta);
     scored.resid = std::sync::Arc::new(resid);
+    scored.chunked = true;
     scored
 }
 
