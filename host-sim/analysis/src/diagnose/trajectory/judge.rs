@@ -7,7 +7,8 @@
 //!   settle), else R0.
 //! - **tests**: `initial_state` is S against R0, and only when its start differs from the
 //!   estimate by more than that uncertainty (χ² with 2 degrees of freedom, p < 0.001);
-//!   `parameters` is P against S; an effect must beat P and F. Each with the unit test of
+//!   `parameters` is P against S; an effect must beat P and F, and take at least a quarter of
+//!   what its reference leaves above the floor (`FURTHER_SHARE`). Each with the unit test of
 //!   [`crate::diagnose::select::compare`], Bonferroni over everything tested, a 2 % minimum gain,
 //!   nothing tested once F is within 10 % of the noise floor (`AT_FLOOR`), and never a fit whose values are
 //!   unphysical (the fits are bounded to physical terms; the effects' sign rules as in torque
@@ -23,7 +24,7 @@
 use super::fits::Fitted;
 use super::terms::Layout;
 use crate::diagnose::candidates::Col;
-use crate::diagnose::select::{compare, Scored, ALPHA, AT_FLOOR, MIN_GAIN, UNEXPLAINED};
+use crate::diagnose::select::{compare, Scored, ALPHA, AT_FLOOR, FURTHER_SHARE, MIN_GAIN, UNEXPLAINED};
 use joint_formats::vocab::Effect as Vocab;
 
 /// χ² with 2 degrees of freedom at p = 0.001: a fitted start further than this (in squared
@@ -177,7 +178,15 @@ pub fn judge(
         let last = e.effects.len() - 1;
         let implausible = lay.implausible(e.effects[last], e.base(lay), e.effect_values(lay, last));
         let name = e.effects[last].effect();
-        let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each);
+        // and it takes a real share (`FURTHER_SHARE`) of what its reference leaves above the
+        // floor, as a further effect must in torque mode: an effect fit refits the model's terms
+        // too, and where the refit stopped short of its own optimum (a weight's phase at its
+        // bound) the effect is credited with finishing it; significant since the chunked test,
+        // such slivers named `asymmetric_friction` or a ripple on `parameters` logs (t9011/0085,
+        // t9026/0042: 22 % of an excess of 1.06–1.07× the floor)
+        let excess = reference.mse() - floor * floor;
+        let share = reference.mse() - e.scored.mse() >= FURTHER_SHARE * excess;
+        let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each) && share;
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
     let effects: Vec<Outcome> = families
