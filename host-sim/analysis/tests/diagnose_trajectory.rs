@@ -403,43 +403,16 @@ fn a_start_off_and_a_spring_off_are_named_together_on_a_short_stretch() {
 /// where the weight cannot break the level of the way it would go), seen at 1 kHz for `secs`
 /// through a 12-bit encoder. The values are an arm-like joint's (unseen bench t9024/case-0073).
 fn asymmetric_pendulum(c_up: f64, c_down: f64, q0: f64, secs: f64) -> JointLog {
-    let (a, phi, j, b) = (24.79, 0.0496, 1.147, 0.079);
-    let step = std::f64::consts::TAU / 4096.0;
-    let acc = |q: f64, v: f64| {
-        let level = if v > 0.0 {
-            c_up
-        } else if v < 0.0 {
-            -c_down
-        } else {
-            0.0
-        };
-        (-a * (q + phi).sin() - b * v - level) / j
-    };
-    let h: f64 = 1e-4;
-    let (mut q, mut v) = (q0, 0.0f64);
-    let (mut t, mut qs) = (Vec::new(), Vec::new());
-    let per = (1e-3 / h).round() as usize;
-    for i in 0..(secs / h) as usize {
-        if i % per == 0 {
-            t.push(i as f64 * h);
-            qs.push((q / step).round() * step);
-        }
-        // stuck: at rest with the weight inside the level of the way it would go
-        let w = -a * (q + phi).sin();
-        if v == 0.0 && (w > 0.0 && w <= c_up || w < 0.0 && -w <= c_down || w == 0.0) {
-            continue;
-        }
-        let s = if v == 0.0 { w.signum() * 1e-9 } else { v };
-        let (k1q, k1v) = (s, acc(q, s));
-        let (k2q, k2v) = (s + 0.5 * h * k1v, acc(q + 0.5 * h * k1q, s + 0.5 * h * k1v));
-        let (k3q, k3v) = (s + 0.5 * h * k2v, acc(q + 0.5 * h * k2q, s + 0.5 * h * k2v));
-        let (k4q, k4v) = (s + h * k3v, acc(q + h * k3q, s + h * k3v));
-        let v_next = s + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-        q += h / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q);
-        // the level stops the joint rather than reversing it
-        v = if v_next * s < 0.0 { 0.0 } else { v_next };
-    }
-    JointLog { t, q: qs, ..JointLog::default() }
+    released_pendulum(
+        Pendulum { a: 24.79, phi: 0.0496, j: 1.147, b: 0.079, c: (c_up, c_down) },
+        q0,
+        0.0,
+        1e-4,
+        1000.0,
+        secs,
+        0.0,
+        0,
+    )
 }
 
 /// The same ambiguity on a model without an offset term: a pendulum whose file has one Coulomb
@@ -475,24 +448,36 @@ fn an_asymmetric_level_read_as_a_moved_weight_names_the_other_explanation() {
     assert!(d.report.verdict.alternatives.iter().all(|a| a.effect != "asymmetric_friction"));
 }
 
-/// A pendulum `J·q̈ = −A·sin(q + φ) − b·q̇ − c·sign(q̇)` released from `q0` at rest, integrated
-/// here (RK4 at 0.2 ms; the joint sticks once the weight cannot break `c`), and logged from
-/// `t_cut` s after the release at `rate` Hz for `secs`, with white angle noise `sd` and a
-/// 12-bit encoder; no q̇ column, so the log's assumed start is rest at its first angle.
+/// A pendulum `J·q̈ = −A·sin(q + φ) − b·q̇ − c±·sign(q̇)`, its Coulomb level `c.0` moving up
+/// and `c.1` moving down.
+#[derive(Clone, Copy)]
+struct Pendulum {
+    a: f64,
+    phi: f64,
+    j: f64,
+    b: f64,
+    c: (f64, f64),
+}
+
+/// `p` released from `q0` at rest and integrated here (RK4 at steps of `h`; the joint sticks
+/// where the weight cannot break the level of the way it would go), logged from `t_cut` s after
+/// the release at `rate` Hz for `secs`, with white angle noise `sd` and a 12-bit encoder; no q̇
+/// column, so the log's assumed start is rest at its first angle.
 #[allow(clippy::too_many_arguments)]
-fn released_pendulum(
-    (a, phi, j, b, c): (f64, f64, f64, f64, f64),
-    q0: f64,
-    t_cut: f64,
-    rate: f64,
-    secs: f64,
-    sd: f64,
-    seed: u64,
-) -> JointLog {
+fn released_pendulum(p: Pendulum, q0: f64, t_cut: f64, h: f64, rate: f64, secs: f64, sd: f64, seed: u64) -> JointLog {
     let step = std::f64::consts::TAU / 4096.0;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let acc = |q: f64, v: f64| (-a * (q + phi).sin() - b * v - c * v.signum()) / j;
-    let h: f64 = 2e-4;
+    let (c_up, c_down) = p.c;
+    let acc = |q: f64, v: f64| {
+        let level = if v > 0.0 {
+            c_up
+        } else if v < 0.0 {
+            -c_down
+        } else {
+            0.0
+        };
+        (-p.a * (q + p.phi).sin() - p.b * v - level) / p.j
+    };
     let (mut q, mut v) = (q0, 0.0f64);
     let (mut t, mut qs) = (Vec::new(), Vec::new());
     let (skip, per) = ((t_cut / h).round() as usize, (1.0 / rate / h).round() as usize);
@@ -501,8 +486,9 @@ fn released_pendulum(
             t.push((i - skip) as f64 * h);
             qs.push(((q + sd * normal(&mut rng)) / step).round() * step);
         }
-        let w = -a * (q + phi).sin();
-        if v == 0.0 && w.abs() <= c {
+        // stuck: at rest with the weight inside the level of the way it would go
+        let w = -p.a * (q + p.phi).sin();
+        if v == 0.0 && (w > 0.0 && w <= c_up || w < 0.0 && -w <= c_down || w == 0.0) {
             continue;
         }
         let s = if v == 0.0 { w.signum() * 1e-9 } else { v };
@@ -512,6 +498,7 @@ fn released_pendulum(
         let (k4q, k4v) = (s + h * k3v, acc(q + h * k3q, s + h * k3v));
         let v_next = s + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
         q += h / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q);
+        // the level stops the joint rather than reversing it
         v = if v_next * s < 0.0 { 0.0 } else { v_next };
     }
     JointLog { t, q: qs, ..JointLog::default() }
@@ -524,17 +511,17 @@ fn released_pendulum(
 /// the refit's start, reaches the floor with the file's own terms, and is the verdict.
 #[test]
 fn a_start_cut_mid_swing_is_not_read_as_new_values() {
-    let joint = (31.85, -0.0618, 1.442, 2.035, 2.235);
+    let p = Pendulum { a: 31.85, phi: -0.0618, j: 1.442, b: 2.035, c: (2.235, 2.235) };
     let file = ModelFile::parse(
         &format!(
             "[friction]\nb = {}\nc = {}\n[weight]\namplitude = {}\ns = 1.0\nphi = {}\n[inertia]\nj = {}\n",
-            joint.3, joint.4, joint.0, joint.1, joint.2
+            p.b, p.c.0, p.a, p.phi, p.j
         ),
         "pendulum",
     )
     .unwrap();
     for seed in 0..2 {
-        let log = released_pendulum(joint, 0.3366, 0.3188, 1000.0, 5.0, 0.005, 60 + seed);
+        let log = released_pendulum(p, 0.3366, 0.3188, 2e-4, 1000.0, 5.0, 0.005, 60 + seed);
         let d = verdict(&log, &file);
         let v = &d.report.verdict;
         eprintln!("seed {seed}: {} ({:.4} → {:.4})", v.effect, v.holdout_rmse_before, v.holdout_rmse_after);

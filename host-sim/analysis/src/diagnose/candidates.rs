@@ -428,6 +428,12 @@ pub struct Design {
 }
 
 impl Design {
+    /// No columns: the design of a score that is not a linear fit (trajectory mode's
+    /// simulations, a test's residuals).
+    pub fn empty() -> Design {
+        Design { cols: vec![], lag: 0.0, channel: Channel::U, dahl: None, spans: vec![], prior: vec![], fixed: vec![] }
+    }
+
     pub fn new(d: &Data, base: &Base, effects: &[Effect]) -> Design {
         let mut cols = base.cols.clone();
         let mut lag = 0.0;

@@ -1316,16 +1316,7 @@ mod tests {
             s.add(r * r, k / len, 0);
             s.resid.push(r);
         }
-        let design = Design {
-            cols: vec![],
-            lag: 0.0,
-            channel: crate::diagnose::candidates::Channel::U,
-            dahl: None,
-            spans: vec![],
-            prior: vec![],
-            fixed: vec![],
-        };
-        let mut sc = s.into_scored(vec![], design, vec![]);
+        let mut sc = s.into_scored(vec![], Design::empty(), vec![]);
         sc.chunked = chunked;
         sc
     }

@@ -313,16 +313,7 @@ pub fn score(sim: &[f64], q: &[f64], split: &Split, bits: &[u32], nreg: usize, t
             resid.push(r);
         }
     }
-    let design = crate::diagnose::candidates::Design {
-        cols: vec![],
-        lag: 0.0,
-        channel: crate::diagnose::candidates::Channel::U,
-        dahl: None,
-        spans: vec![],
-        prior: vec![],
-        fixed: vec![],
-    };
-    let mut scored = s.into_scored(vec![], design, theta);
+    let mut scored = s.into_scored(vec![], crate::diagnose::candidates::Design::empty(), theta);
     scored.resid = std::sync::Arc::new(resid);
     scored.chunked = true;
     scored
