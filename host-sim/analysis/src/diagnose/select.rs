@@ -657,9 +657,9 @@ fn projection_test(reference: &Scored, cand: &Scored) -> Option<(f64, f64)> {
 /// freedom and a correction at t = 15 (the held-out MSE down 74 %, to the noise floor) came out
 /// at p = 0.016, not significant against 0.05/9 (unseen seed 9027, case 23, and eight such
 /// development logs, each the true effect). Within a unit the candidate's residual is the
-/// angle noise when the candidate is right, so chunks a few correlation lengths long are as
-/// good as independent: the length is four times `(1 + ρ)/(1 − ρ)` for the residual's lag-1
-/// autocorrelation ρ within units (at least 8 samples; a residual that still holds a smooth
+/// angle noise when the candidate is right, so chunks two correlation lengths long are as
+/// good as independent: the length is twice `(1 + ρ)/(1 − ρ)` for the residual's lag-1
+/// autocorrelation ρ within units (at least 2 samples; a residual that still holds a smooth
 /// error, ρ near 1, keeps chunks of thousands of samples: whole units, as before).
 fn projection_chunk(e: &[f64], unit_n: &[f64]) -> usize {
     let (mut num, mut den, mut k) = (0.0, 0.0, 0usize);
@@ -1338,8 +1338,8 @@ mod tests {
     /// the projection test's variance has about one degree of freedom and a correction that
     /// takes the unit's residual down to white noise is not significant at 0.05/9; read from
     /// chunks of the unit it is tested against the noise. And the chunked test keeps its size:
-    /// with the reference right (white or AR(1) ρ = 0.9 noise, a candidate's small correction
-    /// fitted elsewhere), p < 0.01 comes out about 1 % of the time, not more.
+    /// with the reference right (white or AR(1) noise up to ρ = 0.97, a candidate's small
+    /// correction fitted elsewhere), p < 0.01 comes out in at most 2 % of the draws.
     #[test]
     fn a_correction_in_one_unit_is_tested_against_the_noise() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
