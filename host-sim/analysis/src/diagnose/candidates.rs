@@ -874,16 +874,23 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             if a == 0.0 && b == 0.0 && c == 0.0 {
                 return None;
             }
-            // The drift may scale all of the friction, or its viscous part (oil viscosity) or
-            // its Coulomb part (seals, preload) alone: each is tried, the best kept.
-            let parts = [(a, b, c), (a, b, 0.0), (0.0, 0.0, c)];
-            let parts = parts.into_iter().filter(|(a, b, c)| *a != 0.0 || *b != 0.0 || *c != 0.0);
+            // The drift may scale all of the friction, or its velocity-dependent part (oil
+            // viscosity; with or without the quadratic term, which churning losses may not
+            // share) or its Coulomb part (seals, preload) alone: each is tried, the best kept.
+            let parts = [(a, b, c), (a, b, 0.0), (0.0, b, 0.0), (0.0, 0.0, c)];
+            let mut shapes: Vec<(f64, f64, f64)> = Vec::with_capacity(parts.len());
+            for p in parts {
+                // a part the model lacks (a = 0) leaves two of the shapes the same
+                if (p.0 != 0.0 || p.1 != 0.0 || p.2 != 0.0) && !shapes.contains(&p) {
+                    shapes.push(p);
+                }
+            }
             let mut best: Option<(f64, Effect)> = None;
             if constant_temp(d) {
                 // a logged temperature that does not change excites no thermal term
                 return None;
             }
-            for (a, b, c) in parts {
+            for (a, b, c) in shapes {
                 let e = match &d.temp {
                     Some(tp) => {
                         let mean = idx.iter().map(|&i| tp[i as usize]).sum::<f64>() / idx.len().max(1) as f64;
