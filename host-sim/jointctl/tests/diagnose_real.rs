@@ -57,10 +57,13 @@ fn wrong_sign_effects_are_never_the_verdict_on_the_dfki_payload_run() {
     // it is the best-scoring candidate: without the sign rules it would be the verdict
     assert!(thermal.holdout_rmse_after < by("parameters").holdout_rmse_after);
 
-    // Nothing physical explains the gap, the bounded refit included (it does worse on the
-    // held-out blocks than the file): the log is called unexplained, not pinned on a term.
+    // Nothing physical explains the gap, the bounded refit included (the weighted refit takes
+    // 1.5 % of the held-out RMSE and scores worse than the file in the weighted MSE the
+    // selection reads; unweighted it did worse outright): the log is called unexplained, not
+    // pinned on a term.
     assert_eq!(r.verdict.effect, "unexplained", "{:?}", r.verdict);
-    assert!(by("parameters").holdout_rmse_after >= r.verdict.holdout_rmse_before);
+    let refit = by("parameters");
+    assert!(!refit.significant && refit.holdout_rmse_after >= 0.95 * r.verdict.holdout_rmse_before, "{refit:?}");
     for e in r.effects.iter().filter(|e| e.significant) {
         assert!(e.implausible.is_none(), "{} significant though implausible", e.effect);
     }

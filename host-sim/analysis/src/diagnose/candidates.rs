@@ -53,6 +53,10 @@ pub struct Data {
     /// check: a model column that varies over the rows only within its noise is not excited
     pub q_noise_var: f64,
     pub qd_noise_var: f64,
+    /// per sample, the square root of its weight in every fit (empty: all alike): the inverse
+    /// of the error variance it is expected to carry, scaled to a mean of 1 over the training
+    /// samples. Fits only: held-out residuals and their sums stay unweighted.
+    pub sw: Vec<f64>,
 }
 
 /// The log has a `temp` column whose range is below 0.1 °C: no temperature change to
@@ -518,7 +522,11 @@ impl Design {
         g.prior.clone_from(&self.prior);
         let mut x = vec![0.0; p];
         for &i in idx {
-            let y = self.row(d, i as usize, &mut x);
+            let mut y = self.row(d, i as usize, &mut x);
+            if let Some(&w) = d.sw.get(i as usize) {
+                x.iter_mut().for_each(|v| *v *= w);
+                y *= w;
+            }
             g.add(&x, y);
         }
         g
@@ -564,6 +572,8 @@ pub struct GridCtx<'a> {
     signs: Vec<bool>,
     /// per column of `des`: the value a term that would go negative is held at
     holds: Vec<f64>,
+    /// the rows' fit weights (square roots, [`Data::sw`]) when these rows are fitted
+    sw: Option<&'a [f64]>,
 }
 
 /// The Dahl state's travel compressed for the rows `idx` (ascending): the starting state and
@@ -622,9 +632,15 @@ impl<'a> GridCtx<'a> {
         let mut y = Vec::with_capacity(idx.len());
         let mut g = Gram::new(p);
         g.prior.clone_from(&des.prior);
+        // fitted rows carry their weights, scored rows none
+        let sw = (gram && d.sw.len() == d.n).then_some(d.sw.as_slice());
         for (r, &i) in idx.iter().enumerate() {
             let row = &mut x[r * p..(r + 1) * p];
-            let yi = des.row(d, i as usize, row);
+            let mut yi = des.row(d, i as usize, row);
+            if let Some(w) = sw.map(|sw| sw[i as usize]) {
+                row.iter_mut().for_each(|v| *v *= w);
+                yi *= w;
+            }
             if gram {
                 g.add(row, yi);
             }
@@ -632,11 +648,27 @@ impl<'a> GridCtx<'a> {
         }
         let signs = super::select::physical_signs(&des);
         let holds = super::select::physical_holds(&des);
-        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false, signs, holds }
+        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false, signs, holds, sw }
     }
 
-    /// What effect `e` changes on these rows: a replaced column, extra columns or a new target.
+    /// What effect `e` changes on these rows: a replaced column, extra columns or a new target
+    /// (weighted as the rows are).
     pub fn delta(&self, e: &Effect) -> Delta {
+        let mut delta = self.delta_unweighted(e);
+        if let Some(sw) = self.sw {
+            let weigh = |v: &mut Vec<f64>| v.iter_mut().zip(self.idx).for_each(|(x, &i)| *x *= sw[i as usize]);
+            if let Some((_, z)) = delta.replace.as_mut() {
+                weigh(z);
+            }
+            delta.extra.iter_mut().for_each(weigh);
+            if let Some(y) = delta.y_alt.as_mut() {
+                weigh(y);
+            }
+        }
+        delta
+    }
+
+    fn delta_unweighted(&self, e: &Effect) -> Delta {
         let (d, idx) = (self.d, self.idx);
         match *e {
             Effect::Backlash { width, offset } => {
