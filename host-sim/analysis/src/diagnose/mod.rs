@@ -687,9 +687,10 @@ fn torque_mode(
     // scatter (that log's thermal candidate took the shape that scales the Coulomb sign too, at
     // a sixth of its coefficient).
     let coefs = estimate_coefs(&base.cols, &base.beta0);
-    let var = |i: usize| noise0 * noise0 + estimates_var(&data, coefs, prep, i);
-    split.weigh(var);
-    data.sw = fit_weights(&var, &split.train, n);
+    // (once per sample, on both cores: the held-out weights and the fit weights read it)
+    let var = par::per_sample(n, |i| noise0 * noise0 + estimates_var(&data, coefs, prep, i));
+    split.weigh(|i| var[i]);
+    data.sw = fit_weights(&var, &split.train);
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
     // the floor a fit's residual says (the selection reads it again where a fit shows structure)
     let reread = |s: &Scored| {
@@ -772,18 +773,17 @@ fn torque_floor_with(
     (noise * noise + prop2).sqrt()
 }
 
-/// Square roots of the fit weights `1/var(i)` for the `n` samples ([`Data::sw`]), scaled to a
-/// mean weight of 1 over the training samples `train`; empty (all alike) when any variance there
-/// is not a positive finite number.
-fn fit_weights(var: &dyn Fn(usize) -> f64, train: &[u32], n: usize) -> Vec<f64> {
-    let w: Vec<f64> = (0..n).map(|i| 1.0 / var(i)).collect();
-    let on_train = || train.iter().filter_map(|&i| w.get(i as usize).copied());
+/// Square roots of the fit weights `1/var` per sample ([`Data::sw`]), scaled to a mean weight
+/// of 1 over the training samples `train`; empty (all alike) when any variance there is not a
+/// positive finite number.
+fn fit_weights(var: &[f64], train: &[u32]) -> Vec<f64> {
+    let on_train = || train.iter().filter_map(|&i| var.get(i as usize).map(|v| 1.0 / v));
     if train.is_empty() || !on_train().all(|x| x.is_finite() && x > 0.0) {
         return Vec::new();
     }
     let mean = on_train().sum::<f64>() / train.len() as f64;
     // samples outside the training set (left out, held out) are never fitted: any finite value
-    w.into_iter().map(|x| if x.is_finite() && x > 0.0 { (x / mean).sqrt() } else { 0.0 }).collect()
+    var.iter().map(|v| 1.0 / v).map(|x| if x.is_finite() && x > 0.0 { (x / mean).sqrt() } else { 0.0 }).collect()
 }
 
 /// The model's inertia, quadratic, viscous and Coulomb coefficients (0 where it has none): what
