@@ -35,8 +35,9 @@ pub struct Split {
     pub guard: usize,
     /// the samples left out of fits and scores alike ([`Split::leave_out`])
     pub left_out: Vec<bool>,
-    /// weight of each held-out sample in the projection test (parallel to `holdout`; empty:
-    /// all alike): the inverse of its expected error variance ([`Split::weigh`])
+    /// weight of each held-out sample in the projection test, the gains and the weighted floor
+    /// (parallel to `holdout`; empty: all alike): the inverse of its expected error variance
+    /// ([`Split::weigh`])
     pub weight: std::sync::Arc<Vec<f64>>,
     /// the floor in the weighted MSE's terms (0 without weights): what a model that leaves each
     /// sample its expected error scores, `1/mean(1/var)` in MSE
@@ -146,8 +147,9 @@ impl Split {
         self.wfloor = 0.0;
     }
 
-    /// Weighs each held-out sample by `1/var(i)` in the projection test ([`compare`]), `var`
-    /// the error variance the sample is expected to carry. Left alike (no weights) when any
+    /// Weighs each held-out sample by `1/var(i)` in the projection test and the gains
+    /// ([`compare`]) and sets the weighted floor, `var` the error variance the sample is
+    /// expected to carry. Left alike (no weights) when any
     /// variance is not a positive finite number.
     pub fn weigh(&mut self, var: impl Fn(usize) -> f64) {
         let w: Vec<f64> = self.holdout.iter().map(|&i| 1.0 / var(i as usize)).collect();
@@ -1476,5 +1478,47 @@ mod tests {
             }
             assert!(low <= 20, "ρ {rho}: p < 0.01 in {low} of {draws} draws");
         }
+    }
+
+    /// Every other sample carries ten times the noise (a friction sign unknown near rest), and
+    /// the candidate's correction takes a small true error off the quiet samples while moving the
+    /// loud ones about. Weighted by 1/σ², the test finds it; unweighted, the loud samples' noise
+    /// drowns it. Weights all alike change nothing (the test does not depend on their scale),
+    /// and weights give no more false alarms when the reference is right.
+    #[test]
+    fn weights_that_follow_the_noise_find_a_correction_where_it_is_quiet() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (units, len) = (20, 50);
+        let n = units * len;
+        let sd = |i: usize| if i % 2 == 0 { 10.0 } else { 1.0 };
+        let weighted = |resid: Vec<f64>, w: &dyn Fn(usize) -> f64| {
+            let mut s = held(resid, units, len, false);
+            s.weight = std::sync::Arc::new((0..n).map(w).collect());
+            s
+        };
+        let (mut plain, mut by_noise, mut false_alarms) = (0, 0, 0);
+        for draw in 0..50 {
+            let noise: Vec<f64> = ar_noise(&mut rng, n, 0.0).iter().enumerate().map(|(i, x)| sd(i) * x).collect();
+            // the correction: 0.5 off the quiet samples (the true error), a wander on the loud
+            let delta = |i: usize| if i % 2 == 1 { 0.5 } else { 2.0 * (0.05 * i as f64 + draw as f64).sin() };
+            let truth = |i: usize| if i % 2 == 1 { 0.5 } else { 0.0 };
+            let r: Vec<f64> = (0..n).map(|i| noise[i] + truth(i)).collect();
+            let e: Vec<f64> = (0..n).map(|i| r[i] - delta(i)).collect();
+            let inv_var = |i: usize| 1.0 / (sd(i) * sd(i));
+            let p_plain = projection_test(&held(r.clone(), units, len, false), &held(e.clone(), units, len, false));
+            let p_w = projection_test(&weighted(r.clone(), &inv_var), &weighted(e.clone(), &inv_var));
+            let p_alike = projection_test(&weighted(r.clone(), &|_| 3.0), &weighted(e, &|_| 3.0));
+            let (p_plain, p_w, p_alike) = (p_plain.unwrap().1, p_w.unwrap().1, p_alike.unwrap().1);
+            assert!((p_plain - p_alike).abs() <= 1e-9 * p_plain.max(1e-300), "alike weights: {p_alike} vs {p_plain}");
+            plain += usize::from(p_plain < 0.01);
+            by_noise += usize::from(p_w < 0.01);
+            // the reference right: the same correction on pure noise
+            let e0: Vec<f64> = (0..n).map(|i| noise[i] - delta(i)).collect();
+            let p0 = projection_test(&weighted(noise, &inv_var), &weighted(e0, &inv_var)).unwrap().1;
+            false_alarms += usize::from(p0 < 0.01);
+        }
+        println!("significant in {by_noise} of 50 weighted, {plain} of 50 unweighted; {false_alarms} false alarms");
+        assert!(by_noise >= 45 && plain <= 10, "significant in {by_noise} of 50 weighted, {plain} of 50 unweighted");
+        assert!(false_alarms <= 1, "p < 0.01 in {false_alarms} of 50 with the reference right");
     }
 }
