@@ -1373,7 +1373,8 @@ fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split)
     let idx = candidates::thin_idx(&split.train, 20_000);
     let stride = split.train.len() as f64 / idx.len().max(1) as f64;
     let g = des.gram(d, &idx);
-    let sigma2 = fin.mse() / stride;
+    // (the Gram is weighted as the fits are, so the residual variance is the weighted one)
+    let sigma2 = fin.wmse() / stride;
     let se = select::coef_se(&g, ks, sigma2).max(select::coef_se(&g, kc, sigma2));
     let (a0, s) = (model.value(ParamId::WeightAmplitude).abs(), model.value(ParamId::WeightS));
     if se <= 0.25 * a0 && se.is_finite() {
