@@ -59,6 +59,21 @@ pub struct Data {
     pub sw: Vec<f64>,
 }
 
+impl Data {
+    /// Scales a fit row `x` and its target `y` by sample `i`'s fit weight ([`Data::sw`]; as
+    /// they are without weights) and returns the target.
+    #[inline]
+    pub fn weigh_row(&self, i: usize, x: &mut [f64], y: f64) -> f64 {
+        match self.sw.get(i) {
+            Some(&w) => {
+                x.iter_mut().for_each(|v| *v *= w);
+                y * w
+            }
+            None => y,
+        }
+    }
+}
+
 /// The log has a `temp` column whose range is below 0.1 °C: no temperature change to
 /// test a thermal drift against.
 pub fn constant_temp(d: &Data) -> bool {
@@ -522,11 +537,8 @@ impl Design {
         g.prior.clone_from(&self.prior);
         let mut x = vec![0.0; p];
         for &i in idx {
-            let mut y = self.row(d, i as usize, &mut x);
-            if let Some(&w) = d.sw.get(i as usize) {
-                x.iter_mut().for_each(|v| *v *= w);
-                y *= w;
-            }
+            let y = self.row(d, i as usize, &mut x);
+            let y = d.weigh_row(i as usize, &mut x, y);
             g.add(&x, y);
         }
         g
@@ -572,8 +584,8 @@ pub struct GridCtx<'a> {
     signs: Vec<bool>,
     /// per column of `des`: the value a term that would go negative is held at
     holds: Vec<f64>,
-    /// the rows' fit weights (square roots, [`Data::sw`]) when these rows are fitted
-    sw: Option<&'a [f64]>,
+    /// these rows are fitted (and carry their fit weights, [`Data::sw`]), not only scored
+    fitted: bool,
 }
 
 /// The Dahl state's travel compressed for the rows `idx` (ascending): the starting state and
@@ -632,30 +644,40 @@ impl<'a> GridCtx<'a> {
         let mut y = Vec::with_capacity(idx.len());
         let mut g = Gram::new(p);
         g.prior.clone_from(&des.prior);
-        // fitted rows carry their weights, scored rows none
-        let sw = (gram && d.sw.len() == d.n).then_some(d.sw.as_slice());
         for (r, &i) in idx.iter().enumerate() {
             let row = &mut x[r * p..(r + 1) * p];
             let mut yi = des.row(d, i as usize, row);
-            if let Some(w) = sw.map(|sw| sw[i as usize]) {
-                row.iter_mut().for_each(|v| *v *= w);
-                yi *= w;
-            }
+            // fitted rows carry their weights, scored rows none
             if gram {
+                yi = d.weigh_row(i as usize, row, yi);
                 g.add(row, yi);
             }
             y.push(yi);
         }
         let signs = super::select::physical_signs(&des);
         let holds = super::select::physical_holds(&des);
-        GridCtx { d, idx, des, p, x, y, g, dahl: std::sync::OnceLock::new(), compose_dahl: false, signs, holds, sw }
+        GridCtx {
+            d,
+            idx,
+            des,
+            p,
+            x,
+            y,
+            g,
+            dahl: std::sync::OnceLock::new(),
+            compose_dahl: false,
+            signs,
+            holds,
+            fitted: gram,
+        }
     }
 
     /// What effect `e` changes on these rows: a replaced column, extra columns or a new target
     /// (weighted as the rows are).
     pub fn delta(&self, e: &Effect) -> Delta {
         let mut delta = self.delta_unweighted(e);
-        if let Some(sw) = self.sw {
+        if self.fitted && !self.d.sw.is_empty() {
+            let sw = &self.d.sw;
             let weigh = |v: &mut Vec<f64>| v.iter_mut().zip(self.idx).for_each(|(x, &i)| *x *= sw[i as usize]);
             if let Some((_, z)) = delta.replace.as_mut() {
                 weigh(z);

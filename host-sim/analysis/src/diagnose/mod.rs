@@ -686,9 +686,9 @@ fn torque_mode(
     // weigh their training rows alike (weighted least squares), or the effect is fitted to the
     // scatter (that log's thermal candidate took the shape that scales the Coulomb sign too, at
     // a sixth of its coefficient).
-    let coefs = estimate_coefs(&base.cols, &base.beta0);
+    let terms = EstimateTerms::new((&base.cols, &base.beta0), prep);
     // (once per sample, on both cores: the held-out weights and the fit weights read it)
-    let var = par::per_sample(n, |i| noise0 * noise0 + estimates_var(&data, coefs, prep, i));
+    let var = par::per_sample(n, |i| noise0 * noise0 + terms.var(&data, prep, i));
     split.weigh(|i| var[i]);
     data.sw = fit_weights(&var, &split.train);
     lap("prepared (velocities, model prediction, regimes, split, noise floor)");
@@ -758,7 +758,7 @@ fn torque_floor_with(
     prep: &crate::prep::Prepared,
     idx: &[u32],
 ) -> f64 {
-    let (j, a, b, c) = estimate_coefs(cols, beta);
+    let terms = EstimateTerms::new((cols, beta), prep);
     let pure_sign = d.band == 0.0;
     let used: Vec<usize> = idx
         .iter()
@@ -766,9 +766,9 @@ fn torque_floor_with(
         .filter(|&i| i < d.n && !(prep.ambiguous[i] || pure_sign && (prep.sign_unknown[i] || prep.rest_edge[i])))
         .collect();
     let n = used.len().max(1) as f64;
-    let prop2: f64 = used.iter().map(|&i| estimates_var(d, (j, a, b, c), prep, i)).sum::<f64>() / n;
+    let prop2: f64 = used.iter().map(|&i| terms.var(d, prep, i)).sum::<f64>() / n;
     if std::env::var_os("DIAG_TRACE").is_some() {
-        eprintln!("[trace] floor: residual noise {noise:.5}, estimates' share {:.5} (J {j:.4})", prop2.sqrt());
+        eprintln!("[trace] floor: residual noise {noise:.5}, estimates' share {:.5} (J {:.4})", prop2.sqrt(), terms.j);
     }
     (noise * noise + prop2).sqrt()
 }
@@ -786,42 +786,58 @@ fn fit_weights(var: &[f64], train: &[u32]) -> Vec<f64> {
     var.iter().map(|v| 1.0 / v).map(|x| if x.is_finite() && x > 0.0 { (x / mean).sqrt() } else { 0.0 }).collect()
 }
 
-/// The model's inertia, quadratic, viscous and Coulomb coefficients (0 where it has none): what
-/// the q̇/q̈ estimates' errors reach the residual through.
-fn estimate_coefs(cols: &[Col], beta: &[f64]) -> (f64, f64, f64, f64) {
-    let coef = |c: Col| cols.iter().position(|x| *x == c).map_or(0.0, |k| beta.get(k).copied().unwrap_or(0.0));
-    (coef(Col::Qdd), coef(Col::QdAbsQd), coef(Col::Qd), coef(Col::Sgn))
+/// What the q̇/q̈ estimates' errors reach a sample's residual through: the model's inertia `j`,
+/// friction `a`·q̇|q̇|, `b`·q̇ and Coulomb `c` (0 where it has none), and whether q̇ and q̈ are
+/// estimates (white noise on a logged column is already in the residual's noise; an estimate's
+/// or a filter's error follows the motion and is not).
+struct EstimateTerms {
+    j: f64,
+    a: f64,
+    b: f64,
+    c: f64,
+    qd_derived: bool,
+    qdd_derived: bool,
 }
 
-/// The variance the q̇/q̈ estimates' errors add to sample `i`'s residual through the model's
-/// inertia `j`, friction `a`·q̇|q̇|, `b`·q̇ and Coulomb `c` (see [`torque_floor`]).
-fn estimates_var(d: &Data, (j, a, b, c): (f64, f64, f64, f64), prep: &crate::prep::Prepared, i: usize) -> f64 {
-    // white noise on a logged column is already in the residual's noise; an estimate's or a
-    // filter's error follows the motion and is not
-    let derived = |i: &crate::prep::DerivInfo| !i.white;
-    let (dv, da) = (derived(&prep.report.qd), derived(&prep.report.qdd));
-    let pure_sign = d.band == 0.0;
-    let slope = b + 2.0 * a * d.qd[i].abs();
-    let sv = if dv { prep.qd_err[i] } else { 0.0 };
-    let sa = if da { prep.qdd_err[i] } else { 0.0 };
-    // at rest the sign is 0; a known direction settles a pure sign, but inside a band
-    // the sign's value is q̇/band and carries q̇'s error whichever way the joint goes.
-    // Counted for a logged q̇ too: its white noise reaches the residual through the
-    // band's steep slope only near rest, a few samples the (robust) variogram ignores.
-    let dir = prep.direction[i];
-    // the speed with the way q goes where that is known
-    let v = if dir != 0 { f64::from(dir) * d.qd[i].abs() } else { d.qd[i] };
-    let sgn_var = if prep.rest[i] && !pure_sign {
-        // a rest is |q̇| within the estimate's noise, not q̇ = 0: a joint that creeps
-        // inside the band there (held by friction c·q̇/band) has a friction anywhere in
-        // ±c·(noise/band), which q̇ = 0 cannot predict
-        crate::prep::sign_variance(0.0, d.band, prep.report.qd.error_sd)
-    } else if prep.rest[i] || dir != 0 && pure_sign {
-        0.0
-    } else {
-        crate::prep::sign_variance(v, d.band, prep.qd_err[i])
-    };
-    j * j * sa * sa + slope * slope * sv * sv + c * c * sgn_var
+impl EstimateTerms {
+    fn new((cols, beta): (&[Col], &[f64]), prep: &crate::prep::Prepared) -> EstimateTerms {
+        let coef = |c: Col| cols.iter().position(|x| *x == c).map_or(0.0, |k| beta.get(k).copied().unwrap_or(0.0));
+        EstimateTerms {
+            j: coef(Col::Qdd),
+            a: coef(Col::QdAbsQd),
+            b: coef(Col::Qd),
+            c: coef(Col::Sgn),
+            qd_derived: !prep.report.qd.white,
+            qdd_derived: !prep.report.qdd.white,
+        }
+    }
+
+    /// The variance the estimates' errors add to sample `i`'s residual (see [`torque_floor`]).
+    fn var(&self, d: &Data, prep: &crate::prep::Prepared, i: usize) -> f64 {
+        let EstimateTerms { j, a, b, c, qd_derived, qdd_derived } = *self;
+        let pure_sign = d.band == 0.0;
+        let slope = b + 2.0 * a * d.qd[i].abs();
+        let sv = if qd_derived { prep.qd_err[i] } else { 0.0 };
+        let sa = if qdd_derived { prep.qdd_err[i] } else { 0.0 };
+        // at rest the sign is 0; a known direction settles a pure sign, but inside a band
+        // the sign's value is q̇/band and carries q̇'s error whichever way the joint goes.
+        // Counted for a logged q̇ too: its white noise reaches the residual through the
+        // band's steep slope only near rest, a few samples the (robust) variogram ignores.
+        let dir = prep.direction[i];
+        // the speed with the way q goes where that is known
+        let v = if dir != 0 { f64::from(dir) * d.qd[i].abs() } else { d.qd[i] };
+        let sgn_var = if prep.rest[i] && !pure_sign {
+            // a rest is |q̇| within the estimate's noise, not q̇ = 0: a joint that creeps
+            // inside the band there (held by friction c·q̇/band) has a friction anywhere in
+            // ±c·(noise/band), which q̇ = 0 cannot predict
+            crate::prep::sign_variance(0.0, d.band, prep.report.qd.error_sd)
+        } else if prep.rest[i] || dir != 0 && pure_sign {
+            0.0
+        } else {
+            crate::prep::sign_variance(v, d.band, prep.qd_err[i])
+        };
+        j * j * sa * sa + slope * slope * sv * sv + c * c * sgn_var
+    }
 }
 
 /// What a load-dependent friction grows with: the measured load `|tau|`; when the log's `tau`

@@ -62,6 +62,13 @@ pub const CLEAR_GAIN: f64 = 0.15;
 /// A second (third) effect takes at least this share of the held-out MSE still above the floor.
 pub const FURTHER_SHARE: f64 = 0.25;
 
+/// Whether `cand` takes at least [`FURTHER_SHARE`] of what `reference` leaves above the noise
+/// floor `floor` (held-out MSE): a real share, not a significant sliver off the noise or off
+/// what a refit left unfinished.
+pub fn takes_share(reference: &Scored, cand: &Scored, floor: f64) -> bool {
+    reference.mse() - cand.mse() >= FURTHER_SHARE * (reference.mse() - floor * floor)
+}
+
 /// The at-the-floor factor for this log (see [`AT_FLOOR_EIV`]).
 pub fn at_floor_factor(d: &Data) -> f64 {
     if d.qdd_noise_var > 0.0 {
@@ -697,23 +704,13 @@ fn projection_test(reference: &Scored, cand: &Scored) -> Option<(f64, f64)> {
         while from < end {
             let to = end.min(from.saturating_add(chunk));
             let (mut w_c, mut d2) = (0.0, 0.0);
-            match wt {
-                None => {
-                    for (&ri, &ei) in r[from..to].iter().zip(&e[from..to]) {
-                        let d = ri - ei;
-                        t_sum += d * (ri + ei);
-                        w_c += ei * d;
-                        d2 += d * d;
-                    }
-                }
-                Some(wt) => {
-                    for ((&ri, &ei), &wi) in r[from..to].iter().zip(&e[from..to]).zip(&wt[from..to]) {
-                        let d = ri - ei;
-                        t_sum += wi * d * (ri + ei);
-                        w_c += wi * ei * d;
-                        d2 += wi * d * d;
-                    }
-                }
+            for (i, (&ri, &ei)) in r[from..to].iter().zip(&e[from..to]).enumerate() {
+                // (a weight of 1 multiplies exactly: unweighted sums are as they were)
+                let wi = wt.map_or(1.0, |w| w[from + i]);
+                let d = ri - ei;
+                t_sum += wi * d * (ri + ei);
+                w_c += wi * ei * d;
+                d2 += wi * d * d;
             }
             w.push(w_c);
             energy.push(d2);
@@ -1238,12 +1235,11 @@ pub fn select(
             let cur_s = cur.scored.clone();
             // A further effect must also take a real share of what is left above the floor
             // (a quarter of the excess MSE), not only shave a significant sliver off noise.
-            let excess = cur_s.mse() - floor * floor;
             let next: Vec<Outcome> = next
                 .into_iter()
                 .map(|s| outcome(&cur_s, s))
                 .map(|mut o| {
-                    o.significant &= cur_s.mse() - o.scored.mse() >= FURTHER_SHARE * excess;
+                    o.significant &= takes_share(&cur_s, &o.scored, floor);
                     o
                 })
                 .collect();

@@ -24,7 +24,7 @@
 use super::fits::Fitted;
 use super::terms::Layout;
 use crate::diagnose::candidates::Col;
-use crate::diagnose::select::{compare, Scored, ALPHA, AT_FLOOR, FURTHER_SHARE, MIN_GAIN, UNEXPLAINED};
+use crate::diagnose::select::{compare, takes_share, Scored, ALPHA, AT_FLOOR, MIN_GAIN, UNEXPLAINED};
 use joint_formats::vocab::Effect as Vocab;
 
 /// χ² with 2 degrees of freedom at p = 0.001: a fitted start further than this (in squared
@@ -184,8 +184,7 @@ pub fn judge(
         // bound) the effect is credited with finishing it; significant since the chunked test,
         // such slivers named `asymmetric_friction` or a ripple on `parameters` logs (t9011/0085,
         // t9026/0042: 22 % of an excess of 1.06–1.07× the floor)
-        let excess = reference.mse() - floor * floor;
-        let share = reference.mse() - e.scored.mse() >= FURTHER_SHARE * excess;
+        let share = takes_share(reference, &e.scored, floor);
         let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each) && share;
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
