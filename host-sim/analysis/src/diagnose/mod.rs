@@ -768,7 +768,21 @@ fn torque_floor_with(
     let n = used.len().max(1) as f64;
     let prop2: f64 = used.iter().map(|&i| terms.var(d, prep, i)).sum::<f64>() / n;
     if std::env::var_os("DIAG_TRACE").is_some() {
-        eprintln!("[trace] floor: residual noise {noise:.5}, estimates' share {:.5} (J {:.4})", prop2.sqrt(), terms.j);
+        let mut parts = [0.0; 3];
+        for &i in &used {
+            let p = terms.parts(d, prep, i);
+            for k in 0..3 {
+                parts[k] += p[k] / n;
+            }
+        }
+        eprintln!(
+            "[trace] floor: residual noise {noise:.5}, estimates' share {:.5} (J {:.4}; RMS from q̈ {:.5}, q̇ {:.5}, sign {:.5})",
+            prop2.sqrt(),
+            terms.j,
+            parts[0].sqrt(),
+            parts[1].sqrt(),
+            parts[2].sqrt()
+        );
     }
     (noise * noise + prop2).sqrt()
 }
@@ -814,6 +828,12 @@ impl EstimateTerms {
 
     /// The variance the estimates' errors add to sample `i`'s residual (see [`torque_floor`]).
     fn var(&self, d: &Data, prep: &crate::prep::Prepared, i: usize) -> f64 {
+        self.parts(d, prep, i).iter().sum()
+    }
+
+    /// [`EstimateTerms::var`]'s three parts: through the inertia, the friction's slope and the
+    /// Coulomb sign.
+    fn parts(&self, d: &Data, prep: &crate::prep::Prepared, i: usize) -> [f64; 3] {
         let EstimateTerms { j, a, b, c, qd_derived, qdd_derived } = *self;
         let pure_sign = d.band == 0.0;
         let slope = b + 2.0 * a * d.qd[i].abs();
@@ -836,7 +856,7 @@ impl EstimateTerms {
         } else {
             crate::prep::sign_variance(v, d.band, prep.qd_err[i])
         };
-        j * j * sa * sa + slope * slope * sv * sv + c * c * sgn_var
+        [j * j * sa * sa, slope * slope * sv * sv, c * c * sgn_var]
     }
 }
 
