@@ -953,6 +953,11 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
             put("k1", beta(1));
             put("centre", engage);
         }
+        Effect::Cable { engage, width, side: 2 } => {
+            put("amplitude", beta(0));
+            put("centre", engage);
+            put("half_width", width);
+        }
         Effect::Cable { engage, width, side } => {
             put("k", beta(0));
             put("engage", engage);
@@ -1452,9 +1457,45 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
     if let Some(why) = weight_kept {
         out.push_str(&format!("# [weight] and [offset] are the file's: {why}.\n"));
     }
+    // A pad has no section of its own, but it is a torque of the angle alone: where the file has
+    // no gravity table, it is written as one over q (additive: no σ_model, so the joint adds the
+    // table to the weight), which the joint compensates. 16 points over centre ± half width (the
+    // core's most per axis; the raised cosine's linear interpolation is within 0.6 % of its
+    // amplitude), 0 at both ends, so the clamped table is 0 beyond them.
+    let pad_table =
+        fin.effects.iter().position(|e| matches!(e, Effect::Cable { side: 2, .. })).filter(|_| mf.table.is_none());
+    if let Some(k) = pad_table {
+        let p = effect_params(fin, k, d);
+        let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
+        let (amp, centre, half) = (get("amplitude"), get("centre"), get("half_width"));
+        let n = joint_core::table::AXIS_POINTS_MAX;
+        let grid: Vec<f64> = (0..n).map(|j| centre - half + 2.0 * half * j as f64 / (n - 1) as f64).collect();
+        let mut torque: Vec<f64> = grid.iter().map(|&q| amp * shapes::pad(centre, half, q)).collect();
+        // exactly 0 at the ends (cos(±π) is not)
+        torque[0] = 0.0;
+        torque[n - 1] = 0.0;
+        mf.table = Some(joint_formats::model_file::TableSpec {
+            axes: vec!["q".into()],
+            grid: vec![grid],
+            torque,
+            sigma: None,
+        });
+    }
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
     for k in 0..fin.effects.len() {
+        if pad_table == Some(k) {
+            let p = effect_params(fin, k, d);
+            let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
+            out.push_str(&format!(
+                "\n# cable_spring: a pad pressing over q = {:?} ± {:?} rad (a raised cosine of amplitude {:?} N·m), \
+                 written as the [gravity_table] above\n",
+                get("centre"),
+                get("half_width"),
+                get("amplitude")
+            ));
+            continue;
+        }
         let name = section_name(fin.effects[k].kind());
         if model_text.lines().any(|l| l.trim() == format!("[{name}]")) {
             // The model already carries this term as a section of its own: a second table of
@@ -1542,7 +1583,15 @@ fn effect_section(s: &Scored, k: usize, d: &Data) -> String {
         Effect::Cable { side, .. } => {
             // Not a shape the section holds (it is taut above `engage`): written as a comment.
             o.clear();
-            let _ = if side == 0 {
+            let _ = if side == 2 {
+                writeln!(
+                    o,
+                    "\n# cable_spring (a pad pressing over q = {:?} ± {:?} rad, a raised cosine of amplitude {:?} N·m); no model section holds this shape",
+                    g("centre"),
+                    g("half_width"),
+                    g("amplitude")
+                )
+            } else if side == 0 {
                 writeln!(
                     o,
                     "\n# cable_spring (progressive, k3·x³ + k1·x with x = q − {:?}): k3 = {:?}, k1 = {:?}; no model section holds this shape",

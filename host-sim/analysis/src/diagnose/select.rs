@@ -830,6 +830,8 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
             Some("fitted Stribeck level is not positive: friction rising towards rest is no Stribeck effect")
         }
         Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
+        // a pad presses either way (which side of the limb it sits on)
+        Kind::Cable if matches!(e, Effect::Cable { side: 2, .. }) => None,
         Kind::Cable if amp <= 0.0 || any_negative => {
             Some("fitted cable stiffness is not positive: a cable cannot push")
         }
@@ -1337,6 +1339,7 @@ mod tests {
             Effect::Cable { engage: 1.3, width: 0.01, side: 1 },
             Effect::Cable { engage: 0.7, width: 0.01, side: -1 },
             Effect::Cable { engage: 1.0, width: 0.01, side: 0 },
+            Effect::Cable { engage: 1.0, width: 0.2, side: 2 },
             Effect::Backlash { width: 0.02, offset: 0.01 },
             Effect::Delay { lag: 3.0, channel: crate::diagnose::candidates::Channel::U },
             Effect::Delay { lag: -4.0, channel: crate::diagnose::candidates::Channel::Tau },

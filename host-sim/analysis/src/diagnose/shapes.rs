@@ -30,6 +30,17 @@ pub fn engaged_spring(k: f64, engage: f64, width: f64, q: f64) -> f64 {
     }
 }
 
+/// A pad or strap that presses over a range of angles only: 1 at `centre`, falling to 0 at
+/// `centre ± half` as a raised cosine (value and slope continuous), 0 beyond.
+pub fn pad(centre: f64, half: f64, q: f64) -> f64 {
+    let z = (q - centre) / half;
+    if z.abs() >= 1.0 {
+        0.0
+    } else {
+        0.5 * (1.0 + (std::f64::consts::PI * z).cos())
+    }
+}
+
 /// One step of the normalised Dahl state z = F/c over travel `dq`: the exact solution of
 /// dz/dq = κ·(1 − z·sign(dq)), an exponential approach to ±1 (so |z| ≤ 1 for any step).
 pub fn dahl_step(z: f64, kappa: f64, dq: f64) -> f64 {
@@ -67,6 +78,16 @@ mod tests {
         for dq in [-10.0, -1e-3, 0.0, 1e-3, 10.0] {
             assert!(dahl_step(0.99, 1e6, dq).abs() <= 1.0);
         }
+    }
+
+    #[test]
+    fn a_pad_presses_inside_its_range_only() {
+        assert_eq!(pad(0.3, 0.1, 0.3), 1.0);
+        assert_eq!(pad(0.3, 0.1, 0.45), 0.0);
+        assert_eq!(pad(0.3, 0.1, 0.19), 0.0);
+        assert!((pad(0.3, 0.1, 0.35) - 0.5).abs() < 1e-12);
+        // slope 0 at the edges, continuous with the 0 outside: 1e-4 inside it is ~(π·1e-3)²/4
+        assert!(pad(0.3, 0.1, 0.3999) < 3e-6);
     }
 
     #[test]
