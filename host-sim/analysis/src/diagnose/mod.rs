@@ -1468,18 +1468,7 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
         let p = effect_params(fin, k, d);
         let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
         let (amp, centre, half) = (get("amplitude"), get("centre"), get("half_width"));
-        let n = joint_core::table::AXIS_POINTS_MAX;
-        let grid: Vec<f64> = (0..n).map(|j| centre - half + 2.0 * half * j as f64 / (n - 1) as f64).collect();
-        let mut torque: Vec<f64> = grid.iter().map(|&q| amp * shapes::pad(centre, half, q)).collect();
-        // exactly 0 at the ends (cos(±π) is not)
-        torque[0] = 0.0;
-        torque[n - 1] = 0.0;
-        mf.table = Some(joint_formats::model_file::TableSpec {
-            axes: vec!["q".into()],
-            grid: vec![grid],
-            torque,
-            sigma: None,
-        });
+        mf.table = Some(position_table(centre - half, centre + half, |q| amp * shapes::pad(centre, half, q)));
     }
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
@@ -1507,6 +1496,17 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
         out.push_str(&effect_section(fin, k, d));
     }
     out
+}
+
+/// A torque of the joint's own angle over `lo..=hi`, 0 beyond, as the additive gravity table the
+/// core compensates: the most points an axis holds, evenly spaced, the ends set to 0 so the
+/// table (clamped to its grid) is 0 outside.
+pub(crate) fn position_table(lo: f64, hi: f64, f: impl Fn(f64) -> f64) -> joint_formats::model_file::TableSpec {
+    let n = joint_core::table::AXIS_POINTS_MAX;
+    let grid: Vec<f64> = (0..n).map(|j| lo + (hi - lo) * j as f64 / (n - 1) as f64).collect();
+    let torque: Vec<f64> =
+        grid.iter().enumerate().map(|(j, &q)| if j == 0 || j == n - 1 { 0.0 } else { f(q) }).collect();
+    joint_formats::model_file::TableSpec { axes: vec!["q".into()], grid: vec![grid], torque, sigma: None }
 }
 
 fn effect_section(s: &Scored, k: usize, d: &Data) -> String {

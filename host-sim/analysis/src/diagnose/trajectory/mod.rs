@@ -117,6 +117,13 @@ pub fn diagnose(prep: &Prepared, model: &ModelFile, params: &ParamSet, opts: &Op
             prep.log.t[seg.start]
         ));
     }
+    if let Err(why) = terms::table_of(model) {
+        d.report.warnings.push(format!(
+            "the model's gravity table is left out of the simulation: {why}, which a simulation of this joint \
+             alone cannot compute; the log is compared with the model without it (a torque log is diagnosed \
+             with it)"
+        ));
+    }
     if seg.len() < prep.log.len() {
         d.report.warnings.push(format!(
             "the log has gaps: only its longest stretch without one ({} samples from t = {} s) was simulated",

@@ -337,8 +337,24 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
         }
     }
     let mut sections = String::new();
+    let mut table_taken = mf.table.is_some();
     for (k, kind) in final_fit.effects.iter().enumerate() {
         let p = effect_params(ctx, final_fit, k, j);
+        if *kind == Kind::CableBump && !table_taken {
+            // Padding is a torque of the angle alone: written as the gravity table the joint adds
+            // to the weight (no model section holds it), over its centre ± 3 widths.
+            let g = |k: &str| p.get(k).copied().unwrap_or(0.0);
+            let (a, c, w) = (g("amplitude"), g("center"), g("width").abs());
+            mf.table = Some(crate::diagnose::position_table(c - 3.0 * w, c + 3.0 * w, |q| {
+                let z = (q - c) / w;
+                a * (-0.5 * z * z).exp()
+            }));
+            table_taken = true;
+            sections.push_str(&format!(
+                "\n# cable_spring, padding: {a:?}·exp(−½((q − {c:?})/{w:?})²) N·m, written as the [gravity_table] above\n"
+            ));
+            continue;
+        }
         if *kind == Kind::Presliding {
             if let Some(&sigma) = p.get("sigma") {
                 mf.set(joint_core::params::ParamId::PreslidingSigma, sigma, None);

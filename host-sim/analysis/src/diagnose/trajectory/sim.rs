@@ -83,8 +83,27 @@ pub struct Law {
     /// `(period, α, β)`: `α·sin(2πq/P) + β·cos(2πq/P)`
     pub ripples: Vec<(f64, f64, f64)>,
     pub cables: Vec<Cable>,
+    /// the model file's gravity table over the joint's own angle, added to the weight (the
+    /// core's rule without fusion): grid and torque, interpolated linearly, clamped to the grid
+    pub table: Option<Table>,
     /// angles travelled (bounds a progressive element's stiffness)
     pub span: f64,
+}
+
+/// A gravity table over the joint's own angle: its grid and torques (shared, never fitted).
+pub type Table = std::sync::Arc<(Vec<f64>, Vec<f64>)>;
+
+/// A 1-D table at `q`: linear between its points, its end values beyond them.
+pub fn table_at(grid: &[f64], torque: &[f64], q: f64) -> f64 {
+    let (Some(&g0), Some(&gl)) = (grid.first(), grid.last()) else { return 0.0 };
+    if grid.len() < 2 || torque.len() != grid.len() {
+        return torque.first().copied().unwrap_or(0.0);
+    }
+    let x = q.clamp(g0, gl);
+    let i = grid.partition_point(|&v| v <= x).saturating_sub(1).min(grid.len() - 2);
+    let span = grid[i + 1] - grid[i];
+    let f = if span > 0.0 { ((x - grid[i]) / span).clamp(0.0, 1.0) } else { 0.0 };
+    torque[i] + f * (torque[i + 1] - torque[i])
 }
 
 impl Law {
@@ -106,6 +125,9 @@ impl Law {
         }
         for c in &self.cables {
             d += c.torque(q);
+        }
+        if let Some(t) = &self.table {
+            d += table_at(&t.0, &t.1, q);
         }
         d
     }

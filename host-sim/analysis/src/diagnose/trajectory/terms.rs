@@ -20,7 +20,7 @@ use joint_core::params::ParamId;
 use joint_formats::model_file::ModelFile;
 use joint_formats::vocab::Effect as Vocab;
 
-use super::sim::{Cable, Law};
+use super::sim::{Cable, Law, Table};
 use crate::diagnose::candidates::{base_from_model, Col};
 
 /// One effect a fit can carry.
@@ -150,6 +150,23 @@ pub struct Layout {
     pub torque: f64,
     /// the longest ripple period searched, rad
     pub ripple_max: f64,
+    /// the file's gravity table when the simulation can add it ([`table_of`]): fixed, never fitted
+    pub table: Option<Table>,
+}
+
+/// The model's gravity table as the simulation adds it: one axis over the joint's own angle, and
+/// no fusion (σ_model unset or 0, not the residual of a gravity series), which is the table added
+/// to the weight. `Err` names a table trajectory mode cannot simulate (it reads the other joints'
+/// angles, or the joint fuses it with its model), `Ok(None)` a model without one.
+pub fn table_of(model: &ModelFile) -> Result<Option<Table>, String> {
+    let Some(t) = &model.table else { return Ok(None) };
+    let fused = model.explicit(ParamId::TableSigmaModel).is_some_and(|s| s > 0.0)
+        || model.series.as_ref().is_some_and(|s| s.table_residual);
+    match (t.axes.as_slice(), t.grid.as_slice()) {
+        ([a], [g]) if a == "q" && !fused => Ok(Some(Table::new((g.clone(), t.torque.clone())))),
+        _ if fused => Err("its gravity table is fused with the model (sigma_model)".into()),
+        _ => Err(format!("its gravity table reads {:?}, not the joint's own angle alone", t.axes)),
+    }
 }
 
 impl Layout {
@@ -193,6 +210,7 @@ impl Layout {
             // short periods (gear mesh, cogging, wave generator: ≤ 0.3 rad) with at least three
             // periods inside the angles travelled
             ripple_max: (span / 3.0).min(0.3),
+            table: table_of(model).ok().flatten(),
         }
     }
 
@@ -389,6 +407,7 @@ impl Layout {
             dahl: self.file_sigma,
             span: self.span(),
             pivot: self.spring_q0,
+            table: self.table.clone(),
             ..Law::default()
         };
         let mut weight = (0.0, 0.0, 0.0);
