@@ -83,3 +83,23 @@ fn load_dependent_friction_is_pushed() {
     assert!(o.before.stable && o.after.stable);
     assert!(o.model_error_ratio < 0.9, "{:?} → {:?}", o.before, o.after);
 }
+
+/// Padding that presses over part of the travel (the plant's table: a flat top with ramps, not
+/// the candidate's raised cosine): diagnose finds a `cable_spring` pad, the emitted model holds
+/// it as a gravity table over q (no section holds a pad), that table is pushed, and the joint's
+/// model error falls.
+#[test]
+fn padding_is_pushed_as_a_table() {
+    // (no ceiling: the plant's padding is a table, not an effect section with true parameters)
+    let plant = PlantFile::read_file(&root().join("examples/plants/trunk-right-padding.toml")).unwrap();
+    let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
+    let cfg = LoopConfig { fraction: Some(0.7), trials: 4, seconds: 10.0, seed: 1, ..LoopConfig::default() };
+    let o = run_workflow(&plant, &model, &cfg, ("padding", "trunk-right")).unwrap();
+    eprintln!("emitted\n{}\nbefore {:?}\nafter {:?}", o.emitted_model, o.before, o.after);
+    assert!(o.selected.iter().any(|e| e == "cable_spring"), "{:?}", o.selected);
+    assert!(o.emitted_model.contains("[gravity_table]"), "{}", o.emitted_model);
+    assert!(o.dropped_effects.is_empty() && o.pushed, "{:?}", o.dropped_effects);
+    assert!(o.pushed_model.table.is_some());
+    assert!(o.before.stable && o.after.stable);
+    assert!(o.model_error_ratio < 0.6, "{:?} → {:?}", o.before, o.after);
+}
