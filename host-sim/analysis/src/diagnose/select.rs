@@ -899,6 +899,8 @@ pub fn extra_params(e: &Effect) -> usize {
                 2
             }
         }
+        // a pad's amplitude, centre and reach
+        Effect::Cable { side: 2, .. } => 3,
         Effect::Thermal { .. } | Effect::Cable { .. } => 2,
         Effect::Stribeck { exponent, .. } => {
             if exponent == 2.0 {
