@@ -15,10 +15,16 @@ fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
 }
 
-fn case(effect_file: &str) -> (jointctl::closed_loop::workflow::Outcome, jointctl::closed_loop::workflow::Figures) {
+/// The trunk joint's plant with `effect_file`'s effect, the paper's model, the law at F = 0.7.
+fn setup(effect_file: &str, trials: usize, seconds: f64) -> (PlantFile, ModelFile, LoopConfig) {
     let plant = PlantFile::read_file(&root().join(format!("examples/plants/trunk-right-{effect_file}.toml"))).unwrap();
     let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
-    let cfg = LoopConfig { fraction: Some(0.7), trials: 4, seconds: 10.0, seed: 1, ..LoopConfig::default() };
+    let cfg = LoopConfig { fraction: Some(0.7), trials, seconds, seed: 1, ..LoopConfig::default() };
+    (plant, model, cfg)
+}
+
+fn case(effect_file: &str) -> (jointctl::closed_loop::workflow::Outcome, jointctl::closed_loop::workflow::Figures) {
+    let (plant, model, cfg) = setup(effect_file, 4, 10.0);
     let o = run_workflow(&plant, &model, &cfg, (effect_file, "trunk-right")).unwrap();
     let c = ceiling(&plant, &model, &cfg, (effect_file, "trunk-right")).unwrap().unwrap();
     (o, c)
@@ -71,9 +77,7 @@ fn position_ripple_found_but_short_of_60_percent() {
 /// it and is pushed, nothing is dropped, and the joint's model error falls.
 #[test]
 fn load_dependent_friction_is_pushed() {
-    let plant = PlantFile::read_file(&root().join("examples/plants/trunk-right-load-dependent-friction.toml")).unwrap();
-    let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
-    let cfg = LoopConfig { fraction: Some(0.7), trials: 2, seconds: 8.0, seed: 1, ..LoopConfig::default() };
+    let (plant, model, cfg) = setup("load-dependent-friction", 2, 8.0);
     let o = run_workflow(&plant, &model, &cfg, ("ldf", "trunk-right")).unwrap();
     eprintln!("emitted\n{}\nbefore {:?}\nafter {:?}", o.emitted_model, o.before, o.after);
     assert!(o.emitted_model.contains("[load_dependent_friction]"), "{}", o.emitted_model);
@@ -91,9 +95,7 @@ fn load_dependent_friction_is_pushed() {
 #[test]
 fn padding_is_pushed_as_a_table() {
     // (no ceiling: the plant's padding is a table, not an effect section with true parameters)
-    let plant = PlantFile::read_file(&root().join("examples/plants/trunk-right-padding.toml")).unwrap();
-    let model = ModelFile::read_file(&root().join("examples/models/trunk-right.toml")).unwrap();
-    let cfg = LoopConfig { fraction: Some(0.7), trials: 4, seconds: 10.0, seed: 1, ..LoopConfig::default() };
+    let (plant, model, cfg) = setup("padding", 4, 10.0);
     let o = run_workflow(&plant, &model, &cfg, ("padding", "trunk-right")).unwrap();
     eprintln!("emitted\n{}\nbefore {:?}\nafter {:?}", o.emitted_model, o.before, o.after);
     assert!(o.selected.iter().any(|e| e == "cable_spring"), "{:?}", o.selected);
