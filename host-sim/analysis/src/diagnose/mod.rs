@@ -1462,26 +1462,25 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
     // table to the weight), which the joint compensates. 16 points over centre ± half width (the
     // core's most per axis; the raised cosine's linear interpolation is within 0.6 % of its
     // amplitude), 0 at both ends, so the clamped table is 0 beyond them.
+    // (the pad's index among the effects, its amplitude, centre and half width)
     let pad_table =
-        fin.effects.iter().position(|e| matches!(e, Effect::Cable { side: 2, .. })).filter(|_| mf.table.is_none());
-    if let Some(k) = pad_table {
-        let p = effect_params(fin, k, d);
-        let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
-        let (amp, centre, half) = (get("amplitude"), get("centre"), get("half_width"));
+        fin.effects.iter().position(|e| matches!(e, Effect::Cable { side: 2, .. })).filter(|_| mf.table.is_none()).map(
+            |k| {
+                let p = effect_params(fin, k, d);
+                let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
+                (k, get("amplitude"), get("centre"), get("half_width"))
+            },
+        );
+    if let Some((_, amp, centre, half)) = pad_table {
         mf.table = Some(position_table(centre - half, centre + half, |q| amp * shapes::pad(centre, half, q)));
     }
     let model_text = mf.to_toml_string();
     out.push_str(&model_text);
     for k in 0..fin.effects.len() {
-        if pad_table == Some(k) {
-            let p = effect_params(fin, k, d);
-            let get = |key: &str| p.get(key).copied().unwrap_or(0.0);
+        if let Some((_, amp, centre, half)) = pad_table.filter(|p| p.0 == k) {
             out.push_str(&format!(
-                "\n# cable_spring: a pad pressing over q = {:?} ± {:?} rad (a raised cosine of amplitude {:?} N·m), \
-                 written as the [gravity_table] above\n",
-                get("centre"),
-                get("half_width"),
-                get("amplitude")
+                "\n# cable_spring: a pad pressing over q = {centre:?} ± {half:?} rad (a raised cosine of amplitude \
+                 {amp:?} N·m), written as the [gravity_table] above\n"
             ));
             continue;
         }

@@ -80,6 +80,15 @@ impl TableFit {
 fn corners(grid: &[Vec<f64>], x: &[f64], idx: &mut Vec<usize>, w: &mut Vec<f64>) {
     idx.clear();
     w.clear();
+    for_corners(grid, x, |k, wt| {
+        idx.push(k);
+        w.push(wt);
+    });
+}
+
+/// Each corner of `x`'s cell on the grid (clamped to it) with its multilinear weight, row-major
+/// index (last axis fastest); no allocation.
+fn for_corners(grid: &[Vec<f64>], x: &[f64], mut each: impl FnMut(usize, f64)) {
     let n = grid.len();
     let mut lo = [0usize; 4];
     let mut fr = [0.0f64; 4];
@@ -99,9 +108,16 @@ fn corners(grid: &[Vec<f64>], x: &[f64], idx: &mut Vec<usize>, w: &mut Vec<f64>)
             wt *= if bit == 1 { fr[a] } else { 1.0 - fr[a] };
             k = k * grid[a].len() + lo[a] + bit;
         }
-        idx.push(k);
-        w.push(wt);
+        each(k, wt);
     }
+}
+
+/// A table's `values` at the point `x` (one value per axis), multilinear, clamped to the grid:
+/// the rule the core's table follows, for a table as a model file states it.
+pub(crate) fn interpolate(grid: &[Vec<f64>], values: &[f64], x: &[f64]) -> f64 {
+    let mut v = 0.0;
+    for_corners(grid, x, |k, wt| v += wt * values[k]);
+    v
 }
 
 /// Grid of one axis: cluster centres when the values are a few tight clusters, else evenly

@@ -345,10 +345,8 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
             // to the weight (no model section holds it), over its centre ± 3 widths.
             let g = |k: &str| p.get(k).copied().unwrap_or(0.0);
             let (a, c, w) = (g("amplitude"), g("center"), g("width").abs());
-            mf.table = Some(crate::diagnose::position_table(c - 3.0 * w, c + 3.0 * w, |q| {
-                let z = (q - c) / w;
-                a * (-0.5 * z * z).exp()
-            }));
+            let bump = super::sim::Cable::Bump { a, qb: c, w };
+            mf.table = Some(crate::diagnose::position_table(c - 3.0 * w, c + 3.0 * w, |q| bump.torque(q)));
             table_taken = true;
             sections.push_str(&format!(
                 "\n# cable_spring, padding: {a:?}·exp(−½((q − {c:?})/{w:?})²) N·m, written as the [gravity_table] above\n"

@@ -90,21 +90,9 @@ pub struct Law {
     pub span: f64,
 }
 
-/// A gravity table over the joint's own angle: its grid and torques (shared, never fitted).
-pub type Table = std::sync::Arc<(Vec<f64>, Vec<f64>)>;
-
-/// A 1-D table at `q`: linear between its points, its end values beyond them.
-pub fn table_at(grid: &[f64], torque: &[f64], q: f64) -> f64 {
-    let (Some(&g0), Some(&gl)) = (grid.first(), grid.last()) else { return 0.0 };
-    if grid.len() < 2 || torque.len() != grid.len() {
-        return torque.first().copied().unwrap_or(0.0);
-    }
-    let x = q.clamp(g0, gl);
-    let i = grid.partition_point(|&v| v <= x).saturating_sub(1).min(grid.len() - 2);
-    let span = grid[i + 1] - grid[i];
-    let f = if span > 0.0 { ((x - grid[i]) / span).clamp(0.0, 1.0) } else { 0.0 };
-    torque[i] + f * (torque[i + 1] - torque[i])
-}
+/// A gravity table over the joint's own angle: its grid (one axis) and torques, as the model file
+/// states them (shared, never fitted).
+pub type Table = std::sync::Arc<(Vec<Vec<f64>>, Vec<f64>)>;
 
 impl Law {
     /// The torque that depends on the angle alone.
@@ -127,7 +115,7 @@ impl Law {
             d += c.torque(q);
         }
         if let Some(t) = &self.table {
-            d += table_at(&t.0, &t.1, q);
+            d += crate::identify::gravity_table::interpolate(&t.0, &t.1, &[q]);
         }
         d
     }

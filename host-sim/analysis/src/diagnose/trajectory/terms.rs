@@ -162,8 +162,8 @@ pub fn table_of(model: &ModelFile) -> Result<Option<Table>, String> {
     let Some(t) = &model.table else { return Ok(None) };
     let fused = model.explicit(ParamId::TableSigmaModel).is_some_and(|s| s > 0.0)
         || model.series.as_ref().is_some_and(|s| s.table_residual);
-    match (t.axes.as_slice(), t.grid.as_slice()) {
-        ([a], [g]) if a == "q" && !fused => Ok(Some(Table::new((g.clone(), t.torque.clone())))),
+    match t.axes.as_slice() {
+        [a] if a == "q" && !fused => Ok(Some(Table::new((t.grid.clone(), t.torque.clone())))),
         _ if fused => Err("its gravity table is fused with the model (sigma_model)".into()),
         _ => Err(format!("its gravity table reads {:?}, not the joint's own angle alone", t.axes)),
     }
