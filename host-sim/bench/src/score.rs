@@ -43,6 +43,10 @@ pub struct CaseResult {
     pub mode: String,
     pub label: String,
     pub truth: Vec<String>,
+    /// drawn effects the log does not show (below [`SHOWN_SNR`] in a compound): optional
+    pub optional: Vec<String>,
+    /// right with every drawn effect required (the optional ones too)
+    pub strict_correct: bool,
     pub trajectory_family: String,
     pub rate_hz: f64,
     pub rate_band: String,
@@ -109,8 +113,34 @@ pub fn rate_band(rate: f64) -> &'static str {
     }
 }
 
-/// Scores one verdict against the truth set.
+/// A drawn effect of a compound whose own SNR (`snr_per_effect`) stays below this could not be
+/// sized into the band the generator draws in (its range ends first, see the README's sizing
+/// paragraph): its deviation is a fraction of the noise, and the label asks the log for
+/// something it does not show. It is optional in scoring: a verdict may name it or not.
+pub const SHOWN_SNR: f64 = 0.5;
+
+/// The effects of a compound truth that are optional in scoring (see [`SHOWN_SNR`]): below it,
+/// while another drawn effect is at or above it.
+pub fn optional_effects(truth: &[String], snr_per_effect: &Value) -> Vec<String> {
+    let snr = |e: &String| at(snr_per_effect, e).as_f64();
+    if truth.len() < 2 || !truth.iter().any(|e| snr(e).is_some_and(|x| x >= SHOWN_SNR)) {
+        return Vec::new();
+    }
+    truth.iter().filter(|e| snr(e).is_some_and(|x| x < SHOWN_SNR)).cloned().collect()
+}
+
+/// Scores one verdict against the truth set (every drawn effect required).
 pub fn classify(truth: &[String], verdict: Option<&Value>) -> (Outcome, Option<String>, Vec<String>, Vec<String>) {
+    classify_shown(truth, &[], verdict)
+}
+
+/// Scores one verdict against the truth set, where the `optional` ones among it may be named
+/// or not (correct: every other drawn effect named, and nothing outside the truth).
+pub fn classify_shown(
+    truth: &[String],
+    optional: &[String],
+    verdict: Option<&Value>,
+) -> (Outcome, Option<String>, Vec<String>, Vec<String>) {
     let Some(v) = verdict else {
         return (Outcome::Refused, None, Vec::new(), Vec::new());
     };
@@ -125,7 +155,8 @@ pub fn classify(truth: &[String], verdict: Option<&Value>) -> (Outcome, Option<S
     let want: BTreeSet<&str> = truth.iter().map(String::as_str).collect();
     let got: BTreeSet<&str> = reported.iter().map(String::as_str).collect();
     let truth_none = want.len() == 1 && want.contains("none");
-    let outcome = if want == got {
+    let required: BTreeSet<&str> = want.iter().copied().filter(|e| !optional.iter().any(|o| o == e)).collect();
+    let outcome = if want == got || (!required.is_empty() && got.is_subset(&want) && required.is_subset(&got)) {
         Outcome::Correct
     } else if truth_none {
         Outcome::OverClaim
@@ -184,7 +215,10 @@ fn run_one(job: &Job, opts: &RunOpts) -> anyhow::Result<CaseResult> {
     let report: Option<Value> =
         if ok { std::fs::read_to_string(&result_path).ok().and_then(|t| serde_json::from_str(&t).ok()) } else { None };
     let truth_set = names(at(&job.truth, "effects"));
-    let (outcome, verdict, reported, alternatives) = classify(&truth_set, report.as_ref().map(|r| at(r, "verdict")));
+    let optional = optional_effects(&truth_set, at(&job.truth, "snr_per_effect"));
+    let verdict_json = report.as_ref().map(|r| at(r, "verdict"));
+    let (outcome, verdict, reported, alternatives) = classify_shown(&truth_set, &optional, verdict_json);
+    let strict_correct = classify(&truth_set, verdict_json).0 == Outcome::Correct;
     let rate = at(&job.truth, "rate_hz").as_f64().unwrap_or(0.0);
     Ok(CaseResult {
         dir: job.dir.display().to_string(),
@@ -193,6 +227,8 @@ fn run_one(job: &Job, opts: &RunOpts) -> anyhow::Result<CaseResult> {
         mode: at(&job.truth, "mode").as_str().unwrap_or("?").to_string(),
         label: at(&job.truth, "label").as_str().unwrap_or("?").to_string(),
         truth: truth_set,
+        optional,
+        strict_correct,
         trajectory_family: at(&job.truth, "trajectory_family").as_str().unwrap_or("?").to_string(),
         rate_hz: rate,
         rate_band: rate_band(rate).to_string(),
@@ -337,7 +373,10 @@ pub fn summary(results: &[CaseResult]) -> Value {
     let unsure = results.iter().filter(|r| r.outcome == Outcome::Unsure).count();
     let effect_cases = results.iter().filter(|r| r.label != "none").count();
     let effect_correct = results.iter().filter(|r| r.label != "none" && r.outcome == Outcome::Correct).count();
+    let strict_correct = results.iter().filter(|r| r.strict_correct).count();
+    let with_optional = results.iter().filter(|r| !r.optional.is_empty()).count();
     json!({
+        "strict_correct": strict_correct, "cases_with_optional_effects": with_optional,
         "cases": results.len(), "correct": correct, "unsure": unsure, "refused": refused,
         "none_cases": none.len(), "none_over_claims": over,
         "none_over_claim_rate": if none.is_empty() { 0.0 } else { over as f64 / none.len() as f64 },
@@ -365,6 +404,12 @@ fn print_report(results: &[CaseResult]) {
             at(&s, "cases"),
             at(&s, "unsure"),
             at(&s, "refused")
+        );
+        println!(
+            "strict (every drawn effect named, also those under SNR {SHOWN_SNR} in a compound, {} such cases): {}/{}",
+            at(&s, "cases_with_optional_effects"),
+            at(&s, "strict_correct"),
+            at(&s, "cases")
         );
         for r in sub.iter().filter(|r| r.outcome == Outcome::Refused) {
             println!("  refused: {} exit {:?}: {}", r.dir, r.exit_code, r.stderr_tail.lines().last().unwrap_or(""));

@@ -53,7 +53,10 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
     }
     let plain = simulate_truth(&setup, &[]);
     let scale = swing(&setup, &plain);
-    let (att, sigma) = size(rng, &setup, effects, scale, &mut notes);
+    let (mut att, sigma) = size(rng, &setup, effects, scale, &mut notes);
+    if effects.len() > 1 {
+        att = size_second(rng, &setup, att, sigma, &mut notes);
+    }
     let n = setup.times.len();
     let guarantees = shown_by(&att).unwrap_or_else(|e| {
         notes.push(format!("not shown: {e}"));
@@ -376,6 +379,78 @@ fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64, notes: &mut Vec<
         att = draw_attempt(rng, s, names, &plain);
     }
     (att, hi_n)
+}
+
+/// Steps of the search for the second effect's scale (each re-simulates the attempt).
+const SECOND_STEPS: usize = 6;
+
+/// In a compound the noise is sized on the first effect; the second is then scaled (within
+/// its family's range, `Effect::scale_bounds`) so its own SNR, the RMS of the deviation it
+/// causes alone over σ (as `evaluate` records it in `per_effect`), lands near a target
+/// drawn log-uniformly in 0.5–5. The response is not linear, nor always monotone, in the
+/// effect's size (sticking, a changed swing), so k is refined by re-simulating, and the draw
+/// closest to the target that still shows every effect (`shown_by`) is kept, the unscaled
+/// one included. The one random draw is the target, made on this compound path only, after
+/// every draw of `size`.
+fn size_second(rng: &mut Rng64, s: &Setup, att: Attempt, sigma: f64, notes: &mut Vec<String>) -> Attempt {
+    let (Some(second), Some(&r0)) = (att.effects.get(1).cloned(), att.per_effect.get(1)) else {
+        return att;
+    };
+    let target = log_uniform(rng, 0.5, 5.0);
+    let name = second.name();
+    if !(r0 > 0.0 && sigma > 0.0) {
+        notes.push(format!("second effect not sized: {name} causes no deviation on its own"));
+        return att;
+    }
+    let (k_lo, k_hi) = second.scale_bounds(s.joint.model.c());
+    let k_hi = k_hi.max(k_lo);
+    let miss = |r: f64| if r > 0.0 { (r / sigma / target).ln().abs() } else { f64::INFINITY };
+    // The scaled draw closest to the target so far (None: the unscaled one, when shown).
+    let mut best: Option<(f64, Attempt)> = None;
+    let mut best_miss = if shown_by(&att).is_ok() { miss(r0) } else { f64::INFINITY };
+    let (mut tried, mut unshown, mut at_end) = (0, 0, false);
+    let (mut k, mut r) = (1.0, r0);
+    for _ in 0..SECOND_STEPS {
+        let next = (k * target * sigma / r).clamp(k_lo, k_hi);
+        if (next - k).abs() <= 1e-6 * k {
+            break;
+        }
+        k = next;
+        at_end |= k <= k_lo || k >= k_hi;
+        let mut effects = att.effects.clone();
+        if let Some(e) = effects.get_mut(1) {
+            *e = e.scaled(k);
+        }
+        let cand = evaluate(s, effects, att.file.clone(), att.shift);
+        r = cand.per_effect.get(1).copied().unwrap_or(0.0);
+        tried += 1;
+        if shown_by(&cand).is_err() {
+            unshown += 1;
+        } else if miss(r) < best_miss {
+            best_miss = miss(r);
+            best = Some((k, cand));
+        }
+        if r <= 0.0 || miss(r) < 0.05 {
+            break;
+        }
+    }
+    let (k, out, kept) = match best {
+        Some((k, scaled)) => (k, scaled, "scaled"),
+        None => (1.0, att, "kept unscaled"),
+    };
+    let snr = out.per_effect.get(1).copied().unwrap_or(0.0) / sigma;
+    notes.push(format!("second effect {kept} (k = {k:.3}) towards SNR {target:.2}: SNR {snr:.3}"));
+    if !(0.5..=5.0).contains(&snr) {
+        let why = if tried > 0 && unshown == tried {
+            "not shown after scaling"
+        } else if at_end {
+            "bounded by its range"
+        } else {
+            "response not proportional to its size"
+        };
+        notes.push(format!("second effect not sized: {name} {why}, SNR {snr:.3} outside 0.5–5"));
+    }
+    out
 }
 
 /// An encoder step and white noise whose combined RMS is σ: a coarse encoder when σ

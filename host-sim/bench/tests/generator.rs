@@ -75,6 +75,35 @@ fn effect_sizes_are_mostly_half_to_five_times_the_noise() {
 }
 
 #[test]
+fn trajectory_compounds_size_the_second_effect_to_its_own_snr() {
+    // Before the second effect was sized, its own SNR was whatever the first effect's noise
+    // left it (mostly 0.0–0.15): every case below would fail the band check.
+    let mut sized = 0;
+    for (seed, k) in (0..8).map(|k| (2, k)).chain((6..12).map(|k| (8, k))) {
+        let c = case(seed, k, Some("compound"), ModeSel::Trajectory);
+        let t = &c.truth;
+        assert_eq!(t.effects.len(), 2, "seed {seed} case {k}: not a compound");
+        let snr = |i: usize| t.snr_per_effect.get(&t.effects[i]).copied().unwrap();
+        assert!(snr(0) >= 0.45, "seed {seed} case {k}: first effect SNR {}", snr(0));
+        let noted = |s: &str| t.notes.iter().any(|n| n.contains(s));
+        assert!(noted("towards SNR"), "seed {seed} case {k}: no sizing note in {:?}", t.notes);
+        if noted("bounded by its range") {
+            // The note must hold: the second effect sits at an end of its family's range,
+            // unless the unscaled draw came closer to the band than the range end did.
+            let (lo, hi) = t.effect_details[1].scale_bounds(t.joint.model.c());
+            assert!(
+                (lo - 1.0).abs() < 1e-6 || (hi - 1.0).abs() < 1e-6 || noted("kept unscaled"),
+                "seed {seed} case {k}: noted as bounded but scale range is {lo}–{hi}"
+            );
+        } else if !noted("not shown after scaling") {
+            assert!((0.45..=5.5).contains(&snr(1)), "seed {seed} case {k}: second effect SNR {}", snr(1));
+            sized += 1;
+        }
+    }
+    assert!(sized >= 4, "only {sized} compounds reached the band");
+}
+
+#[test]
 fn dahl_state_stays_bounded_and_converges_to_coulomb() {
     let (c, sigma) = (2.0, 2.0 / 1e-3); // pre-sliding distance 1 mrad
     let mut f = 0.0;
