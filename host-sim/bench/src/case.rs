@@ -165,3 +165,17 @@ pub fn label_of(effects: &[&str]) -> String {
         effects.join("+")
     }
 }
+
+/// Whole scenes (joint, trajectory, effects) drawn again at most when the first effect
+/// stays below 0.5× the noise for every noise level the scene allows: such a label is one
+/// the log cannot show. Too large an effect is kept (the log shows it all the more).
+pub const SCENE_REDRAWS: usize = 8;
+
+/// The note of a case whose first effect never sized into the 0.5–5× band.
+pub fn outside_band_note(snr: f64, redraws: usize) -> String {
+    let mut s = format!("effect size outside the 0.5–5× noise band for every draw; SNR {snr:.3}");
+    if redraws > 0 {
+        s.push_str(&format!(" (scene redrawn {redraws} times)"));
+    }
+    s
+}

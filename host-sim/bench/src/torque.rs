@@ -5,7 +5,9 @@
 use serde::Serialize;
 use serde_json::json;
 
-use crate::case::{label_of, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{
+    label_of, outside_band_note, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth, SCENE_REDRAWS,
+};
 use crate::effects::{dahl_step, draw_additive, Delayed, Effect, Scene};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
 use crate::model::ModelFile;
@@ -67,11 +69,27 @@ struct Attempt {
 }
 
 pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
-    let setup = draw_setup(rng, case, effects);
+    let mut notes = Vec::new();
+    // An effect too small for every noise level its scene allows (SNR < 0.5) gives a label
+    // the log cannot show: the whole scene is drawn again, at most `SCENE_REDRAWS` times.
+    // A scene that sizes (or comes out too large) on its first draw uses no extra draws.
+    let mut redraws = 0;
+    let (setup, scale, mut att, sigma) = loop {
+        let setup = draw_setup(rng, case, effects);
+        let first = draw_attempt(rng, &setup, effects);
+        let scale = rms(&sum_signals(&first.series));
+        let (att, sigma, in_band) = size_effects(rng, &setup, effects, first, scale);
+        if in_band {
+            break (setup, scale, att, sigma);
+        }
+        let snr = att.per_effect.first().copied().unwrap_or(0.0) / sigma;
+        if snr >= 0.5 || redraws == SCENE_REDRAWS {
+            notes.push(outside_band_note(snr, redraws));
+            break (setup, scale, att, sigma);
+        }
+        redraws += 1;
+    };
     let truth_model = &setup.joint.model;
-    let first = draw_attempt(rng, &setup, effects);
-    let scale = rms(&sum_signals(&first.series));
-    let (mut att, sigma, mut notes) = size_effects(rng, &setup, effects, first, scale);
     if effects.len() > 1 {
         att = size_second(rng, &setup, att, sigma, &mut notes);
     }
@@ -428,18 +446,13 @@ fn shares(s: &Series, effects: &[Effect], file: &ModelFile, residual: &[f64]) ->
 const NOISE_REL: (f64, f64) = (0.001, 0.15);
 
 /// Picks the noise so the (first) effect's RMS is 0.5–5× it, redrawing the effect when no
-/// noise level in the plausible band allows that. Returns the attempt, σ and notes.
-fn size_effects(
-    rng: &mut Rng64,
-    setup: &Setup,
-    names: &[&str],
-    first: Attempt,
-    scale: f64,
-) -> (Attempt, f64, Vec<String>) {
-    let mut notes = Vec::new();
+/// noise level in the plausible band allows that. Returns the attempt, σ and whether it
+/// sized into that band (false: the last draw with σ as close to RMS / 2 as the band
+/// allows; the caller notes it).
+fn size_effects(rng: &mut Rng64, setup: &Setup, names: &[&str], first: Attempt, scale: f64) -> (Attempt, f64, bool) {
     if names.is_empty() {
         let sigma = log_uniform(rng, 0.002, 0.05) * scale;
-        return (first, sigma, notes);
+        return (first, sigma, true);
     }
     let mut att = first;
     for attempt in 0..16 {
@@ -448,17 +461,15 @@ fn size_effects(
         let hi = 5.0f64.min(r / (NOISE_REL.0 * scale));
         if lo <= hi && r > 0.0 {
             let snr = log_uniform(rng, lo, hi);
-            return (att, r / snr, notes);
+            return (att, r / snr, true);
         }
         if attempt == 15 {
-            // Out of the band whatever the draw: keep it and say so.
-            let sigma = (r / 2.0).clamp(NOISE_REL.0 * scale, NOISE_REL.1 * scale);
-            notes.push(format!("effect size outside the 0.5–5× noise band for every draw; SNR {:.3}", r / sigma));
-            return (att, sigma, notes);
+            // Out of the band whatever the draw: the caller keeps it (or redraws the scene).
+            return (att, (r / 2.0).clamp(NOISE_REL.0 * scale, NOISE_REL.1 * scale), false);
         }
         att = draw_attempt(rng, setup, names);
     }
-    (att, NOISE_REL.1 * scale, notes)
+    (att, NOISE_REL.1 * scale, false)
 }
 
 /// Scales the second effect of a compound so its own SNR is drawn in 0.5–5 too.

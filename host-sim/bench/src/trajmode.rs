@@ -3,7 +3,9 @@
 
 use serde_json::json;
 
-use crate::case::{label_of, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth};
+use crate::case::{
+    label_of, outside_band_note, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth, SCENE_REDRAWS,
+};
 use crate::effects::{draw_additive, Delayed, Effect, Scene};
 use crate::integrate::{simulate, Dynamics, Input, State};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
@@ -40,20 +42,25 @@ struct Attempt {
 
 pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
     let mut notes = Vec::new();
-    let mut setup = draw_setup(rng, case, effects);
-    // A joint that never leaves its release angle (stuck pendulum) says nothing, and one
-    // that never shows what the effect needs (see `moves_enough`) mislabels it: redraw.
-    let tries = if effects.iter().any(|e| needs_motion(e)) { 40 } else { 10 };
-    for _ in 0..tries {
+    // An effect too small for every noise level its scene allows (SNR < 0.5) gives a label
+    // the log cannot show: the whole scene is drawn again, at most `SCENE_REDRAWS` times.
+    // A scene that sizes (or comes out too large) on its first draw uses no extra draws.
+    let mut redraws = 0;
+    let (setup, scale, mut att, sigma) = loop {
+        let setup = draw_scene(rng, case, effects);
         let plain = simulate_truth(&setup, &[]);
-        if swing(&setup, &plain) > 2e-3 && moves_enough(&setup, &plain, effects) {
-            break;
+        let scale = swing(&setup, &plain);
+        let (att, sigma, in_band) = size(rng, &setup, effects, scale);
+        if in_band {
+            break (setup, scale, att, sigma);
         }
-        setup = draw_setup(rng, case, effects);
-    }
-    let plain = simulate_truth(&setup, &[]);
-    let scale = swing(&setup, &plain);
-    let (mut att, sigma) = size(rng, &setup, effects, scale, &mut notes);
+        let snr = att.per_effect.first().copied().unwrap_or(0.0) / sigma;
+        if snr >= 0.5 || redraws == SCENE_REDRAWS {
+            notes.push(outside_band_note(snr, redraws));
+            break (setup, scale, att, sigma);
+        }
+        redraws += 1;
+    };
     if effects.len() > 1 {
         att = size_second(rng, &setup, att, sigma, &mut notes);
     }
@@ -123,6 +130,22 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
         guarantees,
     };
     Ok(CaseData { truth, log, model: att.file, clean })
+}
+
+/// The scene before any effect: a setup whose effect-free response moves. A joint that
+/// never leaves its release angle (stuck pendulum) says nothing, and one that never shows
+/// what the effect needs (see `moves_enough`) mislabels it: redraw.
+fn draw_scene(rng: &mut Rng64, case: u64, effects: &[&str]) -> Setup {
+    let mut setup = draw_setup(rng, case, effects);
+    let tries = if effects.iter().any(|e| needs_motion(e)) { 40 } else { 10 };
+    for _ in 0..tries {
+        let plain = simulate_truth(&setup, &[]);
+        if swing(&setup, &plain) > 2e-3 && moves_enough(&setup, &plain, effects) {
+            break;
+        }
+        setup = draw_setup(rng, case, effects);
+    }
+    setup
 }
 
 /// Families whose label needs the response itself to move a certain way.
@@ -354,13 +377,16 @@ fn noise_band(scale: f64) -> (f64, f64) {
     ((1e-4 * scale).max(floor), (0.03 * scale).max(2.0 * floor))
 }
 
-fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64, notes: &mut Vec<String>) -> (Attempt, f64) {
+/// Draws the effects (up to 12 times) and the noise σ so the first effect's RMS is 0.5–5×
+/// σ with σ in `noise_band`. Returns the attempt, σ and whether it sized into that band
+/// (false: the last draw with σ as close to RMS / 2 as the band allows; the caller notes it).
+fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64) -> (Attempt, f64, bool) {
     let plain = simulate_truth(s, &[]);
     let (lo_n, hi_n) = noise_band(scale);
     let mut att = draw_attempt(rng, s, names, &plain);
     if names.is_empty() {
         let sigma = (log_uniform(rng, 3e-4, 0.01) * scale).clamp(lo_n, hi_n);
-        return (att, sigma);
+        return (att, sigma, true);
     }
     for attempt in 0..12 {
         let r = att.per_effect.first().copied().unwrap_or(0.0);
@@ -369,16 +395,14 @@ fn size(rng: &mut Rng64, s: &Setup, names: &[&str], scale: f64, notes: &mut Vec<
         // The effect must show on the true response too (the effect-free one placed it).
         if lo <= hi && r > 0.0 && shown_by(&att).is_ok() {
             let snr = log_uniform(rng, lo, hi);
-            return (att, r / snr);
+            return (att, r / snr, true);
         }
         if attempt == 11 {
-            let sigma = (r / 2.0).clamp(lo_n, hi_n);
-            notes.push(format!("effect size outside the 0.5–5× noise band for every draw; SNR {:.3}", r / sigma));
-            return (att, sigma);
+            return (att, (r / 2.0).clamp(lo_n, hi_n), false);
         }
         att = draw_attempt(rng, s, names, &plain);
     }
-    (att, hi_n)
+    (att, hi_n, false)
 }
 
 /// Steps of the search for the second effect's scale (each re-simulates the attempt).

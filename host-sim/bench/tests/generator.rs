@@ -464,3 +464,21 @@ fn crossings_count_full_passes_only() {
     assert_eq!(diag_bench::shown::crossings(&q, -0.1, 0.1), (2, 1));
     assert_eq!(diag_bench::shown::reversals(&[1.0, 0.0, 2.0, -1.0, 0.0, -3.0, 4.0]), 2);
 }
+
+#[test]
+fn effects_too_small_for_their_scene_get_a_new_scene() {
+    // Before whole scenes were redrawn these single-effect cases kept an effect far below
+    // the noise (SNR 0.0035, 0.0075, 0.044), with an "outside the 0.5–5×" note: a label
+    // the log cannot show. Each now sizes into the band on a redrawn scene.
+    for (seed, k, sel) in
+        [(9038, 15, ModeSel::Trajectory), (9033, 51, ModeSel::Trajectory), (9033, 52, ModeSel::Torque)]
+    {
+        let c = case(seed, k, None, sel);
+        let t = &c.truth;
+        assert_eq!(t.effects, vec!["stribeck".to_string()], "seed {seed} case {k}: the plan changed");
+        let snr = t.snr_per_effect.get("stribeck").copied().unwrap();
+        assert!((0.5..=5.0).contains(&snr), "seed {seed} case {k} ({sel:?}): SNR {snr}, notes {:?}", t.notes);
+        assert!((t.snr - snr).abs() <= 1e-12 * snr, "seed {seed} case {k}: snr {} vs per effect {snr}", t.snr);
+        assert!(!t.notes.iter().any(|n| n.contains("outside the 0.5–5×")), "seed {seed} case {k}: {:?}", t.notes);
+    }
+}
