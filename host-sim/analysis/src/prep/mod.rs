@@ -122,6 +122,12 @@ pub struct PrepReport {
     pub median_rate_hz: f64,
     /// noise on q (white part, including quantisation), rad
     pub q_noise_sd: f64,
+    /// the noise q's spectrum (or differences) shows, before the quantisation floor; rad
+    #[serde(skip)]
+    pub q_seen_sd: f64,
+    /// the encoder's quantisation error `step/√12` (0: q does not look quantised), rad
+    #[serde(skip)]
+    pub q_quantum_sd: f64,
     /// highest frequency where q's motion stands above its noise, Hz
     pub motion_bandwidth_hz: f64,
     pub qd: DerivInfo,
@@ -339,10 +345,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // a coloured noise (see `spectrum::NoiseModel`) counts whole in the bands a still joint
     // stays within; the windows below weigh its spectrum through their own weights
     let coloured = q_spec.as_ref().map(|s| s.noise.clone()).filter(|m| !m.is_white());
-    let q_noise = q_spec
-        .as_ref()
-        .map_or_else(|| diff_noise(&log.q), |s| coloured.as_ref().map_or(s.noise_sd, |m| m.total_sd()))
-        .max(quantum);
+    let q_seen =
+        q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| coloured.as_ref().map_or(s.noise_sd, |m| m.total_sd()));
+    let q_noise = q_seen.max(quantum);
     let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
     let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
 
@@ -667,6 +672,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             .collect(),
         median_rate_hz: rate,
         q_noise_sd: q_noise,
+        q_seen_sd: q_seen,
+        q_quantum_sd: quantum,
         motion_bandwidth_hz: bandwidth,
         qd: qd.info,
         qdd: qdd.info,
