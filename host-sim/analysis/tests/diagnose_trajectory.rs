@@ -372,6 +372,33 @@ fn a_step_between_two_samples_is_no_gap_and_does_not_hide_one() {
     }
 }
 
+/// A step with a 5 ms edge logged at 50 Hz: the samples cannot say when within its interval
+/// the edge came, so a delay shorter than that fits the response by placing the edge. It is
+/// ruled out, with its reason, and no other term is named for what it places (before, with
+/// the edge 1.1 or 3.4 ms after a sample, the file's own model was named `delay`, and with
+/// the delay merely ruled out, `cable_spring`; null bench seed 777, case 130, a 12 ms edge:
+/// a 5.1 ms `delay` took 82 % of the residual). A lag of the response well beyond that time
+/// is named, and a spring 30 % off is not hidden by the edge's freedom.
+#[test]
+fn a_delay_within_an_edges_open_time_is_ruled_out_and_a_longer_one_named() {
+    let delayed = |t_on: f64, lag: f64, sd: f64| {
+        // the joint moves from t_on + lag, the input is logged from t_on
+        let mut log = stepped(K, 1.0, t_on + lag, 0.005, 50.0, 1.6, sd, 7);
+        log.u = Some(log.t.iter().map(|&ti| ((ti - t_on) / 0.005).clamp(0.0, 1.0)).collect());
+        log
+    };
+    for (t_on, sd) in [(0.4011, 1e-4), (0.4011, 3e-4), (0.4151, 1e-4), (0.4151, 3e-4)] {
+        let d = verdict(&delayed(t_on, 0.0, sd), &model(K, B, ""));
+        assert_eq!(d.report.verdict.effect, "none", "edge at {t_on} s, sd {sd}: {:?}", d.report.verdict);
+        let e = effect(&d, "delay");
+        assert!(e.shrink > 0.5 && e.implausible.is_some_and(|w| w.contains("samples leave open")), "{e:?}");
+        let d = verdict(&delayed(t_on, 0.03, sd), &model(K, B, ""));
+        assert_eq!(d.report.verdict.effect, "delay", "edge at {t_on} s, 30 ms lag: {:?}", d.report.verdict);
+        let d = verdict(&delayed(t_on, 0.0, sd), &model(1.3 * K, B, ""));
+        assert_ne!(d.report.verdict.effect, "none", "edge at {t_on} s, K 30 % off: {:?}", d.report.verdict);
+    }
+}
+
 /// A fifth of a swing of a free release whose file has K 20 % off: over so short a stretch a
 /// start velocity bends the swing as a stiffer spring does, and the log cannot tell them apart.
 /// Whichever the verdict, the other is named with the log that would separate them (before,

@@ -169,11 +169,16 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
             if e.significant {
                 "significant"
             } else if e.implausible.is_some() {
-                "implausible sign"
+                "ruled out"
             } else {
                 ""
             }
         );
+    }
+    for e in r.effects.iter().filter(|e| !e.significant) {
+        if let Some(why) = &e.implausible {
+            say!(o, "  ({} ruled out: {why})", e.effect);
+        }
     }
     say!(
         o,

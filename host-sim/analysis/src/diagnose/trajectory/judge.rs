@@ -140,6 +140,25 @@ pub fn judge(
     let f = if f_is_s { s } else { r0 };
     let at_floor = f.scored.rmse() <= AT_FLOOR * floor;
 
+    // A delay within the time the input's samples leave open for its edges, on the file's own
+    // terms, is the file's model with its edges placed where they came: no verdict
+    // (`Layout::implausible`), and a reference every explanation must beat as well. Ruled out alone, such a delay's residual
+    // went to the next candidate: a 50 Hz step with a 5 ms edge, which the file's model
+    // reproduces, was named `cable_spring` (the edge's timing is not noise but a value the
+    // samples cannot give, and any term that bends the response near the edge takes it up).
+    let placed: Option<&Scored> = families
+        .iter()
+        .flatten()
+        .map(|&k| &fits[k])
+        .filter(|e| {
+            e.effects.len() == 1
+                && e.free == super::fits::Free::Own
+                && e.effects[0] == super::terms::Kind::Delay
+                && e.effect_values(lay, 0).first().is_some_and(|d| d.abs() <= lay.input_slack)
+        })
+        .map(|e| &e.scored)
+        .min_by(|a, b| a.mse().total_cmp(&b.mse()));
+    let beats_placed = |e: &Scored| placed.is_none_or(|r| sig(compare(r, e), alpha_each));
     let it = compare(&r0.scored, &s.scored);
     let initial = Outcome {
         name: Vocab::InitialState,
@@ -167,7 +186,7 @@ pub fn judge(
         t: pt.0,
         p: pt.1,
         gain: pt.2,
-        significant: !at_floor && sig(pt, alpha_each),
+        significant: !at_floor && sig(pt, alpha_each) && beats_placed(&p.scored),
         implausible: None,
     };
 
@@ -185,7 +204,12 @@ pub fn judge(
         // such slivers named `asymmetric_friction` or a ripple on `parameters` logs (t9011/0085,
         // t9026/0042: 22 % of an excess of 1.06–1.07× the floor)
         let share = takes_share(reference, &e.scored, floor);
-        let significant = !at_floor && implausible.is_none() && sig(t, alpha_each) && sig(t0, alpha_each) && share;
+        let significant = !at_floor
+            && implausible.is_none()
+            && sig(t, alpha_each)
+            && sig(t0, alpha_each)
+            && share
+            && beats_placed(&e.scored);
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
     let effects: Vec<Outcome> = families
@@ -216,7 +240,10 @@ pub fn judge(
         Vocab::Parameters
     } else if initial.significant {
         Vocab::InitialState
-    } else if f.scored.rmse() > UNEXPLAINED * floor && above_floor(f.scored.mse(), f.scored.n, floor, floor_dof) {
+    } else if f.scored.rmse() > UNEXPLAINED * floor
+        && above_floor(f.scored.mse(), f.scored.n, floor, floor_dof)
+        && placed.is_none_or(|r| r.rmse() > UNEXPLAINED * floor)
+    {
         Vocab::Unexplained
     } else {
         Vocab::None

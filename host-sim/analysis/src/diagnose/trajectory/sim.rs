@@ -311,6 +311,41 @@ pub fn input_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize
 /// `Σ a_k²·T²` exactly for one or two edges. Returns that over 12 (rad²) per sample.
 pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize) -> Option<Vec<f64>> {
     let n = n.min(t.len()).min(u.len());
+    let (delta, half) = edge_shifts(t, u, n);
+    if half.iter().all(|h| *h == 0.0) {
+        return Some(vec![0.0; n]);
+    }
+    let rising = |i: usize| delta[i] > 0.0;
+    let run = |sign: &dyn Fn(usize) -> f64| -> Option<Vec<f64>> {
+        let by: Vec<f64> = half.iter().enumerate().map(|(i, h)| h * sign(i)).collect();
+        simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Shifted(&by))
+    };
+    let early = run(&|_| 1.0)?;
+    let late = run(&|_| -1.0)?;
+    let wide = run(&|i| if rising(i) { 1.0 } else { -1.0 })?;
+    let narrow = run(&|i| if rising(i) { -1.0 } else { 1.0 })?;
+    Some(
+        (0..n)
+            .map(|i| {
+                let c = early.get(i).zip(late.get(i)).map_or(0.0, |(a, b)| a - b);
+                let d = wide.get(i).zip(narrow.get(i)).map_or(0.0, |(a, b)| a - b);
+                (c * c + d * d) / 24.0
+            })
+            .collect(),
+    )
+}
+
+/// The longest time (s) by which an edge of the logged input may have come earlier or later
+/// than the cubic between its samples puts it: the largest `w·T/2` of [`edge_spread`] over the
+/// first `n` samples (0 for an input the samples resolve).
+pub fn edge_slack(t: &[f64], u: &[f64], n: usize) -> f64 {
+    let n = n.min(t.len()).min(u.len());
+    edge_shifts(t, u, n).1.into_iter().fold(0.0, f64::max)
+}
+
+/// Per interval `i` (samples i − 1 → i): the input's change, and the largest shift (s) of
+/// when it came that the samples leave open ([`edge_spread`]'s `w·T/2`).
+fn edge_shifts(t: &[f64], u: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
     // the change over interval i (samples i − 1 → i), and the monotone run of changes it is in
     let delta: Vec<f64> = (0..n)
         .map(|i| match (t.get(i.wrapping_sub(1)), t.get(i), u.get(i.wrapping_sub(1)), u.get(i)) {
@@ -344,27 +379,7 @@ pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize)
             w * 0.5 * (t[i] - t[i - 1])
         })
         .collect();
-    if half.iter().all(|h| *h == 0.0) {
-        return Some(vec![0.0; n]);
-    }
-    let rising = |i: usize| delta[i] > 0.0;
-    let run = |sign: &dyn Fn(usize) -> f64| -> Option<Vec<f64>> {
-        let by: Vec<f64> = half.iter().enumerate().map(|(i, h)| h * sign(i)).collect();
-        simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Shifted(&by))
-    };
-    let early = run(&|_| 1.0)?;
-    let late = run(&|_| -1.0)?;
-    let wide = run(&|i| if rising(i) { 1.0 } else { -1.0 })?;
-    let narrow = run(&|i| if rising(i) { -1.0 } else { 1.0 })?;
-    Some(
-        (0..n)
-            .map(|i| {
-                let c = early.get(i).zip(late.get(i)).map_or(0.0, |(a, b)| a - b);
-                let d = wide.get(i).zip(narrow.get(i)).map_or(0.0, |(a, b)| a - b);
-                (c * c + d * d) / 24.0
-            })
-            .collect(),
-    )
+    (delta, half)
 }
 
 /// The sub-steps of each sample interval (and whether its band is treated as stiff), fixed
