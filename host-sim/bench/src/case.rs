@@ -179,3 +179,22 @@ pub fn outside_band_note(snr: f64, redraws: usize) -> String {
     }
     s
 }
+
+/// Draws scenes until the first effect sizes into its band: `draw` returns the scene, whether
+/// it sized, and its SNR. A scene whose effect came out too large is kept at once; one too
+/// small (SNR < 0.5) is drawn again, at most [`SCENE_REDRAWS`] times, and the last is kept with
+/// a note. A scene that sizes on its first draw uses no extra draws.
+pub fn scene_that_sizes<T>(notes: &mut Vec<String>, mut draw: impl FnMut() -> (T, bool, f64)) -> T {
+    let mut redraws = 0;
+    loop {
+        let (scene, in_band, snr) = draw();
+        if in_band {
+            return scene;
+        }
+        if snr >= 0.5 || redraws == SCENE_REDRAWS {
+            notes.push(outside_band_note(snr, redraws));
+            return scene;
+        }
+        redraws += 1;
+    }
+}

@@ -5,9 +5,7 @@
 use serde::Serialize;
 use serde_json::json;
 
-use crate::case::{
-    label_of, outside_band_note, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth, SCENE_REDRAWS,
-};
+use crate::case::{label_of, scene_that_sizes, snr_map, truth_names, zero_share, CaseData, Clean, Log, Mode, Truth};
 use crate::effects::{dahl_step, draw_additive, Delayed, Effect, Scene};
 use crate::joint::{self, DrawnJoint, JointKind, Needs};
 use crate::model::ModelFile;
@@ -71,24 +69,17 @@ struct Attempt {
 pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str]) -> anyhow::Result<CaseData> {
     let mut notes = Vec::new();
     // An effect too small for every noise level its scene allows (SNR < 0.5) gives a label
-    // the log cannot show: the whole scene is drawn again, at most `SCENE_REDRAWS` times.
+    // the log cannot show: the whole scene is drawn again, at most `SCENE_REDRAWS` times
+    // (`scene_that_sizes`).
     // A scene that sizes (or comes out too large) on its first draw uses no extra draws.
-    let mut redraws = 0;
-    let (setup, scale, mut att, sigma) = loop {
+    let (setup, scale, mut att, sigma) = scene_that_sizes(&mut notes, || {
         let setup = draw_setup(rng, case, effects);
         let first = draw_attempt(rng, &setup, effects);
         let scale = rms(&sum_signals(&first.series));
         let (att, sigma, in_band) = size_effects(rng, &setup, effects, first, scale);
-        if in_band {
-            break (setup, scale, att, sigma);
-        }
         let snr = att.per_effect.first().copied().unwrap_or(0.0) / sigma;
-        if snr >= 0.5 || redraws == SCENE_REDRAWS {
-            notes.push(outside_band_note(snr, redraws));
-            break (setup, scale, att, sigma);
-        }
-        redraws += 1;
-    };
+        ((setup, scale, att, sigma), in_band, snr)
+    });
     let truth_model = &setup.joint.model;
     if effects.len() > 1 {
         att = size_second(rng, &setup, att, sigma, &mut notes);
