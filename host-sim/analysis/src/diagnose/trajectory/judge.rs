@@ -142,10 +142,11 @@ pub fn judge(
 
     // A delay within the time the input's samples leave open for its edges, on the file's own
     // terms, is the file's model with its edges placed where they came: no verdict
-    // (`Layout::implausible`), and a reference every explanation must beat as well. Ruled out alone, such a delay's residual
-    // went to the next candidate: a 50 Hz step with a 5 ms edge, which the file's model
-    // reproduces, was named `cable_spring` (the edge's timing is not noise but a value the
-    // samples cannot give, and any term that bends the response near the edge takes it up).
+    // (`Layout::implausible`), and a reference every explanation must beat as well. Ruled out
+    // alone, such a delay's residual went to the next candidate: a 50 Hz step with a 5 ms edge,
+    // which the file's model reproduces, was named `cable_spring` (the edge's timing is not
+    // noise but a value the samples cannot give, and any term that bends the response near the
+    // edge takes it up).
     let placed: Option<&Scored> = families
         .iter()
         .flatten()
@@ -154,7 +155,7 @@ pub fn judge(
             e.effects.len() == 1
                 && e.free == super::fits::Free::Own
                 && e.effects[0] == super::terms::Kind::Delay
-                && e.effect_values(lay, 0).first().is_some_and(|d| d.abs() <= lay.input_slack)
+                && e.effect_values(lay, 0).first().is_some_and(|&d| lay.within_input_slack(d))
         })
         .map(|e| &e.scored)
         .min_by(|a, b| a.mse().total_cmp(&b.mse()));

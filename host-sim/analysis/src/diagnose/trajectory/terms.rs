@@ -500,6 +500,12 @@ impl Layout {
     /// Why effect `k` (at `e`, its values) on top of the terms `base` is not the physical effect
     /// its name says: the same sign rules as torque mode, plus friction that would push in one
     /// direction.
+    /// Whether a fitted delay `d` (s) lies within the time the logged input's samples leave open
+    /// for its edges ([`Layout::input_slack`]): the file's model with its edges placed, no delay.
+    pub fn within_input_slack(&self, d: f64) -> bool {
+        d.abs() <= self.input_slack
+    }
+
     pub fn implausible(&self, k: Kind, base: &[f64], e: &[f64]) -> Option<&'static str> {
         let g = |i: usize| e.get(i).copied().unwrap_or(0.0);
         let c: f64 = self.cols.iter().zip(base).filter(|(c, _)| **c == Col::Sgn).map(|(_, b)| *b).sum();
@@ -521,7 +527,7 @@ impl Layout {
             // samples puts it: the file's own model left 1.35× the floor and a 5.1 ms delay
             // took 82 % of it (null bench seed 777, case 130); the samples cannot say when
             // within the interval the edge came, so neither can they tell such a delay
-            Kind::Delay if g(0).abs() <= self.input_slack => Some(
+            Kind::Delay if self.within_input_slack(g(0)) => Some(
                 "fitted delay is within the time the input's samples leave open for its edges: this rate cannot tell \
                  it from when the edge came between two samples",
             ),
