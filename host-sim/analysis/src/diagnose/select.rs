@@ -802,7 +802,8 @@ pub struct Outcome {
 /// emitting its section would mislead; it stays in the ranking, marked, but is never selected.
 /// - `stribeck`: friction above the Coulomb level near rest, `level > 0`;
 /// - `load_dependent_friction`: friction grows with the transmitted load, `mu > 0`;
-/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0` (a progressive one: k3 > 0 and k1 ≥ 0);
+/// - `cable_spring`: a cable pulls back beyond its engagement, `k > 0` (a progressive one: k3 ≥ 0
+///   and k1 ≥ 0, not both 0);
 /// - `dry_friction`: Coulomb friction opposes the motion, `c > 0`.
 /// - `thermal_drift`: either sign (lubricant thins or a seal swells), but the friction it
 ///   scales, `1 + coefficient·(T − T_ref)` times the refitted shape, must stay positive over
@@ -815,8 +816,13 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
     let &(start, end) = s.design.spans.get(s.effects.len() - 1)?;
     let amp = s.beta.get(start).copied()?;
     // a progressive spring k3·x³ + k1·x: both stiffnesses (k1 < 0 is a spring that pushes the
-    // joint away from its centre, a double well no harness makes)
-    let any_negative = s.beta.get(start..end).is_some_and(|b| b.iter().any(|&x| x < 0.0));
+    // joint away from its centre, a double well no harness makes); one of them may be 0 (a
+    // linear spring is k3 = 0: it was ruled out as "cannot push" while its k3 sat at its bound,
+    // development seed 9039, case 41, a progressive harness fitted as k1 = 10.8 N·m/rad at
+    // p = 8e-16, called `parameters`), not both
+    let coefs = s.beta.get(start..end).unwrap_or(&[]);
+    let any_negative = coefs.iter().any(|&x| x < 0.0);
+    let none_positive = !coefs.iter().any(|&x| x > 0.0);
     if let Effect::Thermal { src, .. } = *e {
         // T − T_ref at the ends of its range over the whole log
         let (lo, hi) = match src {
@@ -843,7 +849,7 @@ pub fn implausible(s: &Scored, d: &Data) -> Option<&'static str> {
         Kind::Load if amp <= 0.0 => Some("fitted load coefficient is not positive: friction falling with load"),
         // a pad presses either way (which side of the limb it sits on)
         Kind::Cable if matches!(e, Effect::Cable { side: 2, .. }) => None,
-        Kind::Cable if amp <= 0.0 || any_negative => {
+        Kind::Cable if any_negative || none_positive => {
             Some("fitted cable stiffness is not positive: a cable cannot push")
         }
         Kind::Dry if amp <= 0.0 => Some("fitted dry friction level is not positive: friction cannot drive the motion"),
@@ -1424,6 +1430,47 @@ mod tests {
         let (a, b) = if period < second { (period, second) } else { (second, period) };
         assert!((a - 0.037).abs() < 0.037 * 0.01, "{period} {second}");
         assert!((b - std::f64::consts::TAU / 60.0).abs() < 1e-3, "{period} {second}");
+    }
+
+    /// A progressive spring whose cubic stiffness the data put at its bound (0) is a linear
+    /// spring, physical; one that pushes away from its centre is not (development seed 9039,
+    /// case 41 was `parameters` while its spring sat at k3 = 0).
+    #[test]
+    fn a_progressive_spring_at_k3_zero_is_a_spring_and_a_pushing_one_is_not() {
+        let (mut d, mut base) = data(20_000);
+        // the file's model without its own spring and weight (over this range the weight's
+        // sine and cosine hold a linear term of q: the spring would not be determined)
+        for drop in [Col::Q, Col::SinSq(0.8), Col::CosSq(0.8)] {
+            let k = base.cols.iter().position(|c| *c == drop).unwrap();
+            base.cols.remove(k);
+            base.beta0.remove(k);
+            base.fixed.remove(k);
+        }
+        let y0: Vec<f64> = d.y.iter().zip(&d.q).map(|(y, q)| y - 2.5 * (0.8 * q).sin()).collect();
+        let split = make_split(d.n);
+        let bits = vec![0u32; d.n];
+        let fit_idx = crate::diagnose::candidates::thin_idx(&split.train, 8000);
+        let e = Effect::Cable { engage: 1.0, width: 0.01, side: 0 };
+        let coefs = |s: &Scored| {
+            let (a, b) = s.design.spans[0];
+            s.beta[a..b].to_vec()
+        };
+        // softening: the cubic wants a negative stiffness and is held at 0, the linear one pulls
+        for i in 0..d.n {
+            let x = d.q[i] - 1.0;
+            d.y[i] = y0[i] + 3.0 * x - 0.8 * x * x * x;
+        }
+        let s = fit_and_score(&d, &base, &[e], &fit_idx, &split, &bits, 1);
+        let c = coefs(&s);
+        assert!(c.iter().all(|&v| v >= 0.0) && c.iter().any(|&v| v > 1.0), "{c:?}");
+        assert_eq!(implausible(&s, &d), None, "{c:?}");
+        // pushing away from the centre
+        for i in 0..d.n {
+            let x = d.q[i] - 1.0;
+            d.y[i] = y0[i] - 3.0 * x;
+        }
+        let s = fit_and_score(&d, &base, &[e], &fit_idx, &split, &bits, 1);
+        assert!(implausible(&s, &d).is_some(), "{:?}", coefs(&s));
     }
 
     #[test]
