@@ -14,9 +14,7 @@
 mod common;
 
 use common::gauss;
-use joint_analysis::diagnose::{diagnose, Options};
 use joint_formats::log::JointLog;
-use joint_formats::model_file::ModelFile;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -72,18 +70,7 @@ fn chirp(seconds: f64, rate: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
 }
 
 fn verdicts(level: f64, seeds: std::ops::Range<u64>) -> Vec<String> {
-    let m = ModelFile::parse(MODEL, "at-floor").unwrap();
-    seeds
-        .map(|seed| {
-            let d = diagnose(&log(seed, level), &m, &Options::default()).unwrap();
-            let r = &d.report;
-            println!(
-                "seed {seed}: verdict {} (held-out RMSE {:.4}, floor {:.4})",
-                r.verdict.effect, r.gap.holdout_rmse, r.gap.noise_floor
-            );
-            r.verdict.effect.clone()
-        })
-        .collect()
+    common::verdicts(MODEL, "at-floor", seeds.map(|seed| (seed, log(seed, level))))
 }
 
 #[test]

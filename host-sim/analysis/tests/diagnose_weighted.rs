@@ -13,9 +13,7 @@
 mod common;
 
 use common::{gauss, moves};
-use joint_analysis::diagnose::{diagnose, Options};
 use joint_formats::log::JointLog;
-use joint_formats::model_file::ModelFile;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -49,18 +47,7 @@ fn log(seed: u64, alpha: f64) -> JointLog {
 }
 
 fn verdicts(alpha: f64, seeds: std::ops::Range<u64>) -> Vec<String> {
-    let m = ModelFile::parse(MODEL, "weighted").unwrap();
-    seeds
-        .map(|seed| {
-            let d = diagnose(&log(seed, alpha), &m, &Options::default()).unwrap();
-            let r = &d.report;
-            println!(
-                "seed {seed}: verdict {} (held-out RMSE {:.4}, floor {:.4})",
-                r.verdict.effect, r.gap.holdout_rmse, r.gap.noise_floor
-            );
-            r.verdict.effect.clone()
-        })
-        .collect()
+    common::verdicts(MODEL, "weighted", seeds.map(|seed| (seed, log(seed, alpha))))
 }
 
 #[test]

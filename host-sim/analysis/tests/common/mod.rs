@@ -1,6 +1,7 @@
 //! Trajectories the diagnosis tests build their own logs from (not the simulator's or the
-//! bench's): minimum-jerk moves between drawn targets, and Gaussian noise.
-#![allow(dead_code, clippy::indexing_slicing)]
+//! bench's): minimum-jerk moves between drawn targets, and Gaussian noise; and the verdicts the
+//! diagnosis gives such logs.
+#![allow(dead_code, clippy::indexing_slicing, clippy::expect_used)]
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -60,4 +61,26 @@ pub fn moves(
         qdd.push((b - a) * acc);
     }
     (t, q, qd, qdd)
+}
+
+/// The verdict `jointctl diagnose` gives each `(seed, log)` against `model` (named `name`), each
+/// printed with its held-out RMSE and floor.
+pub fn verdicts(
+    model: &str,
+    name: &str,
+    logs: impl IntoIterator<Item = (u64, joint_formats::log::JointLog)>,
+) -> Vec<String> {
+    let m = joint_formats::model_file::ModelFile::parse(model, name).expect("the test's model parses");
+    logs.into_iter()
+        .map(|(seed, log)| {
+            let d = joint_analysis::diagnose::diagnose(&log, &m, &joint_analysis::diagnose::Options::default())
+                .expect("the test's log is diagnosed");
+            let r = &d.report;
+            println!(
+                "seed {seed}: verdict {} (held-out RMSE {:.4}, floor {:.4})",
+                r.verdict.effect, r.gap.holdout_rmse, r.gap.noise_floor
+            );
+            r.verdict.effect.clone()
+        })
+        .collect()
 }
