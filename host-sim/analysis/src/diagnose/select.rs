@@ -1123,9 +1123,9 @@ pub fn select(
         r.rmse() > at_floor_factor(d) * floor || wfloor > 0.0 && r.wmse().sqrt() > at_floor_factor(d) * wfloor
     };
     let at_floor = !open(&m0, floor);
-    let clear_at_floor = |p: f64, gain: f64| {
-        gain >= CLEAR_GAIN || m0.rmse() >= floor && p < ALPHA_AT_FLOOR / m_tests && gain >= AT_FLOOR_GAIN
-    };
+    // evidence no shrinkage or estimate error gives ([`ALPHA_AT_FLOOR`])
+    let strong = |p: f64, gain: f64| p < ALPHA_AT_FLOOR / m_tests && gain >= AT_FLOOR_GAIN;
+    let clear_at_floor = |p: f64, gain: f64| gain >= CLEAR_GAIN || m0.rmse() >= floor && strong(p, gain);
     let (t, p, gain) = compare(&m0, &refit_s);
     let refit_unphysical = unphysical(&refit_s).or_else(|| cancelling(&refit_s, d));
     let refit = Outcome {
@@ -1267,7 +1267,7 @@ pub fn select(
                 .into_iter()
                 .map(|s| outcome(&cur_s, s))
                 .map(|mut o| {
-                    let strong = o.p < ALPHA_AT_FLOOR / m_tests && o.gain >= AT_FLOOR_GAIN;
+                    let strong = strong(o.p, o.gain);
                     // the share rule is for slivers at weak p; evidence as strong as the floor
                     // asks for counts without it (t9033/0018: a Stribeck curve after a ripple,
                     // p = 4e-7, 8 % of the held-out MSE, a fifth of the excess; on the traces of

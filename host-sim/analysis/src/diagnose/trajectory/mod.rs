@@ -233,9 +233,10 @@ impl<'a> Window<'a> {
         let regimes = Regimes::build(t, q, qd, qdd, None, dt);
         let v_typ = percentile(&train_v, 0.95);
         let driven = u.is_some_and(|u| u.iter().any(|x| *x != 0.0));
-        let mut lay = Layout::new(model, min_of(&train_q), max_of(&train_q), v_typ, driven);
-        lay.input_slack = u.map_or(0.0, |u| sim::edge_slack(t, u, n));
-        let lay = lay;
+        let lay = Layout {
+            input_slack: u.map_or(0.0, |u| sim::edge_slack(t, u, n)),
+            ..Layout::new(model, min_of(&train_q), max_of(&train_q), v_typ, driven)
+        };
         let stride = sp.n_train().div_ceil(2000).max(1);
         let noise = angle_noise(&self.prep.report, q).max(1e-12);
         let mut pb = Problem {

@@ -497,15 +497,15 @@ impl Layout {
         0.0
     }
 
-    /// Why effect `k` (at `e`, its values) on top of the terms `base` is not the physical effect
-    /// its name says: the same sign rules as torque mode, plus friction that would push in one
-    /// direction.
     /// Whether a fitted delay `d` (s) lies within the time the logged input's samples leave open
     /// for its edges ([`Layout::input_slack`]): the file's model with its edges placed, no delay.
     pub fn within_input_slack(&self, d: f64) -> bool {
         d.abs() <= self.input_slack
     }
 
+    /// Why effect `k` (at `e`, its values) on top of the terms `base` is not the physical effect
+    /// its name says: the same sign rules as torque mode, plus friction that would push in one
+    /// direction.
     pub fn implausible(&self, k: Kind, base: &[f64], e: &[f64]) -> Option<&'static str> {
         let g = |i: usize| e.get(i).copied().unwrap_or(0.0);
         let c: f64 = self.cols.iter().zip(base).filter(|(c, _)| **c == Col::Sgn).map(|(_, b)| *b).sum();
