@@ -70,11 +70,20 @@ pub fn verdicts(
     name: &str,
     logs: impl IntoIterator<Item = (u64, joint_formats::log::JointLog)>,
 ) -> Vec<String> {
+    verdicts_with(model, name, logs, &joint_analysis::diagnose::Options::default())
+}
+
+/// [`verdicts`] with the diagnosis' options.
+pub fn verdicts_with(
+    model: &str,
+    name: &str,
+    logs: impl IntoIterator<Item = (u64, joint_formats::log::JointLog)>,
+    opts: &joint_analysis::diagnose::Options,
+) -> Vec<String> {
     let m = joint_formats::model_file::ModelFile::parse(model, name).expect("the test's model parses");
     logs.into_iter()
         .map(|(seed, log)| {
-            let d = joint_analysis::diagnose::diagnose(&log, &m, &joint_analysis::diagnose::Options::default())
-                .expect("the test's log is diagnosed");
+            let d = joint_analysis::diagnose::diagnose(&log, &m, opts).expect("the test's log is diagnosed");
             let r = &d.report;
             println!(
                 "seed {seed}: verdict {} (held-out RMSE {:.4}, floor {:.4})",

@@ -106,6 +106,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             guard_samples: 0,
             test_units: f.scored.unit_n.len(),
             rest_tail: ctx.rest_tail.clone(),
+            cross_fitted: None,
         },
         gap: Gap {
             rmse: (total / n.max(1) as f64).sqrt(),
