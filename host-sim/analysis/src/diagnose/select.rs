@@ -1612,8 +1612,11 @@ mod tests {
         let fit = FoldIdx::new(&split, 150_000);
         let rounds = Rounds::new(&d, &base, None, &fit, &split);
         let m = rounds.score(&split, |r, f| r.refit(f, &[0; 3_000], 1));
-        let parts: Vec<Scored> =
-            split.all_folds().iter().map(|f| fit_and_score(&d, &base, &[], &thin_idx(&f.train), f, &[0; 3_000], 1)).collect();
+        let parts: Vec<Scored> = split
+            .all_folds()
+            .iter()
+            .map(|f| fit_and_score(&d, &base, &[], &thin_idx(&f.train), f, &[0; 3_000], 1))
+            .collect();
         let sse: f64 = parts.iter().map(|p| p.sse).sum();
         assert!((m.sse - sse).abs() <= 1e-9 * sse, "{} vs {sse}", m.sse);
         assert_eq!(m.n, split.holdout_total());
