@@ -77,10 +77,14 @@ pub struct SplitInfo {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rest_tail: Option<RestTail>,
     /// optional (torque mode, logs up to [`CROSS_FIT_MAX`] samples): the scores are cross-fitted
-    /// over this many folds, each holding out its own blocks, so every sample is held out once;
-    /// `train`, `held_blocks` and `test_units` describe the first fold, `holdout` counts all
+    /// over this many folds, each holding out its own blocks, so every inner sample is held out
+    /// once; `train`, `holdout`, `held_blocks` and `test_units` describe the first fold (the one
+    /// the coefficients and `--emit-model` come from), as without cross-fitting
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cross_fitted: Option<usize>,
+    /// optional (with `cross_fitted`): held-out samples the scores read, over every fold
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_scored: Option<usize>,
 }
 
 /// The trailing rest left out of a trajectory-mode analysis.
@@ -1298,13 +1302,14 @@ fn build_report(
         split: SplitInfo {
             method: "interleaved_blocks",
             train: split.train.len(),
-            holdout: split.holdout_total(),
+            holdout: split.holdout.len(),
             blocks: split.blocks,
             held_blocks: (0..split.blocks).filter(|b| matches!(b % 10, 2 | 5 | 8)).map(|b| b + 1).collect(),
             guard_samples: split.guard,
             test_units: split.n_units,
             rest_tail: None,
             cross_fitted: (!split.folds.is_empty()).then_some(1 + split.folds.len()),
+            holdout_scored: (!split.folds.is_empty()).then(|| split.holdout_total()),
         },
         gap: Gap {
             rmse: (total / scored.max(1) as f64).sqrt(),

@@ -115,13 +115,13 @@ fn gate_emitted(text: &str, log: &JointLog, force: bool) -> anyhow::Result<()> {
 
 fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
     let u = r.gap.unit;
-    match r.split.cross_fitted {
-        Some(k) => say!(
+    match r.split.cross_fitted.zip(r.split.holdout_scored) {
+        Some((k, scored)) => say!(
             o,
             "{} mode, {} samples ({} held out once each over {k} cross-fitted folds, {}), {:.2} s",
             r.mode,
             r.samples,
-            r.split.holdout,
+            scored,
             r.split.method,
             secs
         ),

@@ -107,6 +107,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             test_units: f.scored.unit_n.len(),
             rest_tail: ctx.rest_tail.clone(),
             cross_fitted: None,
+            holdout_scored: None,
         },
         gap: Gap {
             rmse: (total / n.max(1) as f64).sqrt(),
