@@ -335,9 +335,12 @@ fn bad_logs_and_models_are_refused_with_the_place_named() {
 fn a_model_term_with_a_wrong_value_is_parameters_and_the_refit_closes_the_gap() {
     let dir = tempfile::tempdir().unwrap();
     let (log, _) = torque_case(dir.path(), "[stribeck]\nlevel = 0.8\nspeed = 0.05\n", 6.0);
-    // The model has the Stribeck term (the core compensates it), at half its level.
-    let m = dir.path().join("half.toml");
-    std::fs::write(&m, format!("{MODEL}[stribeck]\nlevel = 0.4\nspeed = 0.05\n")).unwrap();
+    // The model has the Stribeck term (the core compensates it), at 3/8 of its level. (At half
+    // its level the file's model sits at 1.09 × the noise floor over the three cross-fitted
+    // folds, within the 10 % margin no refit crosses: the floor on this log holds the derived
+    // q̈'s error through J, and the one split's held-out blocks had put it at 1.22 ×.)
+    let m = dir.path().join("low.toml");
+    std::fs::write(&m, format!("{MODEL}[stribeck]\nlevel = 0.3\nspeed = 0.05\n")).unwrap();
     let em = dir.path().join("refit.toml");
     let v = run_json(&log, &m, &["--emit-model", em.to_str().unwrap()]);
     assert_eq!(v["verdict"]["effect"], "parameters", "{}", v["effects"]);

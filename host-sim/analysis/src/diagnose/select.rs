@@ -458,10 +458,23 @@ impl<'a> Rounds<'a> {
         }
     }
 
-    /// `score(round, fold)` on every fold, merged ([`merge`]).
+    /// `score(round, fold)` on every fold, merged ([`merge`]). `DIAG_FOLDS=1` prints each
+    /// fold's held-out RMSE and coefficients (where folds disagree, the log does not pin them).
     fn score(&self, split: &Split, score: impl Fn(&Round<'a>, &Split) -> Scored) -> Scored {
         let first = score(&self.first, split);
-        merge(first, self.rest.iter().zip(&split.folds).map(|(r, f)| score(r, f)).collect())
+        let rest: Vec<Scored> = self.rest.iter().zip(&split.folds).map(|(r, f)| score(r, f)).collect();
+        if std::env::var_os("DIAG_FOLDS").is_some() {
+            for s in std::iter::once(&first).chain(&rest) {
+                eprintln!(
+                    "[fold] {:?} rmse {:.5} n {} beta {:?}",
+                    s.effects.iter().map(|e| e.kind()).collect::<Vec<_>>(),
+                    s.rmse(),
+                    s.n,
+                    s.beta
+                );
+            }
+        }
+        merge(first, rest)
     }
 }
 
