@@ -346,6 +346,8 @@ fn a_model_term_with_a_wrong_value_is_parameters_and_the_refit_closes_the_gap() 
     assert_eq!(v["verdict"]["effect"], "parameters", "{}", v["effects"]);
     let level = v["refit"]["stribeck"]["level"].as_f64().unwrap();
     assert!((level - 0.8).abs() < 0.2, "refit level {level}");
+    // the three cross-fitted folds agree on every term: nothing is listed as not determined
+    assert!(v["split"]["cross_fitted"] == 3 && v.get("not_determined").is_none(), "{}", v["not_determined"]);
     let again = run_json(&log, &em, &[]);
     assert_eq!(again["verdict"]["effect"], "none", "{}", again["effects"]);
 }

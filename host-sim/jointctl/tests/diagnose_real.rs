@@ -80,6 +80,25 @@ fn wrong_sign_effects_are_never_the_verdict_on_the_dfki_payload_run() {
         }
         let json = serde_json::to_value(r).unwrap();
         assert!(json["effects"].as_array().unwrap().iter().any(|e| e["implausible"].is_string()));
+        // The folds' disagreement is reported by term (cross-fitted only: one split has no
+        // second fit to compare): J and the weight, which the swings do not tell apart.
+        let by_folds: Vec<&[String]> = r
+            .not_determined
+            .iter()
+            .filter(|u| u.why.contains("cross-fitted folds"))
+            .map(|u| u.params.as_slice())
+            .collect();
+        if cross_fit {
+            for term in ["inertia.j", "weight.amplitude"] {
+                assert!(
+                    by_folds.iter().any(|p| p.iter().any(|x| x == term)),
+                    "{term} not listed: {:?}",
+                    r.not_determined
+                );
+            }
+        } else {
+            assert!(by_folds.is_empty(), "{by_folds:?}");
+        }
     }
 }
 

@@ -145,6 +145,10 @@ fn a_weight_the_static_samples_contradict_is_refused_and_the_emitted_refit_passe
         let e = stderr(&o);
         assert!(e.contains("--emit-model") && e.contains("weight.amplitude") && !emit.exists(), "{e}");
     }
+    // and the report says which terms the folds disagree on
+    let o = jointctl(&args);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("not determined by this log") && out.contains("cross-fitted folds' refits put"), "{out}");
 }
 
 /// The right sign passes: the gravity-compensation run's identified weight against its own log.

@@ -369,46 +369,115 @@ fn not_determined(d: &Data, sel: &Selection, split: &Split) -> Vec<NotDetermined
             continue;
         }
         let zero = !(g.g.get(k * p + k).copied().unwrap_or(0.0) > 0.0);
-        let (params, why, test): (&[&str], String, &'static str) = match col {
-            Col::Qdd => (
-                &["inertia.j"],
-                if zero {
-                    "the joint does not accelerate in this log".into()
-                } else {
-                    "q̈ stays within its noise here (no acceleration), or is a combination of the other terms".into()
-                },
-                "move the joint back and forth with strong accelerations for several seconds (trunk §3.4)",
-            ),
-            Col::QdAbsQd | Col::Qd | Col::Sgn | Col::Dahl { .. } => (
-                match col {
-                    Col::QdAbsQd => &["friction.a"],
-                    Col::Qd => &["friction.b"],
-                    _ => &["friction.c"],
-                },
-                if zero {
-                    "the joint does not move in this log".into()
-                } else {
-                    "q̇ takes one speed or one direction here: the term is a constant, the offset's".into()
-                },
-                "constant-velocity plateaus at several speeds both ways (a speed sweep over the working range, trunk §3.2)",
-            ),
-            Col::SinSq(_) | Col::CosSq(_) => (
-                &["weight.amplitude", "weight.phi"],
-                format!("q spans {range:.3} rad: the weight's sine is a constant there, the offset's"),
-                "hold the joint still at 5+ angles spread over its range (static poses, trunk §3.3)",
-            ),
-            Col::Q | Col::DeadZone { .. } => (
-                &["spring.k"],
-                format!("q spans {range:.3} rad: the spring's torque is a constant there, the offset's"),
-                "hold the joint at angles on both sides of its rest with the torque measured (elastic joint, Fig. 5)",
-            ),
-            _ => continue,
+        let Some((params, test)) = term_of(col) else { continue };
+        let why = match col {
+            Col::Qdd if zero => "the joint does not accelerate in this log".into(),
+            Col::Qdd => {
+                "q̈ stays within its noise here (no acceleration), or is a combination of the other terms".into()
+            }
+            Col::SinSq(_) | Col::CosSq(_) => {
+                format!("q spans {range:.3} rad: the weight's sine is a constant there, the offset's")
+            }
+            Col::Q | Col::DeadZone { .. } => {
+                format!("q spans {range:.3} rad: the spring's torque is a constant there, the offset's")
+            }
+            _ if zero => "the joint does not move in this log".into(),
+            _ => "q̇ takes one speed or one direction here: the term is a constant, the offset's".into(),
         };
         let params: Vec<String> = params.iter().map(|s| s.to_string()).collect();
         if out.iter().any(|o| o.params == params) {
             continue;
         }
         out.push(NotDetermined { params, why, test });
+    }
+    out
+}
+
+/// The model's parameters a design column carries, and what log would pin them; `None` for the
+/// offset and the model's own effect terms.
+fn term_of(col: &candidates::Col) -> Option<(&'static [&'static str], &'static str)> {
+    use candidates::Col;
+    const SWEEP: &str =
+        "constant-velocity plateaus at several speeds both ways (a speed sweep over the working range, trunk §3.2)";
+    Some(match col {
+        Col::Qdd => {
+            (&["inertia.j"], "move the joint back and forth with strong accelerations for several seconds (trunk §3.4)")
+        }
+        Col::QdAbsQd => (&["friction.a"], SWEEP),
+        Col::Qd => (&["friction.b"], SWEEP),
+        Col::Sgn | Col::Dahl { .. } => (&["friction.c"], SWEEP),
+        Col::SinSq(_) | Col::CosSq(_) => (
+            &["weight.amplitude", "weight.phi"],
+            "hold the joint still at 5+ angles spread over its range (static poses, trunk §3.3)",
+        ),
+        Col::Q | Col::DeadZone { .. } => (
+            &["spring.k"],
+            "hold the joint at angles on both sides of its rest with the torque measured (elastic joint, Fig. 5)",
+        ),
+        _ => return None,
+    })
+}
+
+/// The model's terms the cross-fitted folds' refits ([`select::Split::cross_fitted`]) disagree
+/// on: each fold fits the model's terms on its own 70 % of the log, and a term whose values
+/// differ by more than a factor of two between folds (the spread above half the largest) and by
+/// more torque than the noise floor (the spread times the column's RMS over the held-out samples)
+/// is not pinned by this log, whatever its standard error says (those assume white residuals).
+/// The DFKI 1 kg swing-up's folds put J at 0.02, 0.05 and 0.46 kg·m² and the weight's sine at
+/// 0.4, 1.1 and 8.7 N·m: its swings hardly tell J·q̈ from the weight. The folds share 40 % of
+/// their rows, so a disagreement this large is no sampling scatter. Nothing without folds.
+fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec<NotDetermined> {
+    let des = &refit.design;
+    if refit.fold_fits.is_empty() {
+        return Vec::new();
+    }
+    let base_end = des.spans.first().map_or(des.cols.len(), |s| s.0).min(refit.beta.len());
+    let idx = candidates::thin_idx(&split.holdout_all(), 20_000);
+    let mut ss = vec![0.0; base_end];
+    let mut x = vec![0.0; des.cols.len()];
+    for &i in &idx {
+        des.row(d, i as usize, &mut x);
+        for (a, v) in ss.iter_mut().zip(&x) {
+            *a += v * v;
+        }
+    }
+    let mut out: Vec<NotDetermined> = Vec::new();
+    for (k, col) in des.cols.iter().enumerate().take(base_end) {
+        let Some((params, test)) = term_of(col) else { continue };
+        let values: Vec<f64> = std::iter::once(refit.beta[k])
+            .chain(
+                refit
+                    .fold_fits
+                    .iter()
+                    .filter_map(|(fd, fb)| (fd.cols.get(k) == Some(col)).then(|| fb.get(k)).flatten().copied()),
+            )
+            .collect();
+        let (lo, hi) = values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let big = values.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let rms = (ss[k] / idx.len().max(1) as f64).sqrt();
+        if values.len() < 2 || !(hi - lo > 0.5 * big && (hi - lo) * rms > floor) {
+            continue;
+        }
+        let params: Vec<String> = params.iter().map(|s| s.to_string()).collect();
+        if out.iter().any(|o| o.params == params) {
+            continue;
+        }
+        let shown: Vec<String> = values.iter().map(|v| format!("{v:.4}")).collect();
+        let what = match col {
+            Col::SinSq(_) => "the weight's sine part",
+            Col::CosSq(_) => "the weight's cosine part",
+            _ => "it",
+        };
+        out.push(NotDetermined {
+            params,
+            why: format!(
+                "the {} cross-fitted folds' refits put {what} at {} (its term's RMS over the held-out samples differs by {:.3} N·m between folds, the other terms offsetting it): the log does not separate it from them",
+                values.len(),
+                shown.join(", "),
+                (hi - lo) * rms
+            ),
+            test,
+        });
     }
     out
 }
@@ -740,7 +809,23 @@ fn torque_mode(
     if let Some(why) = &weight_kept {
         report.warnings.push(format!("{why}: --emit-model keeps the file's weight and offset"));
     }
-    let emitted_model = emit_model(model, &base, final_s, &data, weight_kept.as_deref());
+    // the terms the log does not pin (unexcited, or the folds disagree): the file's values
+    let pinned_not: Vec<(ParamId, &str)> = report
+        .not_determined
+        .iter()
+        .flat_map(|u| &u.params)
+        .filter_map(|p| {
+            let desc = p.split_once('.').and_then(|(sec, k)| joint_core::params::param_at(sec, k))?;
+            Some((desc.id, p.as_str()))
+        })
+        .collect();
+    // a weight the log does not pin was fitted with the offset that balances it: both the file's
+    let mut pinned_not = pinned_not;
+    let has = |p: &[(ParamId, &str)], id: ParamId| p.iter().any(|(x, _)| *x == id);
+    if has(&pinned_not, ParamId::WeightAmplitude) && !has(&pinned_not, ParamId::OffsetC0) {
+        pinned_not.push((ParamId::OffsetC0, "offset.c0"));
+    }
+    let emitted_model = emit_model(model, &base, final_s, &data, weight_kept.as_deref(), &pinned_not);
     let mut plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     plots.evidence = torque_evidence(&data, &sel.m0, final_s, &split, &report.verdict.effects);
     Ok(Diagnosis { report, emitted_model, plots })
@@ -1224,7 +1309,12 @@ fn build_report(
     effects.extend(sel.candidates.iter().map(|o| effect_out(o, "parameters", &sel.m0, regimes, d, model)));
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
     let mut warnings = refit_warnings(&effects);
-    let unexcited = not_determined(d, sel, split);
+    let mut unexcited = not_determined(d, sel, split);
+    for f in fold_undetermined(d, &sel.refit.scored, split, floor) {
+        if !unexcited.iter().any(|u| u.params == f.params) {
+            unexcited.push(f);
+        }
+    }
     let inertia_unexcited = unexcited.iter().any(|u| u.params.iter().any(|p| p == "inertia.j"));
     if select::inertia_held(&sel.refit.scored) && !inertia_unexcited {
         let noise = if d.qdd_noise_var > 0.0 {
@@ -1467,8 +1557,16 @@ fn weight_undetermined(model: &ModelFile, fin: &Scored, d: &Data, split: &Split)
 /// The model TOML with the final model's refitted values and its effect sections, in the plant
 /// file's section names, so `jointctl simulate --plant` runs it.
 /// `weight_kept`: why the log does not determine the weight ([`weight_undetermined`]); the
-/// file's weight and offset are written then, with that reason.
-fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kept: Option<&str>) -> String {
+/// file's weight and offset are written then, with that reason. `not_pinned`: the parameters
+/// the report lists as not determined ([`Report::not_determined`]), written as the file's.
+fn emit_model(
+    model: &ModelFile,
+    base: &Base,
+    fin: &Scored,
+    d: &Data,
+    weight_kept: Option<&str>,
+    not_pinned: &[(ParamId, &str)],
+) -> String {
     let _ = base;
     let mut mf = model.clone();
     let vals = refit_values(model, fin);
@@ -1476,7 +1574,7 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
     for (sec, kv) in &vals {
         for (k, v) in kv {
             if let Some(desc) = joint_core::params::param_at(sec, k) {
-                if weight_kept.is_some() && kept.contains(&desc.id) {
+                if weight_kept.is_some() && kept.contains(&desc.id) || not_pinned.iter().any(|(id, _)| *id == desc.id) {
                     continue;
                 }
                 // Keep the file loadable: the table forbids negative coefficients.
@@ -1488,6 +1586,13 @@ fn emit_model(model: &ModelFile, base: &Base, fin: &Scored, d: &Data, weight_kep
     let mut out = String::from("# written by `jointctl diagnose --emit-model`: the model refitted on the training part of the log,\n# plus the selected effects as plant sections (readable by `jointctl simulate --plant`).\n");
     if let Some(why) = weight_kept {
         out.push_str(&format!("# [weight] and [offset] are the file's: {why}.\n"));
+    }
+    if !not_pinned.is_empty() {
+        let names: Vec<&str> = not_pinned.iter().map(|(_, name)| *name).collect();
+        out.push_str(&format!(
+            "# the file's values, not the refit's (the log does not determine them; the report's not_determined says why): {}\n",
+            names.join(", ")
+        ));
     }
     // A pad has no section of its own, but it is a torque of the angle alone: where the file has
     // no gravity table, it is written as one over q (additive: no σ_model, so the joint adds the

@@ -172,7 +172,7 @@ pub fn render(d: &Diagnosis) -> String {
     }
     if !r.not_determined.is_empty() {
         o.push_str(
-            "<div id=\"not-determined\"><p>Not determined by this log (every refit keeps the file's values):</p><ul>",
+            "<div id=\"not-determined\"><p>Not determined by this log (the emitted model keeps the file's values):</p><ul>",
         );
         for u in &r.not_determined {
             let _ = write!(

@@ -275,6 +275,9 @@ pub struct Scored {
     /// a cross-fitted score ([`merge`]): the effects as each further fold fitted them (`effects`
     /// is the first fold's); empty for one split
     pub fold_effects: Vec<Vec<Effect>>,
+    /// the same: each further fold's design and coefficients (where the folds disagree on a
+    /// term of the model, the log does not pin it: [`super::fold_undetermined`])
+    pub fold_fits: Vec<(Design, Vec<f64>)>,
 }
 
 impl Scored {
@@ -380,6 +383,7 @@ impl Sums {
             weight,
             wsse,
             fold_effects: Vec::new(),
+            fold_fits: Vec::new(),
         }
     }
 }
@@ -399,6 +403,7 @@ pub fn merge(first: Scored, rest: Vec<Scored>) -> Scored {
     let weighted = !m.weight.is_empty();
     let (mut resid, mut weight) = ((*m.resid).clone(), (*m.weight).clone());
     m.fold_effects.clear();
+    m.fold_fits.clear();
     for s in rest {
         m.sse += s.sse;
         m.n += s.n;
@@ -414,6 +419,7 @@ pub fn merge(first: Scored, rest: Vec<Scored>) -> Scored {
         resid.extend_from_slice(&s.resid);
         weight.extend_from_slice(&s.weight);
         m.fold_effects.push(s.effects);
+        m.fold_fits.push((s.design, s.beta));
     }
     m.weight = if weighted && weight.len() == resid.len() { std::sync::Arc::new(weight) } else { Default::default() };
     m.resid = std::sync::Arc::new(resid);

@@ -219,7 +219,7 @@ fn print_summary(o: &mut dyn Write, r: &diagnose::Report, secs: f64) {
         say!(o, "closest candidates (none explains the gap): {}", r.verdict.closest.join(", "));
     }
     if !r.not_determined.is_empty() {
-        say!(o, "not determined by this log (every refit keeps the file's values):");
+        say!(o, "not determined by this log (the emitted model keeps the file's values):");
         for u in &r.not_determined {
             say!(o, "  {}: {}", u.params.join(", "), u.why);
             say!(o, "    to pin it: {}", u.test);
