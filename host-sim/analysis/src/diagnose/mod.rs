@@ -819,13 +819,28 @@ fn torque_mode(
             Some((desc.id, p.as_str()))
         })
         .collect();
-    // a weight the log does not pin was fitted with the offset that balances it: both the file's
-    let mut pinned_not = pinned_not;
-    let has = |p: &[(ParamId, &str)], id: ParamId| p.iter().any(|(x, _)| *x == id);
-    if has(&pinned_not, ParamId::WeightAmplitude) && !has(&pinned_not, ParamId::OffsetC0) {
-        pinned_not.push((ParamId::OffsetC0, "offset.c0"));
-    }
-    let emitted_model = emit_model(model, &base, final_s, &data, weight_kept.as_deref(), &pinned_not);
+    // What is emitted is the final fit solved again with those terms held at the file's values,
+    // so the terms it writes are fitted around the ones it keeps (on a short arc the offset
+    // takes the constant a held weight leaves; the report's `refit` stays the free fit's).
+    let held_s;
+    let emit_s = if std::ptr::eq(final_s, &sel.m0) || pinned_not.is_empty() {
+        final_s
+    } else {
+        let mut b = base.clone();
+        for (k, col) in b.cols.iter().enumerate() {
+            let kept =
+                term_of(col).is_some_and(|(names, _)| names.iter().any(|n| pinned_not.iter().any(|(_, p)| p == n)));
+            if kept {
+                if let Some(f) = b.fixed.get_mut(k) {
+                    *f = true;
+                }
+            }
+        }
+        let idx = candidates::thin_idx(&split.train, 150_000);
+        held_s = select::fit_and_score(&data, &b, &final_s.effects, &idx, &split, &regimes.bits, regimes.defs.len());
+        &held_s
+    };
+    let emitted_model = emit_model(model, &base, emit_s, &data, weight_kept.as_deref(), &pinned_not);
     let mut plots = plot_data(&data, &sel.m0, final_s, &regimes, &split);
     plots.evidence = torque_evidence(&data, &sel.m0, final_s, &split, &report.verdict.effects);
     Ok(Diagnosis { report, emitted_model, plots })
