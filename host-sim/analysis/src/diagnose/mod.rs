@@ -828,8 +828,10 @@ fn torque_mode(
     } else {
         let mut b = base.clone();
         for (k, col) in b.cols.iter().enumerate() {
-            let kept =
-                term_of(col).is_some_and(|(names, _)| names.iter().any(|n| pinned_not.iter().any(|(_, p)| p == n)));
+            // (and what the selection held: an inertia the rows want negative stays held)
+            let kept = term_of(col)
+                .is_some_and(|(names, _)| names.iter().any(|n| pinned_not.iter().any(|(_, p)| p == n)))
+                || final_s.design.fixed.get(k).copied().unwrap_or(false);
             if kept {
                 if let Some(f) = b.fixed.get_mut(k) {
                     *f = true;
