@@ -428,7 +428,7 @@ fn term_of(col: &candidates::Col) -> Option<(&'static [&'static str], &'static s
 /// their rows, so a disagreement this large is no sampling scatter. Nothing without folds.
 fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec<NotDetermined> {
     let des = &refit.design;
-    if refit.fold_fits.is_empty() {
+    if refit.folds.is_empty() {
         return Vec::new();
     }
     let base_end = des.spans.first().map_or(des.cols.len(), |s| s.0).min(refit.beta.len());
@@ -447,9 +447,9 @@ fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec
         let values: Vec<f64> = std::iter::once(refit.beta[k])
             .chain(
                 refit
-                    .fold_fits
+                    .folds
                     .iter()
-                    .filter_map(|(fd, fb)| (fd.cols.get(k) == Some(col)).then(|| fb.get(k)).flatten().copied()),
+                    .filter_map(|f| (f.design.cols.get(k) == Some(col)).then(|| f.beta.get(k)).flatten().copied()),
             )
             .collect();
         let (lo, hi) = values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
@@ -589,8 +589,6 @@ pub fn noise_floor(r: &[f64]) -> f64 {
     *m / (0.674_489_75 * 6f64.sqrt())
 }
 
-/// Takes the prepared log's columns (no copy of a log that can be millions of samples); the
-/// rest of `prep` is read.
 /// Torque-mode logs up to this many samples are cross-fitted ([`select::Split::cross_fitted`]):
 /// every score tests every sample held out once, on three fits, not 30 % of them on one. The
 /// tests gain the power of three times the held-out samples where power is short (an effect
@@ -599,6 +597,8 @@ pub fn noise_floor(r: &[f64]) -> f64 {
 /// alone is plenty, keep the one split.
 pub const CROSS_FIT_MAX: usize = 250_000;
 
+/// Takes the prepared log's columns (no copy of a log that can be millions of samples); the
+/// rest of `prep` is read.
 fn torque_mode(
     prep: &mut crate::prep::Prepared,
     model: &ModelFile,

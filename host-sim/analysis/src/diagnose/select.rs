@@ -272,12 +272,19 @@ pub struct Scored {
     pub weight: std::sync::Arc<Vec<f64>>,
     /// the weighted sum of squares with those weights (`sse` without them)
     pub wsse: f64,
-    /// a cross-fitted score ([`merge`]): the effects as each further fold fitted them (`effects`
-    /// is the first fold's); empty for one split
-    pub fold_effects: Vec<Vec<Effect>>,
-    /// the same: each further fold's design and coefficients (where the folds disagree on a
-    /// term of the model, the log does not pin it: [`super::fold_undetermined`])
-    pub fold_fits: Vec<(Design, Vec<f64>)>,
+    /// a cross-fitted score ([`merge`]): each further fold's own fit (`effects`, `design` and
+    /// `beta` are the first fold's); empty for one split
+    pub folds: Vec<FoldFit>,
+}
+
+/// One further fold's fit in a cross-fitted score: its effects (the next round builds on them)
+/// and its coefficients (where the folds disagree on a term of the model, the log does not pin
+/// it: [`super::fold_undetermined`]).
+#[derive(Clone, Debug)]
+pub struct FoldFit {
+    pub effects: Vec<Effect>,
+    pub design: Design,
+    pub beta: Vec<f64>,
 }
 
 impl Scored {
@@ -382,8 +389,7 @@ impl Sums {
             chunked: false,
             weight,
             wsse,
-            fold_effects: Vec::new(),
-            fold_fits: Vec::new(),
+            folds: Vec::new(),
         }
     }
 }
@@ -393,7 +399,7 @@ impl Sums {
 /// held-out sample: sums and counts added, the test units, residuals and weights one fold after
 /// the other (each fold's samples in their own units, so [`compare`] reads them as before). The
 /// effects, design and coefficients are the first fold's (what the report and `--emit-model`
-/// show); each further fold's effects are kept in [`Scored::fold_effects`] for its next round.
+/// show); each further fold's fit is kept in [`Scored::folds`] for its next round.
 /// Without further folds `first` comes back unchanged.
 pub fn merge(first: Scored, rest: Vec<Scored>) -> Scored {
     if rest.is_empty() {
@@ -402,8 +408,7 @@ pub fn merge(first: Scored, rest: Vec<Scored>) -> Scored {
     let mut m = first;
     let weighted = !m.weight.is_empty();
     let (mut resid, mut weight) = ((*m.resid).clone(), (*m.weight).clone());
-    m.fold_effects.clear();
-    m.fold_fits.clear();
+    m.folds.clear();
     for s in rest {
         m.sse += s.sse;
         m.n += s.n;
@@ -418,8 +423,7 @@ pub fn merge(first: Scored, rest: Vec<Scored>) -> Scored {
         }
         resid.extend_from_slice(&s.resid);
         weight.extend_from_slice(&s.weight);
-        m.fold_effects.push(s.effects);
-        m.fold_fits.push((s.design, s.beta));
+        m.folds.push(FoldFit { effects: s.effects, design: s.design, beta: s.beta });
     }
     m.weight = if weighted && weight.len() == resid.len() { std::sync::Arc::new(weight) } else { Default::default() };
     m.resid = std::sync::Arc::new(resid);
@@ -450,8 +454,7 @@ struct Rounds<'a> {
 impl<'a> Rounds<'a> {
     /// On top of `chosen`'s effects (none: `None`).
     fn new(d: &'a Data, base: &'a Base, chosen: Option<&Scored>, fit: &'a FoldIdx, split: &'a Split) -> Rounds<'a> {
-        let (first, rest): (&[Effect], &[Vec<Effect>]) = chosen.map_or((&[], &[]), |s| (&s.effects, &s.fold_effects));
-        let none = Vec::new();
+        let (first, rest): (&[Effect], &[FoldFit]) = chosen.map_or((&[], &[]), |s| (&s.effects, &s.folds));
         Rounds {
             first: Round::new(d, base, first, &fit.first, split),
             rest: split
@@ -459,7 +462,7 @@ impl<'a> Rounds<'a> {
                 .iter()
                 .zip(&fit.rest)
                 .enumerate()
-                .map(|(k, (f, fi))| Round::new(d, base, rest.get(k).unwrap_or(&none), fi, f))
+                .map(|(k, (f, fi))| Round::new(d, base, rest.get(k).map_or(&[], |r| &r.effects), fi, f))
                 .collect(),
         }
     }
@@ -1425,7 +1428,7 @@ pub fn select(
                         .iter()
                         .enumerate()
                         .map(|(k, f)| {
-                            let ea = a.scored.fold_effects.get(k).and_then(|e| e.last());
+                            let ea = a.scored.folds.get(k).and_then(|r| r.effects.last());
                             on_fold(ea, grid_idx.rest.get(k)?, fit_idx.rest.get(k)?, f)
                         })
                         .collect();
@@ -1641,7 +1644,7 @@ mod tests {
         assert_eq!(m.n, split.holdout_total());
         assert_eq!(m.unit_sse.len(), parts.iter().map(|p| p.unit_sse.len()).sum::<usize>());
         assert_eq!(m.resid.len(), m.n);
-        assert_eq!(m.fold_effects.len(), 2);
+        assert_eq!(m.folds.len(), 2);
         let one = parts[0].clone();
         let same = merge(one.clone(), Vec::new());
         assert_eq!((same.sse, same.n, same.unit_sse.len()), (one.sse, one.n, one.unit_sse.len()));
