@@ -352,6 +352,54 @@ fn a_model_term_with_a_wrong_value_is_parameters_and_the_refit_closes_the_gap() 
     assert_eq!(again["verdict"]["effect"], "none", "{}", again["effects"]);
 }
 
+/// Terms the cross-fitted folds disagree on (docs/diagnosis.md, "The folds' disagreement is
+/// reported, and not written"): on a short arc the weight trades with the offset, so the three
+/// folds' refits put it far apart. The report lists it, and what `--emit-model` writes is the
+/// refit with the weight held at the file's values: the terms the log does pin (the offset
+/// among them) are fitted around it, and the file written explains the log.
+#[test]
+fn a_weight_the_folds_disagree_on_is_listed_and_the_emitted_refit_is_fitted_around_the_files() {
+    let dir = tempfile::tempdir().unwrap();
+    // the joint's viscous friction is 3.0, the file says 2.0; the log spans 0.3 rad
+    let sensors = SENSORS.replace("min = 0.0\nmax = 2.0", "min = 0.9\nmax = 1.2");
+    let plant = PlantFile::parse(&format!("{}\n{sensors}", MODEL.replace("b = 2.0", "b = 3.0")), "plant").unwrap();
+    let model = ModelFile::parse(MODEL, "model").unwrap();
+    let cfg = SimConfig {
+        scenarios: vec![ScenarioKind::Sweep, ScenarioKind::Hand],
+        seconds: 8.0,
+        seed: 5,
+        rate: Some(500.0),
+        range: Some((0.9, 1.2)),
+        ..SimConfig::default()
+    };
+    let (log, _) = simulate(&plant, &model.param_set().unwrap(), &cfg).unwrap();
+    let (l, m) = (dir.path().join("log.csv"), dir.path().join("model.toml"));
+    log.write_file(&l).unwrap();
+    std::fs::write(&m, MODEL).unwrap();
+    let emit = dir.path().join("emit.toml");
+    let v = run_json(&l, &m, &["--emit-model", emit.to_str().unwrap(), "--force"]);
+    assert_eq!(v["verdict"]["effect"], "parameters", "{}", v["effects"]);
+    let nd = v["not_determined"].as_array().cloned().unwrap_or_default();
+    assert!(
+        nd.iter()
+            .any(|u| u["params"][0] == "weight.amplitude" && u["why"].as_str().unwrap().contains("cross-fitted folds")),
+        "{nd:?}"
+    );
+    let e = ModelFile::read_file(&emit).unwrap();
+    // the free refit moved the weight; what is written keeps the file's
+    let free = v["refit"]["weight"]["amplitude"].as_f64().unwrap();
+    assert!((free - model.value(ParamId::WeightAmplitude)).abs() > 1e-6, "the refit kept the weight: nothing to test");
+    for id in [ParamId::WeightAmplitude, ParamId::WeightPhi] {
+        assert_eq!(e.value(id), model.value(id), "{id:?}");
+    }
+    assert!(std::fs::read_to_string(&emit).unwrap().contains("not the refit's"));
+    // fitted around it: the viscous friction found, and the written model explains the log
+    let b = e.value(ParamId::FrictionB);
+    assert!((b - 3.0).abs() < 0.3, "friction.b {b}");
+    let again = run_json(&l, &emit, &["--emit-model", dir.path().join("again.toml").to_str().unwrap(), "--force"]);
+    assert_eq!(again["verdict"]["effect"], "none", "{}", again["effects"]);
+}
+
 /// Issue 16's reproduction: one `tau` cell of 1e300 (a logger glitch) in a log the model
 /// explains. Before: `gap: RMSE inf N·m`, verdict `none`, a refit Coulomb level of −3·10³⁰⁴ N·m
 /// quoted. Now the row is left out and named by its line, nothing prints inf or NaN, and the
