@@ -743,6 +743,20 @@ fn local_bias(
         f * f
     };
     let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) - stair_var(i) }).collect();
+    if std::env::var_os("DIAG_TRACE").is_some() {
+        let moving: Vec<f64> = (0..n).filter(|&i| !rest[i]).map(|i| d2[i]).collect();
+        let m = moving.iter().sum::<f64>() / moving.len().max(1) as f64;
+        eprintln!(
+            "[trace] local bias ({}): h {} half {} sigma {:.3e} noise_var {:.3e} mean d2 {:.3e} -> bias rms {:.3e}",
+            if r.second { "qdd" } else { "qd" },
+            r.h,
+            half.h,
+            r.sigma,
+            noise_var,
+            m,
+            grow * (m - noise_var).max(0.0).sqrt()
+        );
+    }
     for seg in segments {
         let mut acc = 0.0;
         let (lo, hi) = (seg.start, seg.end);
