@@ -353,7 +353,7 @@ pub struct NotDetermined {
 fn not_determined(d: &Data, sel: &Selection, split: &Split) -> Vec<NotDetermined> {
     use candidates::Col;
     let des = &sel.refit.scored.design;
-    let idx = candidates::thin_idx(&split.train, 150_000);
+    let idx = candidates::thin_idx(&split.train, select::FIT_ROWS);
     let g = des.gram(d, &idx);
     let flags = select::unexcited(des, d, &g);
     let p = g.p;
@@ -756,7 +756,7 @@ fn torque_mode(
         let held = split.holdout_all();
         let at_file = torque_floor_with(noise0, &data, (&base.cols, &base.beta0), prep, &held);
         // (on at most 150 000 training rows, as the selection's fits)
-        let fit_idx = candidates::thin_idx(&split.train, 150_000);
+        let fit_idx = candidates::thin_idx(&split.train, select::FIT_ROWS);
         let rs = select::fit_and_score(&data, &base, &[], &fit_idx, &split, &regimes.bits, regimes.defs.len());
         let p1 = rs.design.cols.len();
         let r1: Vec<f64> =
@@ -838,7 +838,7 @@ fn torque_mode(
                 }
             }
         }
-        let idx = candidates::thin_idx(&split.train, 150_000);
+        let idx = candidates::thin_idx(&split.train, select::FIT_ROWS);
         held_s = select::fit_and_score(&data, &b, &final_s.effects, &idx, &split, &regimes.bits, regimes.defs.len());
         &held_s
     };
