@@ -39,6 +39,24 @@ echo "== board image lints (G431 classic and CAN FD, G0B1)"
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q --profile fw -p firmware --target thumbv7em-none-eabihf --features fd -- -D warnings
 cargo clippy -q --profile fw --manifest-path firmware/board-g0b1/Cargo.toml --target thumbv6m-none-eabi -- -D warnings
+# CI (.ci/run sets JOINT_CI_PRUNE=1) runs on a machine whose free disk we do not set: a run
+# stopped on a full disk while linking the host tests (2026-11-30, 570 s in). The firmware
+# builds above (all workspaces share target/, .cargo/config.toml) are done with by now: their
+# host-side build scripts in target/fw and the images in target/<triple>, 1.5 GiB, removed
+# before the host builds. target/qemu-parity stays (the host suite's QEMU parity test would
+# build its images there again). A developer's run keeps them all.
+prune() {
+    if [ "${JOINT_CI_PRUNE:-0}" = 1 ]; then
+        local dirs=()
+        for d in "$@"; do [ -e "$d" ] && dirs+=("$d"); done
+        if [ ${#dirs[@]} -gt 0 ]; then
+            echo "== CI: removing ${dirs[*]} ($(du -sch "${dirs[@]}" | tail -n 1 | cut -f1); not needed by the steps below)"
+            rm -rf "${dirs[@]}"
+        fi
+    fi
+}
+TARGET_DIR=${CARGO_TARGET_DIR:-target}
+prune "$TARGET_DIR/fw" "$TARGET_DIR/thumbv6m-none-eabi" "$TARGET_DIR/thumbv7em-none-eabihf"
 echo "== host crate lints (formats, simulator, CAN stack, analysis, jointctl)"
 cargo clippy -q -p joint-formats -p host-sim -p joint-can -p joint-analysis -p jointctl -p diag-bench --lib --bins -- -D warnings
 echo "== python peers for the CAN interop test (python-can, canopen)"
@@ -47,5 +65,7 @@ echo "== headless Chromium for the diagnosis report test"
 bash scripts/chromium.sh
 echo "== host test suite"
 cargo test --workspace --no-fail-fast
+# the null test builds its two binaries in release: the host tests' debug build is done with
+prune "$TARGET_DIR/debug"
 echo "== null test: 500 model-exact logs from diag-bench diagnosed blind (named an effect ≤ 1 %, refused ≤ 1 %)"
 bash scripts/null-test.sh 500 31
