@@ -1058,9 +1058,27 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // training RSS by more than its two values cost (BIC on the thinned rows)
             let (f, r1) = best?;
             let n = idx.len().max(2) as f64;
-            let two = Effect::Ripple { period: 1.0 / f, harmonics: 2, second: 0.0 };
-            let r2 = rss_of(two);
-            let (first, r_first) = if n * (r1 / r2).ln() > 2.0 * n.ln() { (two, r2) } else { (one(f), r1) };
+            let two = |f: f64| Effect::Ripple { period: 1.0 / f, harmonics: 2, second: 0.0 };
+            let r2 = rss_of(two(f));
+            // The peak may be the profile's second harmonic (a tooth shape, a cogging profile
+            // whose half-period component is the stronger one): then the fundamental is at half
+            // its frequency, the peak its harmonic, the same four values. Tried where the travel
+            // holds two of those longer periods, refined on the real criterion. Without it a
+            // ripple whose fundamental spans two periods of a short travel was fitted at its
+            // harmonic, 5 % off in period, and the phase error it left across the travel was
+            // named a cable spring and a load-dependent friction (unseen t9059/0047).
+            let (fh, r2) = if 2.0 / f <= p_max {
+                let (fx, rs) = golden(0.5 * (f - df), 0.5 * (f + df), 16, |x| rss_of(two(x)));
+                if rs < r2 {
+                    (fx, rs)
+                } else {
+                    (f, r2)
+                }
+            } else {
+                (f, r2)
+            };
+            let (f, first, r_first) =
+                if n * (r1 / r2).ln() > 2.0 * n.ln() { (fh, two(fh), r2) } else { (f, one(f), r1) };
             // A ripple of an independent second period (a gear train has a mesh and its motor's
             // cogging): the periodogram again, of the binned residual with the first ripple's
             // least-squares sinusoids taken out, its strongest peak away from the first's
