@@ -1221,55 +1221,58 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             }
             best.map(|(_, e)| e)
         }
-        Kind::Delay => {
-            // Each channel (u, tau, the state) shifted by whole samples either way, from two
-            // samples up to 100 ms (at most 200 samples). No fractional lag: interpolating a
-            // noisy channel between two samples averages its noise away, which scores as a
-            // "delay" of half a sample on any noisy log. No lag of one sample: a torque held over
-            // the sample period (zero-order hold) already puts the q̈ seen from q half a sample
-            // off the logged u, whichever way the logger stamps it, so one sample is the
-            // logging convention, not a delay. A coarse pass (every other lag) then the best
-            // lag's neighbours.
-            let max_lag = ((0.1 / d.dt).round() as i64).clamp(4, 200);
-            let channels: Vec<Channel> =
-                Channel::ALL.into_iter().filter(|c| *c != Channel::Tau || d.tau.iter().any(|t| *t != 0.0)).collect();
-            let consider = |best: &mut Option<(f64, Effect)>, e: Effect| {
-                let r = rss_of(e);
-                if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
-                    *best = Some((r, e));
-                }
-            };
-            // coarse lags about 15 % apart (every lag up to 8), then every lag around the best
-            let mut coarse: Vec<i64> = (2..=8).collect();
-            while let Some(&l) = coarse.last() {
-                let next = ((l as f64) * 1.15).ceil() as i64;
-                if next > max_lag {
-                    break;
-                }
-                coarse.push(next);
+        Kind::Delay => best_delay(d, &rss_of),
+    }
+}
+
+/// The delay (channel and whole-sample lag) with the lowest `rss_of`.
+pub fn best_delay(d: &Data, rss_of: &dyn Fn(Effect) -> f64) -> Option<Effect> {
+    // Each channel (u, tau, the state) shifted by whole samples either way, from two
+    // samples up to 100 ms (at most 200 samples). No fractional lag: interpolating a
+    // noisy channel between two samples averages its noise away, which scores as a
+    // "delay" of half a sample on any noisy log. No lag of one sample: a torque held over
+    // the sample period (zero-order hold) already puts the q̈ seen from q half a sample
+    // off the logged u, whichever way the logger stamps it, so one sample is the
+    // logging convention, not a delay. A coarse pass (every other lag) then the best
+    // lag's neighbours.
+    let max_lag = ((0.1 / d.dt).round() as i64).clamp(4, 200);
+    let channels: Vec<Channel> =
+        Channel::ALL.into_iter().filter(|c| *c != Channel::Tau || d.tau.iter().any(|t| *t != 0.0)).collect();
+    let consider = |best: &mut Option<(f64, Effect)>, e: Effect| {
+        let r = rss_of(e);
+        if best.as_ref().map(|(b, _)| r < *b).unwrap_or(true) {
+            *best = Some((r, e));
+        }
+    };
+    // coarse lags about 15 % apart (every lag up to 8), then every lag around the best
+    let mut coarse: Vec<i64> = (2..=8).collect();
+    while let Some(&l) = coarse.last() {
+        let next = ((l as f64) * 1.15).ceil() as i64;
+        if next > max_lag {
+            break;
+        }
+        coarse.push(next);
+    }
+    let mut best: Option<(f64, Effect)> = None;
+    for &channel in &channels {
+        for &l in &coarse {
+            for sgn in [1.0, -1.0] {
+                consider(&mut best, Effect::Delay { lag: sgn * l as f64, channel });
             }
-            let mut best: Option<(f64, Effect)> = None;
-            for &channel in &channels {
-                for &l in &coarse {
-                    for sgn in [1.0, -1.0] {
-                        consider(&mut best, Effect::Delay { lag: sgn * l as f64, channel });
-                    }
-                }
-            }
-            if let Some((_, Effect::Delay { lag, channel })) = best {
-                let reach = (lag.abs() * 0.15).ceil().max(1.0);
-                let mut off = -reach;
-                while off <= reach {
-                    let l = lag + off;
-                    if off != 0.0 && l.abs() >= 2.0 && l.abs() <= max_lag as f64 {
-                        consider(&mut best, Effect::Delay { lag: l, channel });
-                    }
-                    off += 1.0;
-                }
-            }
-            best.map(|(_, e)| e)
         }
     }
+    if let Some((_, Effect::Delay { lag, channel })) = best {
+        let reach = (lag.abs() * 0.15).ceil().max(1.0);
+        let mut off = -reach;
+        while off <= reach {
+            let l = lag + off;
+            if off != 0.0 && l.abs() >= 2.0 && l.abs() <= max_lag as f64 {
+                consider(&mut best, Effect::Delay { lag: l, channel });
+            }
+            off += 1.0;
+        }
+    }
+    best.map(|(_, e)| e)
 }
 
 /// The model's refittable terms from its parameter values. A term is the model's when the file
