@@ -61,20 +61,23 @@ fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
+/// The bench's truth for `(seed, case)` is still `truth`, and the diagnosis reports exactly it.
+fn reports_truth(seed: u64, case: u64, truth: &[&str]) {
+    let (t, said) = diagnosed(seed, case);
+    assert_eq!(t, strings(truth), "the bench's case changed (seed {seed} case {case})");
+    assert_eq!(said, t, "seed {seed} case {case}");
+}
+
 #[test]
 fn dry_friction_the_file_lacks_is_not_named_a_stribeck_curve() {
     for case in [52, 60] {
-        let (truth, said) = diagnosed(9053, case);
-        assert_eq!(truth, strings(&["dry_friction"]), "the bench's case changed");
-        assert_eq!(said, truth, "case {case}");
+        reports_truth(9053, case, &["dry_friction"]);
     }
 }
 
 #[test]
 fn an_asymmetric_level_under_an_over_read_floor_is_found() {
-    let (truth, said) = diagnosed(9051, 16);
-    assert_eq!(truth, strings(&["asymmetric_friction"]), "the bench's case changed");
-    assert_eq!(said, truth);
+    reports_truth(9051, 16, &["asymmetric_friction"]);
 }
 
 #[test]
@@ -87,9 +90,7 @@ fn a_stribeck_curve_under_a_ripple_below_the_floor_is_found_second() {
 #[test]
 fn a_log_cut_mid_swing_whose_start_explains_it_is_initial_state() {
     for (seed, case) in [(9052, 9), (9057, 86)] {
-        let (truth, said) = diagnosed(seed, case);
-        assert_eq!(truth, strings(&["initial_state"]), "the bench's case changed");
-        assert_eq!(said, truth, "seed {seed} case {case}");
+        reports_truth(seed, case, &["initial_state"]);
     }
 }
 
@@ -103,14 +104,10 @@ fn a_ripple_whose_harmonic_is_the_stronger_leaves_no_cable_spring() {
 
 #[test]
 fn a_state_logged_late_is_a_delay_not_an_inertia() {
-    let (truth, said) = diagnosed(9054, 2);
-    assert_eq!(truth, strings(&["delay"]), "the bench's case changed");
-    assert_eq!(said, truth);
+    reports_truth(9054, 2, &["delay"]);
 }
 
 #[test]
 fn a_damping_alone_off_that_a_delay_mimics_stays_parameters() {
-    let (truth, said) = diagnosed(9059, 99);
-    assert_eq!(truth, strings(&["parameters"]), "the bench's case changed");
-    assert_eq!(said, truth);
+    reports_truth(9059, 99, &["parameters"]);
 }

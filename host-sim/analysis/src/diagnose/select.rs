@@ -1293,8 +1293,8 @@ fn delay_in_disguise(
 ) -> Option<Outcome> {
     let mut file = base.clone();
     file.fixed.iter_mut().for_each(|f| *f = true);
+    let des0 = Design::new(d, &file, &[]);
     let on_fold = |grid_idx: &[u32], fit_idx: &[u32], f: &Split| -> Option<Scored> {
-        let des0 = Design::new(d, &file, &[]);
         let mut x = vec![0.0; des0.cols.len()];
         // each grid row's prediction by the file's values, and its weight
         let rows: Vec<(usize, f64, f64)> = grid_idx
@@ -1325,20 +1325,14 @@ fn delay_in_disguise(
     let rest: Option<Vec<Scored>> =
         split.folds.iter().enumerate().map(|(k, f)| on_fold(grid.rest.get(k)?, fit.rest.get(k)?, f)).collect();
     let s = merge(first, rest?);
-    // The simplest refits: one of the file's values freed, the others kept.
+    // The simplest refits: one of the file's values freed, the others kept (each the refit of
+    // a round on that model, on every fold).
     let single = (0..base.cols.len())
         .filter(|&k| !base.fixed.get(k).copied().unwrap_or(false))
         .filter_map(|k| {
             let mut one = file.clone();
             *one.fixed.get_mut(k)? = false;
-            let first = fit_and_score(d, &one, &[], &fit.first, split, bits, n_regimes);
-            let rest: Option<Vec<Scored>> = split
-                .folds
-                .iter()
-                .enumerate()
-                .map(|(j, f)| Some(fit_and_score(d, &one, &[], fit.rest.get(j)?, f, bits, n_regimes)))
-                .collect();
-            Some(merge(first, rest?))
+            Some(Rounds::new(d, &one, None, fit, split).score(split, |r, f| r.refit(f, bits, n_regimes)))
         })
         .min_by(|a, b| a.mse().total_cmp(&b.mse()));
     let (_, p_single, g_single) = single.as_ref().map_or((0.0, 0.0, 1.0), |o| compare(o, &s));
@@ -1494,9 +1488,10 @@ pub fn select(
     // also show in the plain held-out MSE: a gain in the weighted MSE alone is the scatter of
     // the samples the model is surest of (a model-exact log, null seed 777 case 19: a ripple
     // took 9 % of the weighted MSE at p = 4e-14 and 0.5 % of the plain one).
+    let strong_below =
+        |p: f64, gain: f64, below: bool, plain: f64| strong(p, gain) && (!below || plain >= AT_FLOOR_GAIN);
     let below = m0.rmse() < floor;
-    let clear_at_floor =
-        |p: f64, gain: f64, plain: f64| gain >= CLEAR_GAIN || strong(p, gain) && (!below || plain >= AT_FLOOR_GAIN);
+    let clear_at_floor = |p: f64, gain: f64, plain: f64| gain >= CLEAR_GAIN || strong_below(p, gain, below, plain);
     let (t, p, gain) = compare(&m0, &refit_s);
     let refit_unphysical = unphysical(&refit_s).or_else(|| cancelling(&refit_s, d));
     let refit = Outcome {
@@ -1656,8 +1651,7 @@ pub fn select(
                 .into_iter()
                 .map(|s| outcome(&cur_s, s))
                 .map(|mut o| {
-                    let strong = strong(o.p, o.gain)
-                        && (cur_s.rmse() >= floor || plain_gain(&cur_s, &o.scored) >= AT_FLOOR_GAIN);
+                    let strong = strong_below(o.p, o.gain, cur_s.rmse() < floor, plain_gain(&cur_s, &o.scored));
                     // the share rule is for slivers at weak p; evidence as strong as the floor
                     // asks for counts without it (t9033/0018: a Stribeck curve after a ripple,
                     // p = 4e-7, 8 % of the held-out MSE, a fifth of the excess; on the traces of
