@@ -450,7 +450,26 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let min_run = ((2.0 * qd.info.half_window_s.max(qdd.info.half_window_s).max(0.01) / dt).round() as usize).max(3);
     // still: the q̇ used (the best estimate, possibly a clean logged one) within its noise, and
     // q's own q̈ within its noise
-    let rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
+    let mut rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
+    // A logged q̈ that passed as white noise (kept over the estimate, its own high-frequency
+    // noise accounting for its difference from it: no filter smears a stop, and its noise is
+    // what it scatters by at rest) sees a start before q does: the joint accelerating out of a dwell while q is still
+    // inside one quantum. There q's own q̈ is within its (wider) noise and q̇ too, but the
+    // logged q̈ stands many σ off zero; such a sample is no rest, or the model's inertia and
+    // friction are taken off a joint that moves (unseen t9064/0018: a model-exact log left
+    // 1.9–2.9 N·m, the Coulomb level plus J·q̈, on the last 10 samples of each dwell).
+    // (σ: the larger of its noise and its robust scatter over the rests found: a column that
+    // passed as white can still be a logger's low-pass, whose noise at rest is smooth and well
+    // above the high-frequency part the check measured)
+    if qdd_recipe.is_none() && log.qdd.is_some() && qdd.info.white {
+        let mut at_rest: Vec<f64> = qdd.values.iter().zip(&rest).filter(|(_, &r)| r).map(|(a, _)| a.abs()).collect();
+        if at_rest.len() >= 20 {
+            let scatter = 1.4826 * quantile::at_rounded(&mut at_rest, 0.5).unwrap_or(0.0);
+            let moving: Vec<bool> =
+                qdd.values.iter().zip(&qdd.noise).map(|(a, s)| a.abs() > 4.0 * s.max(scatter)).collect();
+            rest = trim_rest(&rest, &moving, min_run, &segments);
+        }
+    }
     lap("rest");
     // Motion next to a rest is re-estimated from the motion's side only: a window across the
     // start or end of a move mixes the still joint into the moving one (q̈ jumps there), and
@@ -1067,6 +1086,28 @@ fn detect_rest(
         }
     }
     rest
+}
+
+/// `rest` without the samples marked `moving`, and without any run of rest left shorter than
+/// `min_run` (as [`detect_rest`] asks of a rest).
+fn trim_rest(rest: &[bool], moving: &[bool], min_run: usize, segments: &[std::ops::Range<usize>]) -> Vec<bool> {
+    let still: Vec<bool> = rest.iter().zip(moving).map(|(&r, &m)| r && !m).collect();
+    let mut out = vec![false; rest.len()];
+    for r in segments {
+        let mut i = r.start;
+        while i < r.end {
+            if !still[i] {
+                i += 1;
+                continue;
+            }
+            let j = (i..r.end).find(|&k| !still[k]).unwrap_or(r.end);
+            if j - i >= min_run {
+                out[i..j].iter_mut().for_each(|x| *x = true);
+            }
+            i = j;
+        }
+    }
+    out
 }
 
 /// Where the q̇ estimate is within 3σ of zero and the joint is not at rest: if q leaves its
