@@ -1070,29 +1070,19 @@ fn detect_rest(
     let still: Vec<bool> = (0..qd.len())
         .map(|i| qd[i].abs() <= (4.0 * qd_sd[i]).max(fv) && qdd[i].abs() <= (4.0 * qdd_sd[i]).max(fa))
         .collect();
-    let mut rest = vec![false; qd.len()];
-    for r in segments {
-        let mut i = r.start;
-        while i < r.end {
-            if !still[i] {
-                i += 1;
-                continue;
-            }
-            let j = (i..r.end).find(|&k| !still[k]).unwrap_or(r.end);
-            if j - i >= min_run {
-                rest[i..j].iter_mut().for_each(|x| *x = true);
-            }
-            i = j;
-        }
-    }
-    rest
+    runs_of_at_least(&still, min_run, segments)
 }
 
 /// `rest` without the samples marked `moving`, and without any run of rest left shorter than
 /// `min_run` (as [`detect_rest`] asks of a rest).
 fn trim_rest(rest: &[bool], moving: &[bool], min_run: usize, segments: &[std::ops::Range<usize>]) -> Vec<bool> {
     let still: Vec<bool> = rest.iter().zip(moving).map(|(&r, &m)| r && !m).collect();
-    let mut out = vec![false; rest.len()];
+    runs_of_at_least(&still, min_run, segments)
+}
+
+/// The samples of `still` that lie in runs of at least `min_run` within one segment.
+fn runs_of_at_least(still: &[bool], min_run: usize, segments: &[std::ops::Range<usize>]) -> Vec<bool> {
+    let mut out = vec![false; still.len()];
     for r in segments {
         let mut i = r.start;
         while i < r.end {
