@@ -1059,20 +1059,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             let (f, r1) = best?;
             let n = idx.len().max(2) as f64;
             let two = |f: f64| Effect::Ripple { period: 1.0 / f, harmonics: 2, second: 0.0 };
-            // The period was refined with one harmonic, the profile's second still in the
-            // residual, which biases it: refined again with both in place. Two harmonics of
-            // near equal size over 14 periods of travel were fitted 0.7 % off in period, a
-            // phase error of a third of a radian at the travel's ends, and that residual (3×
-            // the floor) kept a second effect from being tried (unseen t9065/0075).
-            let (f, r2) = {
-                let r2 = rss_of(two(f));
-                let (fx, rs) = golden(f - 0.5 * df, f + 0.5 * df, 16, |x| rss_of(two(x)));
-                if rs < r2 {
-                    (fx, rs)
-                } else {
-                    (f, r2)
-                }
-            };
+            let r2 = rss_of(two(f));
             // The peak may be the profile's second harmonic (a tooth shape, a cogging profile
             // whose half-period component is the stronger one): then the fundamental is at half
             // its frequency, the peak its harmonic, the same four values. Tried where the travel
@@ -1080,18 +1067,36 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // ripple whose fundamental spans two periods of a short travel was fitted at its
             // harmonic, 5 % off in period, and the phase error it left across the travel was
             // named a cable spring and a load-dependent friction (unseen t9059/0047).
-            let (fh, r2) = if 2.0 / f <= p_max {
+            let (fh, r2, half) = if 2.0 / f <= p_max {
                 let (fx, rs) = golden(0.5 * (f - df), 0.5 * (f + df), 16, |x| rss_of(two(x)));
                 if rs < r2 {
-                    (fx, rs)
+                    (fx, rs, true)
                 } else {
-                    (f, r2)
+                    (f, r2, false)
                 }
             } else {
-                (f, r2)
+                (f, r2, false)
             };
-            let (f, first, r_first) =
-                if n * (r1 / r2).ln() > 2.0 * n.ln() { (fh, two(fh), r2) } else { (f, one(f), r1) };
+            let both = n * (r1 / r2).ln() > 2.0 * n.ln();
+            let (f, first, r_first) = if both { (fh, two(fh), r2) } else { (f, one(f), r1) };
+            // Two harmonics at the period refined with one, the profile's second still in the
+            // residual, which biases it: where no second period joins them (that pair is refined
+            // together below), the period is refined again with both in place (the half
+            // period's search already had both). Two harmonics of near equal size over 14
+            // periods of travel were fitted 0.7 % off in period, a phase error of a third of a
+            // radian at the travel's ends, and that residual (3× the floor) kept a second effect
+            // from being tried (unseen t9065/0075).
+            let alone = || {
+                if !both || half {
+                    return first;
+                }
+                let (fx, rs) = golden(f - 0.5 * df, f + 0.5 * df, 16, |x| rss_of(two(x)));
+                if rs < r_first {
+                    two(fx)
+                } else {
+                    first
+                }
+            };
             // A ripple of an independent second period (a gear train has a mesh and its motor's
             // cogging): the periodogram again, of the binned residual with the first ripple's
             // least-squares sinusoids taken out, its strongest peak away from the first's
@@ -1101,7 +1106,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // (not when the first period takes under 1 % of the residual: there is no ripple to
             // look further into, and the search costs as much again)
             if r_first > 0.99 * rss_now {
-                return Some(first);
+                return Some(alone());
             }
             let mut left = sum.clone();
             for hk in 1..=u32::from(harmonics) {
@@ -1117,7 +1122,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                 }
                 let det = ss * cc - sc * sc;
                 if !(det > 0.0) {
-                    return Some(first);
+                    return Some(alone());
                 }
                 let (a, bb) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
                 for (b, (m, &c)) in left.iter_mut().zip(&cnt).enumerate() {
@@ -1156,7 +1161,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                     }
                     Some(if near(gb) { with(g) } else { make(fb, gb) })
                 }
-                _ => Some(first),
+                _ => Some(alone()),
             }
         }
         Kind::Cable => {
