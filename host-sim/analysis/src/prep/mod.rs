@@ -452,15 +452,14 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // q's own q̈ within its noise
     let mut rest = detect_rest(&qd.values, &still_from_q.2, &qd.noise, &still_from_q.3, min_run, &segments);
     // A logged q̈ that passed as white noise (kept over the estimate, its own high-frequency
-    // noise accounting for its difference from it: no filter smears a stop, and its noise is
-    // what it scatters by at rest) sees a start before q does: the joint accelerating out of a dwell while q is still
-    // inside one quantum. There q's own q̈ is within its (wider) noise and q̇ too, but the
-    // logged q̈ stands many σ off zero; such a sample is no rest, or the model's inertia and
-    // friction are taken off a joint that moves (unseen t9064/0018: a model-exact log left
-    // 1.9–2.9 N·m, the Coulomb level plus J·q̈, on the last 10 samples of each dwell).
-    // (σ: the larger of its noise and its robust scatter over the rests found: a column that
-    // passed as white can still be a logger's low-pass, whose noise at rest is smooth and well
-    // above the high-frequency part the check measured)
+    // noise accounting for its difference from it) sees a start before q does: the joint
+    // accelerating out of a dwell while q is still inside one quantum. There q's own q̈ is
+    // within its (wider) noise and q̇ too, but the logged q̈ stands many σ off zero; such a
+    // sample is no rest, or the model's inertia and friction are taken off a joint that moves
+    // (unseen t9064/0018: a model-exact log left 1.9–2.9 N·m, the Coulomb level plus J·q̈, on
+    // the last 10 samples of each dwell). σ is the larger of its noise and its robust scatter
+    // over the rests found: a column that passed as white can still be a logger's low-pass,
+    // whose noise at rest is smooth and well above the high-frequency part the check measured.
     if qdd_recipe.is_none() && log.qdd.is_some() && qdd.info.white {
         let mut at_rest: Vec<f64> = qdd.values.iter().zip(&rest).filter(|(_, &r)| r).map(|(a, _)| a.abs()).collect();
         if at_rest.len() >= 20 {
