@@ -290,7 +290,10 @@ impl<'a> Window<'a> {
                 .map_or(0.0, |s| 0.25 * held_mean(&mut s.iter().map(|d| d * d)));
             let edges =
                 sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n).map_or(0.0, |v| held_mean(&mut v.into_iter()));
-            shape + edges
+            // and the response to the input's own white noise, which the joint never felt
+            let felt = sim::noise_spread(&law0, t, u, (th0[0], th0[1]), n, sim::input_noise(u))
+                .map_or(0.0, |v| held_mean(&mut v.into_iter()));
+            shape + edges + felt
         });
         // On a short log the preparation stage's noise estimate has no spectrum to stand on: on
         // the null bench (seed 11) it read from 0.28× to 8× the true angle noise on 20–300
