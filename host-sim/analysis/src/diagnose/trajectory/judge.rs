@@ -354,6 +354,26 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: u
             alts.push(o.name);
         }
     }
+    // Or an effect that fits the held-out samples better than the verdict and beats the refit
+    // at the uncorrected level, short of the corrected one: as in torque mode
+    // (`verdict_company`), what explains more than the verdict is named beside it, not dropped.
+    if chosen.fit != 1 {
+        let mse = |k: usize| fits[k].scored.mse();
+        for o in &j.effects {
+            let (_, pp, gp) = compare(&fits[j.params.fit].scored, &fits[o.fit].scored);
+            if o.name != chosen.name
+                && !o.significant
+                && o.implausible.is_none()
+                && mse(o.fit) < mse(chosen.fit)
+                && pp < ALPHA
+                && gp >= MIN_GAIN
+                && compare(f, &fits[o.fit].scored).2 >= MIN_GAIN
+                && !alts.contains(&o.name)
+            {
+                alts.push(o.name);
+            }
+        }
+    }
     // A start off against terms off or an effect: where P or an effect beats the assumed start
     // as clearly as S does, S does not beat it, and its own start stays within the estimate's
     // uncertainty (χ² as S's test, with the fit's own standard errors), this log cannot tell the
