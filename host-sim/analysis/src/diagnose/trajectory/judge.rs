@@ -357,7 +357,7 @@ pub fn company(j: &Judged, fits: &[Fitted], f: &Scored, lay: &Layout, n_train: u
     // Or an effect that fits the held-out samples better than the verdict and beats the refit
     // at the uncorrected level, short of the corrected one: as in torque mode
     // (`verdict_company`), what explains more than the verdict is named beside it, not dropped.
-    if chosen.fit != 1 {
+    if j.verdict != Vocab::InitialState {
         let mse = |k: usize| fits[k].scored.mse();
         for o in &j.effects {
             let (_, pp, gp) = compare(&fits[j.params.fit].scored, &fits[o.fit].scored);

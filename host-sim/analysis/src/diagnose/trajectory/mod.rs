@@ -233,8 +233,10 @@ impl<'a> Window<'a> {
         let regimes = Regimes::build(t, q, qd, qdd, None, dt);
         let v_typ = percentile(&train_v, 0.95);
         let driven = u.is_some_and(|u| u.iter().any(|x| *x != 0.0));
+        // the logged input's white noise (a torque the joint never felt), read once
+        let u_noise = u.map_or(0.0, sim::input_noise);
         let lay = Layout {
-            input_slack: u.map_or(0.0, |u| sim::edge_slack(t, u, n)),
+            input_slack: u.map_or(0.0, |u| sim::edge_slack(t, u, n, u_noise)),
             ..Layout::new(model, min_of(&train_q), max_of(&train_q), v_typ, driven)
         };
         let stride = sp.n_train().div_ceil(2000).max(1);
@@ -288,10 +290,10 @@ impl<'a> Window<'a> {
         let spread_ms = u.map_or(0.0, |u| {
             let shape = sim::input_spread(&law0, t, u, (th0[0], th0[1]), n)
                 .map_or(0.0, |s| 0.25 * held_mean(&mut s.iter().map(|d| d * d)));
-            let edges =
-                sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n).map_or(0.0, |v| held_mean(&mut v.into_iter()));
-            // and the response to the input's own white noise, which the joint never felt
-            let felt = sim::noise_spread(&law0, t, u, (th0[0], th0[1]), n, sim::input_noise(u))
+            let edges = sim::edge_spread(&law0, t, u, (th0[0], th0[1]), n, u_noise)
+                .map_or(0.0, |v| held_mean(&mut v.into_iter()));
+            // and the response to the input's own white noise
+            let felt = sim::noise_spread(&law0, t, u, (th0[0], th0[1]), n, u_noise)
                 .map_or(0.0, |v| held_mean(&mut v.into_iter()));
             shape + edges + felt
         });

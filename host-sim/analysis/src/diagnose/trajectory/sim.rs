@@ -302,23 +302,19 @@ pub fn noise_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize
         return Some(vec![0.0; n]);
     }
     let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-    let noisy: Vec<f64> = u[..n]
-        .iter()
-        .map(|x| {
-            // xorshift64: one bit per sample
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            if state & 1 == 1 {
-                x + sd
-            } else {
-                x - sd
-            }
-        })
-        .collect();
+    // one bit per sample
+    let noisy: Vec<f64> = u[..n].iter().map(|x| if xorshift(&mut state) & 1 == 1 { x + sd } else { x - sd }).collect();
     let base = simulate(law, t, Some(u), start, n, Plan::Choose(&mut Vec::new()), Reading::Cubic)?;
     let with = simulate(law, t, Some(&noisy), start, n, Plan::Choose(&mut Vec::new()), Reading::Cubic)?;
     Some(with.iter().zip(&base).map(|(a, b)| (a - b) * (a - b)).collect())
+}
+
+/// The next value of a xorshift64 generator (Marsaglia's 13/7/17 triple) from `state`.
+fn xorshift(state: &mut u64) -> u64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    *state
 }
 
 /// How much the response depends on when, within its sample interval, the input changed
@@ -340,9 +336,9 @@ pub fn noise_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize
 /// edges early against all late (`Δc`), rising edges early and falling ones late against the
 /// reverse (`Δd`: a pulse's width); for edges `k` of sensitivities `a_k`, `(Δc² + Δd²)/2` is
 /// `Σ a_k²·T²` exactly for one or two edges. Returns that over 12 (rad²) per sample.
-pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize) -> Option<Vec<f64>> {
+pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize, noise: f64) -> Option<Vec<f64>> {
     let n = n.min(t.len()).min(u.len());
-    let (delta, half) = edge_shifts(t, u, n);
+    let (delta, half) = edge_shifts(t, u, n, noise);
     if half.iter().all(|h| *h == 0.0) {
         return Some(vec![0.0; n]);
     }
@@ -369,9 +365,9 @@ pub fn edge_spread(law: &Law, t: &[f64], u: &[f64], start: (f64, f64), n: usize)
 /// The longest time (s) by which an edge of the logged input may have come earlier or later
 /// than the cubic between its samples puts it: the largest `w·T/2` of [`edge_spread`] over the
 /// first `n` samples (0 for an input the samples resolve).
-pub fn edge_slack(t: &[f64], u: &[f64], n: usize) -> f64 {
+pub fn edge_slack(t: &[f64], u: &[f64], n: usize, noise: f64) -> f64 {
     let n = n.min(t.len()).min(u.len());
-    edge_shifts(t, u, n).1.into_iter().fold(0.0, f64::max)
+    edge_shifts(t, u, n, noise).1.into_iter().fold(0.0, f64::max)
 }
 
 /// The white noise on the logged input (sd): from its second and fourth differences, robustly
@@ -401,13 +397,13 @@ pub fn input_noise(u: &[f64]) -> f64 {
 
 /// Per interval `i` (samples i − 1 → i): the input's change, and the largest shift (s) of
 /// when it came that the samples leave open ([`edge_spread`]'s `w·T/2`). A change within
-/// four standard deviations of the input's own noise ([`input_noise`]) is no edge: a noisy
+/// four standard deviations of the input's own white noise `noise` ([`input_noise`]) is no edge: a noisy
 /// input's every sample would otherwise be a jump the samples do not place, and the floor
 /// would carry a shift of half a sample for each (unseen seed 9053, case 72: a torque logged
 /// with 2.7 mN·m of white noise put the floor at 14× the angle noise, and an asymmetric
 /// friction at SNR 3.4 was `none` at 0.33× that floor).
-fn edge_shifts(t: &[f64], u: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
-    let quiet = 4.0 * std::f64::consts::SQRT_2 * input_noise(&u[..n.min(u.len())]);
+fn edge_shifts(t: &[f64], u: &[f64], n: usize, noise: f64) -> (Vec<f64>, Vec<f64>) {
+    let quiet = 4.0 * std::f64::consts::SQRT_2 * noise;
     // the change over interval i (samples i − 1 → i), and the monotone run of changes it is in
     let delta: Vec<f64> = (0..n)
         .map(|i| match (t.get(i.wrapping_sub(1)), t.get(i), u.get(i.wrapping_sub(1)), u.get(i)) {
@@ -754,12 +750,7 @@ mod tests {
     /// A white sequence of known size (a fixed Gaussian draw from a Box–Muller over xorshift).
     fn white(n: usize, sd: f64, seed: u64) -> Vec<f64> {
         let mut s = seed;
-        let mut uniform = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        let mut uniform = || ((xorshift(&mut s) >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
         (0..n)
             .map(|_| {
                 let (a, b) = (uniform(), uniform());
@@ -801,10 +792,11 @@ mod tests {
         };
         let smooth: Vec<f64> = (0..n).map(ramp).collect();
         let smooth_noisy: Vec<f64> = (0..n).map(|i| ramp(i) + e[i]).collect();
-        assert!(edge_slack(&t, &smooth, n) < 0.1 * dt, "{}", edge_slack(&t, &smooth, n));
-        assert!(edge_slack(&t, &smooth_noisy, n) < 0.25 * dt, "{}", edge_slack(&t, &smooth_noisy, n));
+        let slack = |u: &[f64]| edge_slack(&t, u, n, input_noise(u));
+        assert!(slack(&smooth) < 0.1 * dt, "{}", slack(&smooth));
+        assert!(slack(&smooth_noisy) < 0.25 * dt, "{}", slack(&smooth_noisy));
         // the noise alone (flat input): no edge anywhere
-        assert_eq!(edge_slack(&t, &e, n), 0.0);
+        assert_eq!(slack(&e), 0.0);
         // the noise's own response is counted instead, and it grows as the noise's square
         let law = elastic(0.0, 0.0);
         let flat = vec![0.0; n];
