@@ -202,3 +202,21 @@ fn a_trajectory_candidate_that_fits_better_than_the_verdict_is_named_beside_it()
     let named = |e: &str| v.effect == e || v.effects.iter().any(|x| x == e) || alts.contains(&e);
     assert!(named("asymmetric_friction"), "verdict {} {:?}, alternatives {alts:?}", v.effect, v.effects);
 }
+
+/// A noisy angle at rest is not motion: t9072/0069 (a pendulum's weight 41 % high and its
+/// inertia 36 % low, released from 1.1 rad at 95 Hz with 15 mrad of angle noise) swings for 3 s
+/// of 25. Read against 2 % of the swing's range alone, the noise kept the rest "moving" to the
+/// last sample, the held-out blocks held 0.6 s of the swing, and the log was `none`. The rest is
+/// now read against the noise as well and cut, since the log rests where the model does.
+#[test]
+fn a_noisy_rest_after_a_swing_is_cut_where_log_and_model_rest_alike() {
+    reports_truth(9072, 69, &["parameters"]);
+}
+
+/// ... and a noisy rest that holds the evidence is kept: t9058/0086 (a ripple whose well holds
+/// the joint 5 mrad from the model's rest, 1.4 sd of the noise per sample over the tail) is found
+/// from that tail; cut, it was `none`.
+#[test]
+fn a_noisy_rest_away_from_the_models_is_kept() {
+    reports_truth(9058, 86, &["position_ripple"]);
+}

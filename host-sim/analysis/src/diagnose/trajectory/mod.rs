@@ -210,12 +210,33 @@ impl<'a> Window<'a> {
         let law = lay.law(&th0, &[]);
         let sim = sim::run(&law, t, w.u(), (th0[0], th0[1]), w.n)
             .ok_or_else(|| DiagError::Input("the model diverges when integrated from the log's first sample".into()))?;
-        let moving_until = settled_from(q, &sim);
         let dt = crate::prep::median_step(t);
-        let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
-        let keep = moving_until.saturating_add(margin);
-        if moving_until >= 100 && keep < w.n && (w.n - keep) as f64 >= 0.3 * w.n as f64 {
-            w.rest_tail = Some(super::RestTail { from_t: t[keep], samples: w.n - keep });
+        let n = w.n;
+        let tail_from = |moving_until: usize| {
+            let margin = ((0.1 * moving_until as f64) as usize).max((0.25 / dt).round() as usize);
+            let keep = moving_until.saturating_add(margin);
+            (moving_until >= 100 && keep < n && (n - keep) as f64 >= 0.3 * n as f64).then_some(keep)
+        };
+        // A noisy angle at rest is also read against its noise ([`SETTLED_SD`]), and that tail is
+        // cut only where it holds no evidence: the log rests where the file's model does, within
+        // the standard error of the tail's mean angle (white noise assumed: a coloured noise's
+        // mean is less certain, and the tail is then kept) and half an encoder step.
+        let noise = angle_noise(&prep.report, q);
+        let keep = tail_from(settled_from(q, &sim, 0.0)).or_else(|| {
+            let keep = tail_from(settled_from(q, &sim, noise))?;
+            let k = (n - keep) as f64;
+            let off = (q[keep..].iter().zip(&sim[keep..n]).map(|(a, b)| a - b).sum::<f64>() / k).abs();
+            let tol = 3.0 * noise / k.sqrt() + 0.5 * 12f64.sqrt() * prep.report.q_quantum_sd;
+            if std::env::var_os("DIAG_TRACE").is_some() {
+                eprintln!(
+                    "[trace] rest tail from {keep}: the log rests {off:.3e} rad from the model (tolerance {tol:.3e}, {:.2} sd per sample)",
+                    off / noise
+                );
+            }
+            (off <= tol).then_some(keep)
+        });
+        if let Some(keep) = keep {
+            w.rest_tail = Some(super::RestTail { from_t: t[keep], samples: n - keep });
             w.n = keep;
         }
         Ok(w)
@@ -305,7 +326,11 @@ impl<'a> Window<'a> {
         // 0.8–1.3× on the same logs), and the floor carries those degrees of freedom into the
         // `unexplained` test ([`judge::above_floor`]). A model error the refit cannot absorb
         // raises this floor too: the short log then says `none` (it cannot tell), not a guess.
-        let (noise, floor_dof) = if n < SHORT_LOG {
+        // (A window cut short by its rest tail keeps the preparation's estimate when the window
+        // it was cut from is long enough: the tail's samples are read there, and a rest is where
+        // an angle's noise reads best. Unseen t9060/0096: cut from 408 to 193 samples, the floor
+        // read from its own residual came out 1.6× the angle noise.)
+        let (noise, floor_dof) = if self.seg.len() < SHORT_LOG {
             let scale = sp.n_train() as f64 / pb.train_idx.len() as f64;
             [(&r0, 0), (&s, 2), (&p, 2 + lay.nb())]
                 .iter()
@@ -734,23 +759,31 @@ fn second_effect(pb: &Problem, fits: &mut Vec<Fitted>, j: &mut judge::Judged, op
 }
 
 /// Index after which neither `a` nor `b` moves any more: both stay within 2 % of their own range
-/// of their final value (the median of the last 2 %); `len` when either moves to the end.
-fn settled_from(a: &[f64], b: &[f64]) -> usize {
-    let last_moving = |x: &[f64]| -> usize {
+/// of their final value (the median of the last 2 %), and the logged `a` within
+/// [`SETTLED_SD`]× its noise `noise_a` (the noisy angle of a joint at rest is not motion: a
+/// pendulum released from 1.1 rad, at rest from 3 s of a 25 s log with 15 mrad of noise, was
+/// read as moving to its last sample, and the split's six held-out blocks held 0.6 s of its
+/// motion; unseen t9072/0069); `len` when either moves to the end.
+fn settled_from(a: &[f64], b: &[f64], noise_a: f64) -> usize {
+    let last_moving = |x: &[f64], noise: f64| -> usize {
         let n = x.len();
         let k = (n / 50).max(10).min(n);
         let mut tail: Vec<f64> = x[n - k..].to_vec();
         tail.sort_by(|p, q| p.total_cmp(q));
         let end = tail[k / 2];
         let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-        let thr = 0.02 * (hi - lo);
+        let thr = (0.02 * (hi - lo)).max(SETTLED_SD * noise);
         if !(thr > 0.0) {
             return 0;
         }
         x.iter().rposition(|&v| (v - end).abs() > thr).map_or(0, |i| i + 1)
     };
-    last_moving(a).max(last_moving(b))
+    last_moving(a, noise_a).max(last_moving(b, 0.0))
 }
+
+/// How many sd of its noise a logged angle leaves its final value by before it counts as
+/// moving ([`settled_from`]): a Gaussian sample beyond 5 sd is one in 1.7 million.
+const SETTLED_SD: f64 = 5.0;
 
 fn min_of(x: &[f64]) -> f64 {
     x.iter().copied().fold(f64::INFINITY, f64::min)
@@ -766,7 +799,43 @@ fn percentile(v: &[f64], p: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::with_held_quantum;
+    use super::{settled_from, with_held_quantum};
+
+    #[test]
+    fn a_noisy_angle_at_rest_is_settled_and_a_creep_is_not() {
+        // a decaying swing that is at rest (within a µrad) from about sample 800 of 5000, and
+        // the same with 15 mrad of white noise (about 2 % of the swing's range)
+        let clean: Vec<f64> =
+            (0..5000).map(|i| 0.4 * (-(i as f64) / 100.0).exp() * (i as f64 * 0.05).cos() + 0.3).collect();
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut gauss = || {
+            // the sum of 12 uniforms less 6: unit variance, bounded by ±6
+            (0..12)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state >> 11) as f64 / (1u64 << 53) as f64
+                })
+                .sum::<f64>()
+                - 6.0
+        };
+        let noisy: Vec<f64> = clean.iter().map(|x| x + 0.015 * gauss()).collect();
+        let model = clean.clone();
+        let clean_end = settled_from(&clean, &model, 0.0);
+        assert!((300..900).contains(&clean_end), "{clean_end}");
+        // read against 2 % of the range alone, the noise moves to the end
+        assert!(settled_from(&noisy, &model, 0.0) > 4900);
+        // read against its noise, the angle settles where the swing does
+        let got = settled_from(&noisy, &model, 0.015);
+        assert!(got < 1000, "{got}");
+        // a creep of 8 sd over the last half is motion until it comes within 5 sd of its end
+        // (sample 3440 without noise, up to 4380 with 3 sd of it), noise or not
+        let creep: Vec<f64> =
+            noisy.iter().enumerate().map(|(i, x)| x + 0.12 * (i.saturating_sub(2500)) as f64 / 2500.0).collect();
+        let got = settled_from(&creep, &model, 0.015);
+        assert!((3000..4500).contains(&got), "{got}");
+    }
 
     #[test]
     fn a_held_quantisation_error_counts_in_the_angle_noise() {
