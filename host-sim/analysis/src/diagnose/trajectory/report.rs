@@ -29,6 +29,8 @@ pub struct Ctx<'a> {
     pub split: &'a super::split::Split,
     pub regimes: &'a Regimes,
     pub rest_tail: Option<RestTail>,
+    /// a rest tail read at every m-th sample: (from t, samples in the tail, m)
+    pub thinned: Option<(f64, usize, usize)>,
     pub skipped: Skipped,
     pub has_u: bool,
     pub prior: Prior,
@@ -86,6 +88,13 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
     let refit_used = j.verdict == Vocab::Parameters || !j.chosen.is_empty();
     let refit_base = if refit_used { final_fit.base(ctx.lay) } else { &ctx.lay.beta0 };
     let mut warnings = crate::diagnose::refit_warnings(&effects);
+    if let Some((from_t, k, m)) = ctx.thinned {
+        warnings.push(format!(
+            "the rest from t = {from_t:.3} s ({k} samples) is scored at one sample in {m} (and fitted in full): \
+             the log rests elsewhere than the file's model there, and scored in full it would outweigh the motion \
+             before it"
+        ));
+    }
     if let Some(d) = j.floor_dof {
         warnings.push(format!(
             "short log ({n} samples, {} held out): the noise floor is read from the fits' training residual ({d} \

@@ -34,22 +34,34 @@ fn is_held(b: usize) -> bool {
 
 impl Split {
     pub fn new(n: usize) -> Split {
-        let edge = |b: usize| (b * n + BLOCKS / 2) / BLOCKS;
+        Split::over(n, None)
+    }
+
+    /// The split of a window of `n` samples whose samples from `from` on are scored at every
+    /// `m`-th one only (`thin = Some((from, m))`): the blocks are laid over the samples that can
+    /// be scored, so a long noisy rest after a short motion leaves the motion its share of the
+    /// held-out samples; every sample not held out is fitted, the whole rest included (its
+    /// angle is evidence: a spring's or a friction's rest).
+    pub fn over(n: usize, thin: Option<(usize, usize)>) -> Split {
+        let used: Vec<usize> =
+            (0..n).filter(|&i| thin.is_none_or(|(from, m)| i < from || (i - from) % m.max(1) == 0)).collect();
+        let nu = used.len();
+        let edge = |b: usize| (b * nu + BLOCKS / 2) / BLOCKS;
         let mut held = vec![false; n];
         let mut unit = vec![usize::MAX; n];
         let mut units = 0;
         let mut held_blocks = Vec::new();
         for b in 0..BLOCKS {
-            let (lo, hi) = (edge(b), edge(b + 1).min(n));
+            let (lo, hi) = (edge(b), edge(b + 1).min(nu));
             if !is_held(b) || hi <= lo {
                 continue;
             }
             held_blocks.push(b + 1);
             let len = hi - lo;
             let subs = len.min(4);
-            for i in lo..hi {
+            for (k, &i) in used[lo..hi].iter().enumerate() {
                 held[i] = true;
-                unit[i] = units + ((i - lo) * subs / len).min(subs - 1);
+                unit[i] = units + (k * subs / len).min(subs - 1);
             }
             units += subs;
         }
@@ -62,7 +74,7 @@ impl Split {
     }
 
     pub fn n_held(&self) -> usize {
-        self.held.len() - self.train.len()
+        self.held.iter().filter(|h| **h).count()
     }
 }
 
@@ -89,5 +101,22 @@ mod tests {
         let s = Split::new(35);
         assert_eq!(s.n_held(), s.units);
         assert!(s.n_held() >= 10);
+    }
+
+    #[test]
+    fn a_thinned_tail_leaves_the_motion_its_held_out_blocks() {
+        // 200 samples of motion and 1800 of rest scored at every 9th: 400 samples laid out in
+        // blocks, half of them the motion, so about three of the six held-out blocks lie in it
+        let s = Split::over(2000, Some((200, 9)));
+        assert_eq!(s.held_blocks, vec![3, 6, 9, 13, 16, 19]);
+        assert_eq!(s.n_held(), 120);
+        let moving_held = (0..200).filter(|&i| s.held[i]).count();
+        assert!((50..=70).contains(&moving_held), "{moving_held}");
+        // only every 9th rest sample can be held out; every other sample is fitted
+        assert!((200..2000).filter(|&i| s.held[i]).all(|i| (i - 200) % 9 == 0));
+        assert_eq!(s.n_train() + s.n_held(), 2000);
+        // no thinning: the plain split
+        let (a, b) = (Split::over(1000, None), Split::new(1000));
+        assert_eq!((a.held, a.unit, a.train), (b.held, b.unit, b.train));
     }
 }
