@@ -11,12 +11,14 @@
 //!
 //! **Split** ([`split`]): 20 blocks in time, six of them (30 %) held out; the simulation runs
 //! through a held-out block without reading it, so its score is how well the fitted model
-//! predicts that motion by simulation alone. A trailing rest (in the log and the model alike)
-//! is left out first. Each held-out block gives up to four test units (one per sample on a
-//! short log: 6–18 for 20–60 samples), tested as in torque mode ([`judge`]).
+//! predicts that motion by simulation alone. A trailing rest (in the log and the model alike, at
+//! the same angle) is left out first; a long one where the log rests elsewhere is fitted in full
+//! but scored at one sample in m, so it cannot outweigh the motion in the held-out part. Each
+//! held-out block gives up to four test units (one per sample on a short log: 6–18 for 20–60
+//! samples), tested as in torque mode ([`judge`]).
 //!
-//! **Floor.** The angle noise (the preparation stage's estimate; on a log under 300 samples the
-//! fits' best training residual per degree of freedom instead) and the input's spread between
+//! **Floor.** The angle noise (the preparation stage's estimate; on a log under 300 samples,
+//! before any rest is cut, the fits' best training residual per degree of freedom instead) and the input's spread between
 //! samples.
 //!
 //! **Fits** ([`fits`]): Levenberg–Marquardt within physical bounds on the training residual,
