@@ -18,8 +18,8 @@
 //! samples), tested as in torque mode ([`judge`]).
 //!
 //! **Floor.** The angle noise (the preparation stage's estimate; on a log under 300 samples,
-//! before any rest is cut, the fits' best training residual per degree of freedom instead) and the input's spread between
-//! samples.
+//! before any rest is cut, the fits' best training residual per degree of freedom instead) and
+//! the input's spread between samples.
 //!
 //! **Fits** ([`fits`]): Levenberg–Marquardt within physical bounds on the training residual,
 //! multi-start over the shapes ([`terms`]); J fixed (a free response scales with D/J only); the
