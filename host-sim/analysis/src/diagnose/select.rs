@@ -1362,8 +1362,9 @@ fn delay_in_disguise(
     named.then_some(Outcome { name: Vocab::Delay, scored: s, t, p, gain, significant: true, implausible: None })
 }
 
-/// `DIAG_TRACE=1`: every round's outcomes on stderr (for reading why a verdict came out).
-fn trace() -> bool {
+/// `DIAG_TRACE=1`: every round's outcomes on stderr (for reading why a verdict came out); trajectory
+/// mode reads the same switch.
+pub(crate) fn trace() -> bool {
     std::env::var_os("DIAG_TRACE").is_some()
 }
 

@@ -237,7 +237,7 @@ impl<'a> Window<'a> {
             let k = (n - keep) as f64;
             let off = (q[keep..].iter().zip(&sim[keep..n]).map(|(a, b)| a - b).sum::<f64>() / k).abs();
             let tol = 3.0 * noise / k.sqrt() + 0.5 * 12f64.sqrt() * prep.report.q_quantum_sd;
-            if std::env::var_os("DIAG_TRACE").is_some() {
+            if super::select::trace() {
                 eprintln!(
                     "[trace] rest tail from {keep}: the log rests {off:.3e} rad from the model (tolerance {tol:.3e}, {:.2} sd per sample)",
                     off / noise
@@ -499,17 +499,13 @@ fn refit_from_effects(pb: &Problem, fits: &mut [Fitted]) {
         return;
     }
     if let Some(p2) = pb.fit(&[], Free::Terms, starts.into_iter().map(|(_, th)| th).collect()) {
-        if trace_on() {
+        if super::select::trace() {
             eprintln!("[trace] refit again from the effects' fits: training SSE {:.4e} -> {:.4e}", p_sse, p2.train_sse);
         }
         if p2.train_sse < p_sse {
             fits[2] = p2;
         }
     }
-}
-
-fn trace_on() -> bool {
-    std::env::var_os("DIAG_TRACE").is_some()
 }
 
 /// The refit of the model's terms: from the file's values and from the freed start, each also
@@ -861,20 +857,8 @@ mod tests {
         // the same with 15 mrad of white noise (about 2 % of the swing's range)
         let clean: Vec<f64> =
             (0..5000).map(|i| 0.4 * (-(i as f64) / 100.0).exp() * (i as f64 * 0.05).cos() + 0.3).collect();
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut gauss = || {
-            // the sum of 12 uniforms less 6: unit variance, bounded by ±6
-            (0..12)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    (state >> 11) as f64 / (1u64 << 53) as f64
-                })
-                .sum::<f64>()
-                - 6.0
-        };
-        let noisy: Vec<f64> = clean.iter().map(|x| x + 0.015 * gauss()).collect();
+        let e = super::sim::white(clean.len(), 0.015, 0x9e37_79b9_7f4a_7c15);
+        let noisy: Vec<f64> = clean.iter().zip(&e).map(|(x, e)| x + e).collect();
         let model = clean.clone();
         let clean_end = settled_from(&clean, &model, 0.0);
         assert!((300..900).contains(&clean_end), "{clean_end}");

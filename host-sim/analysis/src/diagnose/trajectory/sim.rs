@@ -317,6 +317,20 @@ fn xorshift(state: &mut u64) -> u64 {
     *state
 }
 
+/// A white sequence of known size for tests (a fixed Gaussian draw from a Box–Muller over
+/// [`xorshift`]).
+#[cfg(test)]
+pub(super) fn white(n: usize, sd: f64, seed: u64) -> Vec<f64> {
+    let mut s = seed;
+    let mut uniform = || ((xorshift(&mut s) >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    (0..n)
+        .map(|_| {
+            let (a, b) = (uniform(), uniform());
+            sd * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        })
+        .collect()
+}
+
 /// How much the response depends on when, within its sample interval, the input changed
 /// where it changed in one: a step whose edge is shorter than a sample is logged as a jump
 /// between two samples, and the log cannot tell whether the edge came just after the first
@@ -745,18 +759,6 @@ mod tests {
 
     fn times(n: usize, dt: f64) -> Vec<f64> {
         (0..n).map(|i| i as f64 * dt).collect()
-    }
-
-    /// A white sequence of known size (a fixed Gaussian draw from a Box–Muller over xorshift).
-    fn white(n: usize, sd: f64, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        let mut uniform = || ((xorshift(&mut s) >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-        (0..n)
-            .map(|_| {
-                let (a, b) = (uniform(), uniform());
-                sd * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-            })
-            .collect()
     }
 
     /// The input's noise is read from the input alone: within 15 % on a pulse train and on a
