@@ -222,11 +222,11 @@ fn a_noisy_rest_away_from_the_models_is_kept() {
 }
 
 /// ... but scored at one sample in m (and fitted in full), so it does not outweigh the motion in
-/// the held-out part: t9063/0095 (a weight 31 %
-/// low, a 1.4 s swing and 12.6 s of rest 3.7 mrad from the model's, 10 mrad of noise) was `none`
-/// with the whole rest read (nine in ten held-out samples at rest, the file's model at 1.06× the
-/// floor over them), and t9057/0057 (pre-sliding friction, the rest 0.6 sd per sample away) was
-/// `parameters` with the rest read in full and `none` with it cut.
+/// the held-out part: t9063/0095 (a weight 31 % low, a 1.4 s swing and 12.6 s of rest 3.7 mrad
+/// from the model's, 10 mrad of noise) was `none` with the whole rest read (nine in ten held-out
+/// samples at rest, the file's model at 1.06× the floor over them), and t9057/0057 (pre-sliding
+/// friction, the rest 0.6 sd per sample away) was `parameters` with the rest read in full and
+/// `none` with it cut.
 #[test]
 fn a_long_rest_that_holds_evidence_is_scored_thinned_not_cut() {
     reports_truth(9063, 95, &["parameters"]);
