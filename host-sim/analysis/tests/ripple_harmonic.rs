@@ -117,3 +117,48 @@ fn a_ripple_whose_harmonic_is_the_stronger_is_found_at_its_fundamental() {
     assert!((a2 - 0.31).abs() < 0.05, "amplitude_2 {a2} (0.31)");
     assert!(v.holdout_rmse_after < 1.2 * 0.03, "held-out RMSE after {} (noise 0.03)", v.holdout_rmse_after);
 }
+
+/// A ripple whose period is just under half the travel (0.056 rad over 0.12 rad, 2.1 periods):
+/// the periodogram's maximum sits in its first bin, which the peak search skipped when it
+/// counted only maxima with a neighbour on both sides. The search then took a harmonic of the
+/// profile at a wrong period and a pad took the rest, named as a second effect (unseen
+/// t9075/0012, ripple + `cable_spring` for a ripple alone).
+#[test]
+fn a_ripple_of_just_under_half_the_travel_is_found_alone() {
+    let (period, tau) = (0.056, std::f64::consts::TAU);
+    let (log, model) = rippled_log(0.03, 0.12, |q| 0.25 * (tau * q / period + 2.33).sin());
+    let d = diagnose(&log, &model, &Options::default()).unwrap();
+    let v = &d.report.verdict;
+    let sel = d.report.selected.first().unwrap();
+    let p = sel.params["period"];
+    println!(
+        "verdict {:?}; period {p:.5} ({period}), amplitude {:.3} (0.25); held-out RMSE after {:.4} N·m (noise 0.03)",
+        v.effects, sel.params["amplitude"], v.holdout_rmse_after
+    );
+    assert_eq!(v.effects, ["position_ripple"], "{v:?}");
+    assert!((p / period - 1.0).abs() < 0.01, "period {p} ({period})");
+    assert!(v.holdout_rmse_after < 1.2 * 0.03, "held-out RMSE after {} (noise 0.03)", v.holdout_rmse_after);
+}
+
+/// Two ripples whose periods are near 2:1 (0.0164 rad, the stronger, and 0.0266 rad) over
+/// 0.1 rad: the peak at 0.0164 reads as the second harmonic of a 0.0328 rad profile, which fits
+/// better than the peak alone, and the second period's search then ran on top of that
+/// fundamental that is not there: 0.0417 rad was found, and a pad took what the 0.0266 rad
+/// ripple left (unseen t9075/0080). The peak alone with a second period is compared too.
+#[test]
+fn two_ripples_near_two_to_one_are_not_read_as_one_profile() {
+    let (p1, p2, tau) = (0.01635, 0.02656, std::f64::consts::TAU);
+    let (log, model) = rippled_log(0.05, 0.1, |q| 0.5 * (tau * q / p1 + 0.1).sin() + 0.16 * (tau * q / p2 + 2.9).sin());
+    let d = diagnose(&log, &model, &Options::default()).unwrap();
+    let v = &d.report.verdict;
+    let sel = d.report.selected.first().unwrap();
+    let (a, b) = (sel.params["period"], sel.params.get("period_b").copied().unwrap_or(f64::NAN));
+    let (f1, f2) = if (a - p1).abs() < (b - p1).abs() { (a, b) } else { (b, a) };
+    println!(
+        "verdict {:?}; periods {f1:.5} ({p1}), {f2:.5} ({p2}); held-out RMSE after {:.4} N·m (noise 0.05)",
+        v.effects, v.holdout_rmse_after
+    );
+    assert_eq!(v.effects, ["position_ripple"], "{v:?}");
+    assert!((f1 / p1 - 1.0).abs() < 0.01 && (f2 / p2 - 1.0).abs() < 0.01, "periods {f1}, {f2}");
+    assert!(v.holdout_rmse_after < 1.2 * 0.05, "held-out RMSE after {} (noise 0.05)", v.holdout_rmse_after);
+}
