@@ -116,9 +116,14 @@ impl Gram {
                 a[i * p + j] = a[j * p + i];
             }
         }
-        // Scale to unit diagonal so one ridge fits every column.
+        // Scale to unit diagonal so one ridge fits every column. A column whose sum of squares
+        // is under 1e-20 of the largest one's (RMS under 1e-10 of it) is zero for the fit: a
+        // Stribeck term searched to a speed far under the log's slowest motion is e^-100 on
+        // every row, and scaled to unit size its coefficient reached 1e149 and its held-out
+        // RMSE 1e135 N·m in the report (unseen t9073/0031).
+        let dmax = (0..p).map(|i| a[i * p + i]).fold(0.0, f64::max);
         let scale: Vec<f64> =
-            (0..p).map(|i| a[i * p + i]).map(|d| if d > 0.0 { 1.0 / d.sqrt() } else { 0.0 }).collect();
+            (0..p).map(|i| a[i * p + i]).map(|d| if d > 1e-20 * dmax { 1.0 / d.sqrt() } else { 0.0 }).collect();
         for i in 0..p {
             for j in 0..p {
                 a[i * p + j] *= scale[i] * scale[j];
@@ -392,6 +397,22 @@ mod tests {
         g.prior = vec![3.0, -2.0];
         let (b, _) = g.solve();
         assert!((b[0] - 3.0).abs() < 1e-9 && (b[1] + 2.0).abs() < 1e-9, "{b:?}");
+    }
+
+    /// A column far under the others (a Stribeck term e^-100 on every row) is zero for the fit:
+    /// its coefficient stays 0 instead of growing to the size that makes the column matter on
+    /// these rows, which on any other row is an absurd torque; the other columns fit as without it.
+    #[test]
+    fn a_vanishing_column_gets_no_coefficient() {
+        let mut g = Gram::new(3);
+        for i in 0..100 {
+            let x = i as f64 * 0.1;
+            let tiny = 1e-60 * (1.0 + (i % 7) as f64);
+            g.add(&[1.0, x, tiny], 3.0 - 2.0 * x + 0.01 * ((i % 5) as f64 - 2.0));
+        }
+        let (b, _) = g.solve();
+        assert_eq!(b[2], 0.0, "{b:?}");
+        assert!((b[0] - 3.0).abs() < 1e-2 && (b[1] + 2.0).abs() < 1e-2, "{b:?}");
     }
 
     /// A coefficient the rows want negative is held at the value given and the others refit
