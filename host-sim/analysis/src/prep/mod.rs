@@ -349,7 +349,28 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
         q_spec.as_ref().map_or_else(|| diff_noise(&log.q), |s| coloured.as_ref().map_or(s.noise_sd, |m| m.total_sd()));
     let q_noise = q_seen.max(quantum);
     let bandwidth = q_spec.as_ref().map_or(0.0, |s| s.bandwidth_hz);
-    let d = |k: usize| q_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
+    // Under `spectrum::MIN_SAMPLES` there is no spectrum, and derivative sizes of 0 made every
+    // window its widest: a 40-sample log of a 4.4 Hz oscillation got q̇ from ±247 ms of it,
+    // two periods, a q̇ off by 1.4 rad/s, and its clean logged q̇ was judged the noisy one
+    // (unseen t9075/0040). There the sizes come from a pilot window of about ±50 ms (at most
+    // the log): q̈'s RMS and the motion's frequency w = RMS(q̈)/RMS(q̇), with the margin of 2 on
+    // w the quantised case takes.
+    let pilot_sizes = if q_spec.is_none() {
+        longest(&segments).filter(|r| r.len() >= lpr::DEGREE + 2).and_then(|r| {
+            let pilot = ((0.05 / dt).round() as usize).clamp(2, (r.len() - 1) / 2);
+            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
+            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+            (v1 > 0.0 && v2 > 0.0).then(|| (v2, 2.0 * v2 / v1))
+        })
+    } else {
+        None
+    };
+    let d = |k: usize| match (&q_spec, pilot_sizes) {
+        (Some(s), _) => s.deriv_rms[k - 1],
+        (None, Some((v2, w2))) => v2 * w2.powi(k as i32 - 2),
+        (None, None) => 0.0,
+    };
 
     // q̇ and q̈ from q.
     // White noise: σ²·Σw². Coloured: Σᵢⱼ wᵢwⱼ·r(i−j) from the noise's autocovariance, and the
@@ -409,7 +430,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let (qdd_best, qdd_recipe) = match qd_recipe {
         None => {
             let qd_spec = longest(&segments).and_then(|r| spectrum::analyse(&qd.values[r.clone()], dt));
-            let dv = |k: usize| qd_spec.as_ref().map_or(0.0, |s| s.deriv_rms[k - 1]);
+            // (a log too short for a spectrum: q̇'s k-th derivative is q's (k+1)-th, from the
+            // pilot window above)
+            let dv = |k: usize| qd_spec.as_ref().map_or_else(|| d(k + 1), |s| s.deriv_rms[k - 1]);
             let sigma = qd.info.noise_sd;
             match lpr::choose_half_width(dt, lpr::Order::First, sigma, dv(4), dv(5), h_max) {
                 Some((h, var, bias)) if (var + bias * bias).sqrt() < typical(&qdd_q.error()) => {
