@@ -243,3 +243,26 @@ fn a_long_rest_that_holds_evidence_is_scored_thinned_not_cut() {
 fn a_refit_stuck_in_a_local_minimum_is_restarted_before_an_effect_is_named() {
     reports_truth(9061, 83, &["parameters"]);
 }
+
+/// Two ripples named with a pad beside them (unseen seed 9075, fourteenth session):
+/// t9075/0012, a ripple of 0.056 rad over 0.119 rad of travel whose periodogram maximum sat in
+/// its first bin, which the peak search skipped; t9075/0080, two ripples near 2:1 (0.0164 and
+/// 0.0266 rad) read as one profile of 0.0327 rad with its harmonic. Both were
+/// `position_ripple` + `cable_spring`; the edges of the periodogram count now, and the peak
+/// alone with a second period is compared with the profile (`candidates`, `Kind::Ripple`).
+#[test]
+fn a_ripple_alone_leaves_no_pad_beside_it() {
+    reports_truth(9075, 12, &["position_ripple"]);
+    reports_truth(9075, 80, &["position_ripple"]);
+}
+
+/// A refit that overfits is not the base an effect is fitted on: t9076/0034 (a trunk joint
+/// under a human's torque, 63 % at rest) refitted to 2.7× the file's held-out RMSE, its folds
+/// putting the weight's cosine part at −25.7, 4.7 and 5.7 N·m, and every candidate on top of
+/// that refit scored worse than the file's model: `unexplained`. The terms the folds disagree
+/// on are now held at the file's values (as the emitted model keeps them) when the refit scores
+/// worse than the file, and the asymmetric Coulomb level reaches the floor.
+#[test]
+fn terms_the_folds_disagree_on_are_held_when_the_refit_overfits() {
+    reports_truth(9076, 34, &["asymmetric_friction"]);
+}

@@ -433,6 +433,38 @@ fn term_of(col: &candidates::Col) -> Option<(&'static [&'static str], &'static s
 /// their rows, so a disagreement this large is no sampling scatter. Nothing without folds.
 fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec<NotDetermined> {
     let des = &refit.design;
+    let mut out: Vec<NotDetermined> = Vec::new();
+    for (k, values, spread) in fold_unsettled(d, refit, split, floor) {
+        let Some(col) = des.cols.get(k) else { continue };
+        let Some((params, test)) = term_of(col) else { continue };
+        let params: Vec<String> = params.iter().map(|s| s.to_string()).collect();
+        if out.iter().any(|o| o.params == params) {
+            continue;
+        }
+        let shown: Vec<String> = values.iter().map(|v| format!("{v:.4}")).collect();
+        let what = match col {
+            Col::SinSq(_) => "the weight's sine part",
+            Col::CosSq(_) => "the weight's cosine part",
+            _ => "it",
+        };
+        out.push(NotDetermined {
+            params,
+            why: format!(
+                "the {} cross-fitted folds' refits put {what} at {} (its term's RMS over the held-out samples differs by {spread:.3} N·m between folds, the other terms offsetting it): the log does not separate it from them",
+                values.len(),
+                shown.join(", "),
+            ),
+            test,
+        });
+    }
+    out
+}
+
+/// The model's own columns (those [`term_of`] names) the cross-fitted folds' refits disagree
+/// on, by [`fold_undetermined`]'s rule: per column its index, the values (the merged refit's,
+/// then each fold's) and their spread in torque (N·m over the held-out samples).
+pub(crate) fn fold_unsettled(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec<(usize, Vec<f64>, f64)> {
+    let des = &refit.design;
     if refit.folds.is_empty() {
         return Vec::new();
     }
@@ -446,9 +478,11 @@ fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec
             *a += v * v;
         }
     }
-    let mut out: Vec<NotDetermined> = Vec::new();
+    let mut out = Vec::new();
     for (k, col) in des.cols.iter().enumerate().take(base_end) {
-        let Some((params, test)) = term_of(col) else { continue };
+        if term_of(col).is_none() {
+            continue;
+        }
         let values: Vec<f64> = std::iter::once(refit.beta[k])
             .chain(
                 refit
@@ -463,26 +497,7 @@ fn fold_undetermined(d: &Data, refit: &Scored, split: &Split, floor: f64) -> Vec
         if values.len() < 2 || !(hi - lo > 0.5 * big && (hi - lo) * rms > floor) {
             continue;
         }
-        let params: Vec<String> = params.iter().map(|s| s.to_string()).collect();
-        if out.iter().any(|o| o.params == params) {
-            continue;
-        }
-        let shown: Vec<String> = values.iter().map(|v| format!("{v:.4}")).collect();
-        let what = match col {
-            Col::SinSq(_) => "the weight's sine part",
-            Col::CosSq(_) => "the weight's cosine part",
-            _ => "it",
-        };
-        out.push(NotDetermined {
-            params,
-            why: format!(
-                "the {} cross-fitted folds' refits put {what} at {} (its term's RMS over the held-out samples differs by {:.3} N·m between folds, the other terms offsetting it): the log does not separate it from them",
-                values.len(),
-                shown.join(", "),
-                (hi - lo) * rms
-            ),
-            test,
-        });
+        out.push((k, values, (hi - lo) * rms));
     }
     out
 }
@@ -1332,7 +1347,7 @@ fn build_report(
     effects.sort_by(|a, b| a.holdout_rmse_after.total_cmp(&b.holdout_rmse_after));
     let mut warnings = refit_warnings(&effects);
     let mut unexcited = not_determined(d, sel, split);
-    for f in fold_undetermined(d, &sel.refit.scored, split, floor) {
+    for f in fold_undetermined(d, sel.free_refit.as_ref().unwrap_or(&sel.refit.scored), split, floor) {
         if !unexcited.iter().any(|u| u.params == f.params) {
             unexcited.push(f);
         }
