@@ -1040,16 +1040,24 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // The three strongest local maxima, refined by golden section in frequency.
             let one = |f: f64| Effect::Ripple { period: 1.0 / f, harmonics: 1, second: 0.0 };
             // A maximum at either end of the grid counts too, refined inside the grid: a ripple
-            // whose period is just under half the travel has its peak in the first bin, and
+            // whose period is just under half the travel has its maximum in the first bin, and
             // without it the search took a harmonic of the profile at a wrong period and a pad
             // fitted the rest, named as a second effect (unseen t9075/0012: 2.1 periods of
-            // 0.056 rad over 0.119 rad of travel).
+            // 0.056 rad over 0.119 rad of travel). Not once a cable or pad is chosen: two
+            // periods over the travel then fit what the pad's shape left (a strap's plateau left
+            // to a raised cosine was named a pad and a ripple, `diagnose_pad.rs`). (Whether the
+            // spectrum falls beyond the end cannot tell the two apart: over two periods the main
+            // lobe is eight bins wide, and a fold missed the true ripple with that test.)
             let f_top = f_lo + (nf - 1) as f64 * df;
+            let ends = !chosen.iter().any(|e| matches!(e, Effect::Cable { .. }));
             let peaks_of = |power: &[(f64, f64)]| {
                 let m = power.len();
                 let mut peaks: Vec<(f64, f64)> = (0..m)
                     .filter(|&k| {
-                        (k == 0 || power[k].1 >= power[k - 1].1) && (k + 1 == m || power[k].1 >= power[k + 1].1)
+                        let inner = k > 0 && k + 1 < m;
+                        (inner || ends)
+                            && (k == 0 || power[k].1 >= power[k - 1].1)
+                            && (k + 1 == m || power[k].1 >= power[k + 1].1)
                     })
                     .map(|k| power[k])
                     .collect();
