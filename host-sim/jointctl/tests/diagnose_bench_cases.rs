@@ -161,9 +161,18 @@ fn a_two_harmonic_ripple_of_equal_parts_is_refined_with_both() {
     assert_eq!(v.effect, "position_ripple", "{v:?}");
     let p = d.report.selected[0].params["period"];
     let floor = d.report.gap.noise_floor;
-    println!("period {p:.6} ({truth:.6}); held-out RMSE after {:.5} N·m (floor {floor:.5})", v.holdout_rmse_after);
+    // Since the fourteenth session the refit that scores worse than the file holds the term its
+    // folds disagree on, no longer takes part of the Stribeck curve, and the curve is found
+    // second (the truth's pair); before, the ripple alone reached 1.05× the floor. The chain's
+    // last step is what reaches the floor now.
+    let last = d.report.selected.last().unwrap().holdout_rmse_after;
+    println!(
+        "period {p:.6} ({truth:.6}); effects {:?}; held-out RMSE after the ripple {:.5}, after the chain {last:.5} N·m (floor {floor:.5})",
+        v.effects, v.holdout_rmse_after
+    );
     assert!((p / truth - 1.0).abs() < 1e-3, "period {p} ({truth})");
-    assert!(v.holdout_rmse_after < 1.1 * floor, "held-out RMSE after {} (floor {floor})", v.holdout_rmse_after);
+    assert_eq!(v.effects, strings(&["position_ripple", "stribeck"]), "{v:?}");
+    assert!(last < 1.1 * floor, "held-out RMSE after the chain {last} (floor {floor})");
 }
 
 #[test]

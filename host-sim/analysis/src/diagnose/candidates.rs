@@ -1129,8 +1129,10 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                 return Some(alone());
             }
             // The second period searched on top of a first one (frequency f, its harmonics):
-            // the pair and its training RSS where it pays its three values, else None.
-            let pair = |f: f64, harmonics: u8, r_first: f64| -> Option<(Effect, f64)> {
+            // the pair and its training RSS where it pays its three values, else None. `sub`:
+            // not at half of f either (the peak as a ripple of its own: a second period at half
+            // its frequency is the profile again, tried already, with a value more).
+            let pair = |f: f64, harmonics: u8, r_first: f64, sub: bool| -> Option<(Effect, f64)> {
                 let mut left = sum.clone();
                 for hk in 1..=u32::from(harmonics) {
                     let w = std::f64::consts::TAU * f * f64::from(hk);
@@ -1153,7 +1155,9 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                         *m -= c * (a * zs + bb * zc);
                     }
                 }
-                let near = |g: f64| (1..=2).any(|k| (g - f * f64::from(k)).abs() < 2.0 * df);
+                let near = |g: f64| {
+                    (1..=2).any(|k| (g - f * f64::from(k)).abs() < 2.0 * df) || sub && (g - 0.5 * f).abs() < 2.0 * df
+                };
                 let make = |f: f64, g: f64| Effect::Ripple { period: 1.0 / f, harmonics, second: 1.0 / g };
                 let mut best2: Option<(f64, f64)> = None;
                 for &(g, _) in peaks_of(&spectrum(&left)).iter().filter(|(g, _)| !near(*g)).take(3) {
@@ -1187,17 +1191,18 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
                     _ => None,
                 }
             };
-            let main = pair(f, harmonics, r_first);
+            let main = pair(f, harmonics, r_first, false);
             // Where the fundamental was taken at half the peak (the peak its second harmonic),
             // the peak may instead be a ripple of its own beside one of another period: a mesh
             // and a cogging whose periods are near 2:1 read as one profile with a fundamental
             // that is not there, and the other period's ripple, left half fitted, was named a
             // pad (unseen t9075/0080: 0.0164 and 0.0266 rad, fitted as 0.0327 with its harmonic
             // and a second period at 0.0417). The peak alone with a second period is tried too,
-            // and the better by BIC is kept (the peak and a second period: six values; the
+            // and the better by BIC is kept (the peak and a second period, not at the profile's
+            // fundamental: six values; the
             // profile: five, eight with its own second period).
             if half {
-                if let Some((other, r_other)) = pair(f0, 1, r1) {
+                if let Some((other, r_other)) = pair(f0, 1, r1, true) {
                     let (k, r) = main.as_ref().map_or((5.0, r_first), |(_, r)| (8.0, *r));
                     if n * r_other.ln() + 6.0 * n.ln() < n * r.ln() + k * n.ln() {
                         return Some(other);
