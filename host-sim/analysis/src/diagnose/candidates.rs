@@ -1199,8 +1199,7 @@ pub fn search_in(kind: Kind, ctx: &GridCtx<'_>, base: &Base, chosen: &[Effect]) 
             // pad (unseen t9075/0080: 0.0164 and 0.0266 rad, fitted as 0.0327 with its harmonic
             // and a second period at 0.0417). The peak alone with a second period is tried too,
             // and the better by BIC is kept (the peak and a second period, not at the profile's
-            // fundamental: six values; the
-            // profile: five, eight with its own second period).
+            // fundamental: six values; the profile: five, eight with its own second period).
             if half {
                 if let Some((other, r_other)) = pair(f0, 1, r1, true) {
                     let (k, r) = main.as_ref().map_or((5.0, r_first), |(_, r)| (8.0, *r));

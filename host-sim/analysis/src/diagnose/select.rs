@@ -1366,6 +1366,17 @@ fn delay_in_disguise(
     named.then_some(Outcome { name: Vocab::Delay, scored: s, t, p, gain, significant: true, implausible: None })
 }
 
+/// `base` with the columns `cols` held at their file values in every fit ([`Base::fixed`]).
+fn holding(base: &Base, cols: impl IntoIterator<Item = usize>) -> Base {
+    let mut b = base.clone();
+    for k in cols {
+        if let Some(f) = b.fixed.get_mut(k) {
+            *f = true;
+        }
+    }
+    b
+}
+
 /// `DIAG_TRACE=1`: every round's outcomes on stderr (for reading why a verdict came out); trajectory
 /// mode reads the same switch.
 pub(crate) fn trace() -> bool {
@@ -1422,11 +1433,7 @@ pub fn select(
     let held_base;
     let (base, round0) = match base.cols.iter().position(|c| *c == Col::Qdd) {
         Some(j) if inertia_held(&refit_s) => {
-            let mut b = base.clone();
-            if let Some(f) = b.fixed.get_mut(j) {
-                *f = true;
-            }
-            held_base = b;
+            held_base = holding(base, [j]);
             drop(round0);
             (&held_base, Rounds::new(d, &held_base, None, &fit_idx, split))
         }
@@ -1439,38 +1446,28 @@ pub fn select(
     // a human's torque, 63 % at rest, whose folds put the weight's cosine at −25.7, 4.7 and
     // 5.7 N·m, refitted to 2.7× the file's held-out RMSE, and its asymmetric friction (SNR 2.1)
     // then scored worse than the file's model too: `unexplained` (unseen t9076/0034).
+    let unsettled =
+        if refit_s.mse() > m0.mse() { super::fold_unsettled(d, &refit_s, split, floor) } else { Vec::new() };
     let settled_base;
     let mut free_refit = None;
-    let (base, round0, refit_s) = match refit_s.mse() > m0.mse() {
-        true => {
-            let cols = super::fold_unsettled(d, &refit_s, split, floor);
-            if cols.is_empty() {
-                (base, round0, refit_s)
-            } else {
-                let mut b = base.clone();
-                for (k, _, _) in &cols {
-                    if let Some(f) = b.fixed.get_mut(*k) {
-                        *f = true;
-                    }
-                }
-                settled_base = b;
-                drop(round0);
-                let round0 = Rounds::new(d, &settled_base, None, &fit_idx, split);
-                let held = round0.score(split, |r, f| r.refit(f, bits, n_regimes));
-                if trace() {
-                    eprintln!(
-                        "[trace] refit {:.5} over the file's {:.5}: {} term(s) the folds disagree on held at the file's values, refit {:.5}",
-                        refit_s.rmse(),
-                        m0.rmse(),
-                        cols.len(),
-                        held.rmse()
-                    );
-                }
-                free_refit = Some(refit_s);
-                (&settled_base, round0, held)
-            }
+    let (base, round0, refit_s) = if unsettled.is_empty() {
+        (base, round0, refit_s)
+    } else {
+        settled_base = holding(base, unsettled.iter().map(|u| u.0));
+        drop(round0);
+        let round0 = Rounds::new(d, &settled_base, None, &fit_idx, split);
+        let held = round0.score(split, |r, f| r.refit(f, bits, n_regimes));
+        if trace() {
+            eprintln!(
+                "[trace] refit {:.5} over the file's {:.5}: {} term(s) the folds disagree on held at the file's values, refit {:.5}",
+                refit_s.rmse(),
+                m0.rmse(),
+                unsettled.len(),
+                held.rmse()
+            );
         }
-        false => (base, round0, refit_s),
+        free_refit = Some(refit_s);
+        (&settled_base, round0, held)
     };
     let t0 = std::time::Instant::now();
     let first = try_kinds_folds(&Kind::ALL, &round0, &grid_idx, split, bits, n_regimes);

@@ -305,9 +305,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let mut reread = None;
     if let (Some(s), Some(r)) = (q_spec.as_mut(), longest(&segments)) {
         let pilot = ((0.05 / dt).round() as usize).clamp(3, h_max.max(3));
-        let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
-        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-        let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+        let (v1, v2) = pilot_motion(&log.t[r.clone()], &log.q[r.clone()], pilot);
         // rad/s: the motion's typical angular frequency
         let w = if v1 > 0.0 && v2 > 0.0 { v2 / v1 } else { 0.0 };
         if w > 0.0 && quantum > 0.0 {
@@ -358,9 +356,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     let pilot_sizes = if q_spec.is_none() {
         longest(&segments).filter(|r| r.len() >= lpr::DEGREE + 2).and_then(|r| {
             let pilot = ((0.05 / dt).round() as usize).clamp(2, (r.len() - 1) / 2);
-            let e = lpr::estimate(&log.t[r.clone()], &log.q[r.clone()], pilot);
-            let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-            let (v1, v2) = (rms(&e.d1), rms(&e.d2));
+            let (v1, v2) = pilot_motion(&log.t[r.clone()], &log.q[r.clone()], pilot);
             (v1 > 0.0 && v2 > 0.0).then(|| (v2, 2.0 * v2 / v1))
         })
     } else {
@@ -832,6 +828,14 @@ fn consistent(scale: f64) -> bool {
 
 fn share(v: &[bool]) -> f64 {
     v.iter().filter(|x| **x).count() as f64 / v.len().max(1) as f64
+}
+
+/// RMS of q̇ and of q̈ from local cubic fits of ±`h` samples over one segment: the motion's size
+/// seen through a pilot window, which averages an encoder's steps and a fine noise out.
+fn pilot_motion(t: &[f64], q: &[f64], h: usize) -> (f64, f64) {
+    let e = lpr::estimate(t, q, h);
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    (rms(&e.d1), rms(&e.d2))
 }
 
 /// The median of per-sample errors (a log's typical figure, robust to the larger errors at a
