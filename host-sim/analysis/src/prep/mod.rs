@@ -551,7 +551,9 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // (the joint may have started, the data cannot say): those samples are marked ambiguous.
     // (at least 20 ms: a move that creeps in or out below the q̇ noise looks like rest)
     let hold = ((qd.info.half_window_s.max(0.02) / dt).round() as usize).max(1);
-    let (mut direction, ambiguous) = transitions(&log.q, &qd.values, &qd.noise, &rest, &segments, 4.0 * q_noise, hold);
+    let logged_qd = qd_recipe.is_none() && log.qd.is_some() && qd.info.white;
+    let (mut direction, ambiguous) =
+        transitions(&log.q, (&qd.values, &qd.noise, logged_qd), &rest, &segments, 4.0 * q_noise, hold);
     // Elsewhere where the q̇ estimate is too small to sign, q may still be going one way on
     // both sides (a move that slows to a near stop and goes on): then that is its direction.
     let before_through = direction.clone();
@@ -1175,8 +1177,7 @@ fn rest_angle(q: &[f64], rest: &[bool], at: usize, seg: std::ops::Range<usize>) 
 #[allow(clippy::too_many_arguments)]
 fn transitions(
     q: &[f64],
-    qd: &[f64],
-    qd_noise: &[f64],
+    (qd, qd_noise, logged): (&[f64], &[f64], bool),
     rest: &[bool],
     segments: &[std::ops::Range<usize>],
     band: f64,
@@ -1190,6 +1191,13 @@ fn transitions(
     // and settles back reaches its rest going the other way, and that last way must not be
     // carried back over the whole move
     let sure = |i: usize| qd[i].abs() > 3.0 * qd_noise[i];
+    // A logged q̇ that is white noise about the motion (no estimator's window smearing a start
+    // back into the rest) signs the motion itself where it stands clear of its noise, though q
+    // is still inside its band: a move that creeps out of a rest at a few mrad/s under a coarse
+    // encoder takes a third of a second to leave it, and a Stribeck curve lives at those
+    // speeds (seen torque t9052/0046: 1.9 N·m at 0.006 rad/s, all of it left out). 4σ: a
+    // wrong sign there costs the full Coulomb step.
+    let signed = |i: usize| logged && qd[i].abs() > 4.0 * qd_noise[i];
     for seg in segments {
         for run in motion_runs(rest, seg.clone()) {
             // leaving a rest at run.start
@@ -1197,7 +1205,7 @@ fn transitions(
                 let q_rest = rest_angle(q, rest, run.start - 1, seg.clone());
                 let out = (run.start..run.end).find(|&k| (q[k] - q_rest).abs() > band);
                 let lo = run.start.saturating_sub(hold).max(seg.start);
-                amb[lo..out.unwrap_or(run.end)].iter_mut().for_each(|a| *a = true);
+                (lo..out.unwrap_or(run.end)).filter(|&i| !signed(i)).for_each(|i| amb[i] = true);
                 if let Some(k) = out {
                     let d = sgn(q[k] - q_rest);
                     for i in k..run.end {
@@ -1213,7 +1221,7 @@ fn transitions(
                 let q_rest = rest_angle(q, rest, run.end, seg.clone());
                 let last = (run.start..run.end).rev().find(|&k| (q[k] - q_rest).abs() > band);
                 let hi = (run.end + hold).min(seg.end);
-                amb[last.map_or(run.start, |k| k + 1)..hi].iter_mut().for_each(|a| *a = true);
+                (last.map_or(run.start, |k| k + 1)..hi).filter(|&i| !signed(i)).for_each(|i| amb[i] = true);
                 if let Some(k) = last {
                     let d = sgn(q_rest - q[k]);
                     for i in (run.start..=k).rev() {
