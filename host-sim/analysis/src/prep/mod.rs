@@ -1368,6 +1368,12 @@ fn drop_stale(log: &JointLog) -> (std::borrow::Cow<'_, JointLog>, usize) {
             && log.others.iter().all(|(_, v)| v[i] == v[i - 1])
             // a log of q alone at rest repeats itself legitimately
             && (log.qd.is_some() || log.u.is_some() || log.tau.is_some())
+            // and so does a still joint whose logged q̇ reads exactly zero (a clean or a
+            // drive-differenced velocity under a quantised angle): a logger that missed a
+            // sample repeats a moving joint's q̇. Dropped, the rest became gaps that split the
+            // log (seen trajectory t9054/0042: 2 780 rows of a pendulum at rest, 87 segments,
+            // the swing's ripple judged on the first one alone).
+            && log.qd.as_ref().is_none_or(|v| v[i] != 0.0)
     };
     let keep: Vec<usize> = (0..n).filter(|&i| i == 0 || !same(i)).collect();
     let dropped = n - keep.len();
@@ -1719,6 +1725,37 @@ mod tests {
         assert_eq!(p.report.stale_dropped, 1);
         assert_eq!(p.segments.len(), 2);
         assert_eq!(p.report.samples, 399);
+    }
+
+    /// A pendulum that swings and settles, its angle quantised and its q̇ logged clean: at
+    /// rest every row repeats the one before (q̇ exactly 0, the same count, the same held
+    /// input). That is a still joint, not a logger that missed samples: nothing is dropped and
+    /// the log stays one stretch. A repeat of a moving joint's row is still dropped.
+    #[test]
+    fn a_still_joint_with_a_logged_zero_velocity_is_no_stale_row() {
+        let n = 2000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let step = 0.0015;
+        let swing = |t: f64| 0.3 * (-3.0 * t).exp() * (12.0 * t).cos();
+        let q: Vec<f64> = t
+            .iter()
+            .map(|&t| if t < 1.0 { (swing(t) / step).round() * step } else { (swing(1.0) / step).round() * step })
+            .collect();
+        let mut qd: Vec<f64> = t
+            .iter()
+            .map(|&t| if t < 1.0 { -3.0 * swing(t) - 3.6 * (-3.0 * t).exp() * (12.0 * t).sin() } else { 0.0 })
+            .collect();
+        let u = vec![0.5; n];
+        let p =
+            prepare(&JointLog { qd: Some(qd.clone()), u: Some(u.clone()), ..log_of(t.clone(), q.clone()) }).unwrap();
+        assert_eq!(p.report.stale_dropped, 0);
+        assert_eq!(p.segments.len(), 1);
+        // a moving row repeated (a missed sample) is stale
+        let (mut q2, k) = (q.clone(), 400);
+        q2[k] = q2[k - 1];
+        qd[k] = qd[k - 1];
+        let p = prepare(&JointLog { qd: Some(qd), u: Some(u), ..log_of(t, q2) }).unwrap();
+        assert_eq!(p.report.stale_dropped, 1);
     }
 
     #[test]
