@@ -102,6 +102,15 @@ pub struct DerivInfo {
     pub white: bool,
 }
 
+impl DerivInfo {
+    /// The logged column is the one used, and its error is white noise about the motion (no
+    /// estimator's window or logger's filter smearing it): a reading that stands clear of that
+    /// noise is the joint's own.
+    pub fn logged_white(&self) -> bool {
+        self.source == "logged" && self.white
+    }
+}
+
 /// What the preparation did, for the reports (optional fields of identification and
 /// diagnosis output).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -479,7 +488,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // the last 10 samples of each dwell). σ is the larger of its noise and its robust scatter
     // over the rests found: a column that passed as white can still be a logger's low-pass,
     // whose noise at rest is smooth and well above the high-frequency part the check measured.
-    if qdd_recipe.is_none() && log.qdd.is_some() && qdd.info.white {
+    if qdd.info.logged_white() {
         let mut at_rest: Vec<f64> = qdd.values.iter().zip(&rest).filter(|(_, &r)| r).map(|(a, _)| a.abs()).collect();
         if at_rest.len() >= 20 {
             let scatter = 1.4826 * quantile::at_rounded(&mut at_rest, 0.5).unwrap_or(0.0);
@@ -551,9 +560,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // (the joint may have started, the data cannot say): those samples are marked ambiguous.
     // (at least 20 ms: a move that creeps in or out below the q̇ noise looks like rest)
     let hold = ((qd.info.half_window_s.max(0.02) / dt).round() as usize).max(1);
-    let logged_qd = qd_recipe.is_none() && log.qd.is_some() && qd.info.white;
     let (mut direction, ambiguous) =
-        transitions(&log.q, (&qd.values, &qd.noise, logged_qd), &rest, &segments, 4.0 * q_noise, hold);
+        transitions(&log.q, (&qd.values, &qd.noise, qd.info.logged_white()), &rest, &segments, 4.0 * q_noise, hold);
     // Elsewhere where the q̇ estimate is too small to sign, q may still be going one way on
     // both sides (a move that slows to a near stop and goes on): then that is its direction.
     let before_through = direction.clone();
