@@ -204,8 +204,8 @@ fn a_log_too_short_for_a_spectrum_gets_windows_its_motion_allows() {
 }
 
 /// Slow moves out of rests under a coarse encoder: 1 kHz, 0.0015 rad per count, each move
-/// creeping out of its rest (q̇ rising as t², 0.05 rad/s after 0.5 s), so q takes ~0.15 s to
-/// leave its noise band. A logged q̇ with white noise of 2e-4 rad/s signs the motion where it
+/// creeping out of its rest (q̇ rising as t², 0.1 rad/s after 0.5 s), so q takes ~0.2 s to
+/// leave its noise band (4 × step/√12). A logged q̇ with white noise of 2e-4 rad/s signs the motion where it
 /// stands clear of that noise: those samples are not left out as of unknown direction (a
 /// Stribeck curve lives at those speeds). A q̇ derived from q has no such reading there, and
 /// its samples stay out.
