@@ -245,17 +245,35 @@ fn a_killed_push_leaves_nothing_staged_and_the_set_in_force_unchanged() {
 
 /// A CAN bus between slcan ptys: every frame line one port writes goes to all the others, as a
 /// bus delivers a frame to every node; commands and acknowledgements stay with their port.
-/// The threads end when socat goes (their reads fail).
+/// Each port is written by a thread of its own, fed through a queue: a port nobody drains (the
+/// pty of a `jointctl push` that has exited, whose buffer fills) must not hold up the frames to
+/// the others, as a node that left a bus does not stop it. With one writer for all, the sim's
+/// answers to the controller waited behind a write to the exited push's full pty, and the
+/// controller's upload in flight timed out some 170 ms after every push (half of the runs on an
+/// idle machine). The threads end when socat goes (their reads and writes fail).
 fn hub(ports: &[std::path::PathBuf]) {
     use std::io::{Read, Write};
-    use std::sync::{Arc, Mutex};
-    let files: Vec<Arc<Mutex<std::fs::File>>> = ports
+    use std::sync::mpsc;
+    let files: Vec<std::fs::File> =
+        ports.iter().map(|p| std::fs::OpenOptions::new().read(true).write(true).open(p).unwrap()).collect();
+    let senders: Vec<mpsc::Sender<Vec<u8>>> = files
         .iter()
-        .map(|p| Arc::new(Mutex::new(std::fs::OpenOptions::new().read(true).write(true).open(p).unwrap())))
+        .map(|f| {
+            let (tx, rx) = mpsc::channel::<Vec<u8>>();
+            let mut writer = f.try_clone().unwrap();
+            std::thread::spawn(move || {
+                while let Ok(line) = rx.recv() {
+                    if writer.write_all(&line).is_err() {
+                        return;
+                    }
+                }
+            });
+            tx
+        })
         .collect();
-    for (i, f) in files.iter().enumerate() {
-        let mut reader = f.lock().unwrap().try_clone().unwrap();
-        let others: Vec<_> = files.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, o)| o.clone()).collect();
+    for (i, f) in files.into_iter().enumerate() {
+        let mut reader = f;
+        let others: Vec<_> = senders.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, o)| o.clone()).collect();
         std::thread::spawn(move || {
             let (mut line, mut buf) = (Vec::new(), [0u8; 256]);
             while let Ok(n) = reader.read(&mut buf) {
@@ -270,7 +288,7 @@ fn hub(ports: &[std::path::PathBuf]) {
                     if matches!(line.first(), Some(b't' | b'b' | b'd')) {
                         line.push(b'\r');
                         for o in &others {
-                            let _ = o.lock().unwrap().write_all(&line);
+                            let _ = o.send(line.clone());
                         }
                     }
                     line.clear();
