@@ -286,20 +286,39 @@ fn terms_the_folds_disagree_on_are_held_when_the_refit_overfits() {
     reports_truth(9076, 34, &["asymmetric_friction"]);
 }
 
-/// A second effect that takes a clear share where the first left the floor (seed 9051 case 73
-/// and seed 9053 case 74 of the bench drawn in torque mode, fifteenth session). A ripple left
-/// 1.04× the floor and a Stribeck curve under it took 15.7 % of the held-out MSE at p = 2e-10;
-/// a ripple left 0.95× and friction growing with the load took 18 % at p = 4e-6. Both fell
-/// short of the strong-evidence bar a further effect at the floor had to meet, while a first
-/// effect that takes 15 % counts there (the floor over-read); a further one now counts the same.
+/// A second effect that takes a clear share where the first left the floor (seed 9084 case 51,
+/// an unseen set of the fifteenth session, seen since). A ripple left 0.70× the floor (read over
+/// the samples whose direction of motion is uncertain) and friction growing with the load took
+/// 38 % of the held-out MSE under it at p = 6e-4, short of the strong-evidence bar a further
+/// effect at the floor had to meet, while a first effect that takes 15 % counts there (the floor
+/// over-read); a further one now counts the same. (The two cases this test first used, seed 9051
+/// case 73 and seed 9053 case 74 in torque mode, sat at 15.7 % and 18 %; with the jitter of their
+/// clocks no longer read as noise, their q̈ windows and floors moved, and their second effects
+/// fell under the bar: see `a_clock_that_jitters_and_says_so_is_no_effect`.)
 #[test]
 fn a_second_effect_that_takes_a_clear_share_at_the_floor_is_named() {
-    for (seed, case, truth, said) in [
-        (9051, 73, ["stribeck", "position_ripple"], ["position_ripple", "stribeck"]),
-        (9053, 74, ["load_dependent_friction", "position_ripple"], ["position_ripple", "load_dependent_friction"]),
-    ] {
-        let (t, s) = diagnosed_in(seed, case, ModeSel::Torque);
-        assert_eq!(t, strings(&truth), "the bench's case changed (seed {seed} case {case})");
-        assert_eq!(s, strings(&said), "seed {seed} case {case}");
+    let (t, s) = diagnosed(9084, 51);
+    assert_eq!(t, strings(&["load_dependent_friction", "position_ripple"]), "the bench's case changed");
+    assert_eq!(s, strings(&["position_ripple", "load_dependent_friction"]));
+}
+
+/// Model-exact torque logs whose clock jitters by 5–14 % of the step, each row stamped with the
+/// time its sample was taken (null seed 31, cases 174 and 227, `--family none --mode torque`).
+/// The spectrum read the angle's differences over the median step, took the jitter for a noise
+/// of q̇·δt up to 3.7 times the encoder's, chose a q̈ window that wide, and the refit took the
+/// window's attenuation of a chirp's top (J·Δq̈) for `parameters`. Differences over each row's
+/// own step (`prep::spectrum`) leave the encoder's noise, and both are `none`.
+#[test]
+fn a_clock_that_jitters_and_says_so_is_no_effect() {
+    for case in [174, 227] {
+        let c = gen::generate(31, case, Some("none"), ModeSel::Torque).expect("the bench draws the case");
+        assert!(c.truth.effects == ["none"] && c.truth.time_jitter > 0.04, "the bench's case changed (case {case})");
+        let dir = tempfile::tempdir().unwrap();
+        gen::write_case(dir.path(), &c, false).unwrap();
+        let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
+        let model = ModelFile::read_file(&dir.path().join("model.toml")).unwrap();
+        let d =
+            joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap();
+        assert_eq!(d.report.verdict.effect, "none", "null seed 31 case {case}: {:?}", d.report.verdict);
     }
 }

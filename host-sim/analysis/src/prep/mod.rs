@@ -289,7 +289,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             segments.len()
         ));
     }
-    let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.q[r.clone()], dt));
+    let q_spec = longest(&segments).and_then(|r| spectrum::analyse(&log.t[r.clone()], &log.q[r.clone()], dt));
     let quantum = resolution_sd(&log.q);
     lap("spectrum, resolution");
     let h_max = ((MAX_HALF_WINDOW_S / dt).round() as usize).max(2);
@@ -334,7 +334,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let (ratio, spread) = (s.deriv_rms[1] / v2, s.bandwidth_hz / (w / std::f64::consts::TAU));
             if (ratio > 3.0 && spread > 5.0) || (ratio > 1.5 && spread > 20.0) {
                 let edge = 4.0 * w / std::f64::consts::TAU;
-                if let Some(again) = spectrum::analyse_below(&log.q[r.clone()], dt, Some(edge)) {
+                if let Some(again) = spectrum::analyse_below(&log.t[r.clone()], &log.q[r.clone()], dt, Some(edge)) {
                     notes.push(format!(
                         "q's spectrum stands above its white noise up to {:.0} Hz, but a 50 ms window sees its motion at \
                          {:.1} Hz: above {edge:.1} Hz it is read as a coloured noise, not motion",
@@ -424,7 +424,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             let short = |_: &[f64]| derive(Recipe { h: (r1.h / 4).max(2), ..r1 }, &log.q, &segments).0;
             let what =
                 LoggedColumn { name: "qd", of: "q", estimate: "the derivative of q", used: "q's", unit: "rad/s" };
-            match check_logged(v, qd_q, &short, &what, (&segments, dt), &mut notes)? {
+            match check_logged(v, qd_q, &short, &what, (&log.t, &segments, dt), &mut notes)? {
                 (d, true) => (d, None),
                 (d, false) => (d, Some(r1)),
             }
@@ -434,7 +434,8 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
     // q̈ from the logged q̇ when that is the q̇ used (a derivative less to take).
     let (qdd_best, qdd_recipe) = match qd_recipe {
         None => {
-            let qd_spec = longest(&segments).and_then(|r| spectrum::analyse(&qd.values[r.clone()], dt));
+            let qd_spec =
+                longest(&segments).and_then(|r| spectrum::analyse(&log.t[r.clone()], &qd.values[r.clone()], dt));
             // (a log too short for a spectrum: q̇'s k-th derivative is q's (k+1)-th, from the
             // pilot window above)
             let dv = |k: usize| qd_spec.as_ref().map_or_else(|| d(k + 1), |s| s.deriv_rms[k - 1]);
@@ -461,7 +462,7 @@ pub fn prepare(log: &JointLog) -> Result<Prepared, PrepError> {
             };
             let what =
                 LoggedColumn { name: "qdd", of: "qd", estimate: "the estimate", used: "the estimate", unit: "rad/s²" };
-            match check_logged(a, qdd_best, &short, &what, (&segments, dt), &mut notes)? {
+            match check_logged(a, qdd_best, &short, &what, (&log.t, &segments, dt), &mut notes)? {
                 (d, true) => (d, None),
                 (d, false) => (d, qdd_recipe),
             }
@@ -1458,8 +1459,10 @@ fn longest(segments: &[std::ops::Range<usize>]) -> Option<&std::ops::Range<usize
 }
 
 /// A logged column's own white noise: from its spectrum (or its 4th differences when short).
-fn own_noise(x: &[f64], segments: &[std::ops::Range<usize>], dt: f64) -> f64 {
-    longest(segments).and_then(|r| spectrum::analyse(&x[r.clone()], dt)).map_or_else(|| diff_noise(x), |s| s.noise_sd)
+fn own_noise(t: &[f64], x: &[f64], segments: &[std::ops::Range<usize>], dt: f64) -> f64 {
+    longest(segments)
+        .and_then(|r| spectrum::analyse(&t[r.clone()], &x[r.clone()], dt))
+        .map_or_else(|| diff_noise(x), |s| s.noise_sd)
 }
 
 /// White noise on `x` from its 4th differences (robust), for logs too short for a spectrum.
@@ -1532,13 +1535,13 @@ fn check_logged(
     estimate: Deriv,
     short: &dyn Fn(&[f64]) -> Vec<f64>,
     what: &LoggedColumn,
-    (segments, dt): (&[std::ops::Range<usize>], f64),
+    (t, segments, dt): (&[f64], &[std::ops::Range<usize>], f64),
     notes: &mut Vec<String>,
 ) -> Result<(Deriv, bool), PrepError> {
     let est_err = typical(&estimate.error());
     let short_of_estimate = || short(&estimate.values);
     let (scale, diff) = compare_logged(col, &estimate.values, est_err, &short_of_estimate, what.name, what.of)?;
-    let own = own_noise(col, segments, dt);
+    let own = own_noise(t, col, segments, dt);
     let noise = diff.max(own);
     let lag = logged_lag(col, &estimate.values);
     if let Some(l) = lag {

@@ -2,7 +2,7 @@
 //! its higher derivatives are, the two numbers a derivative estimator's window trades off.
 //!
 //! The spectrum is Welch's (Hann windows, half overlap) of the signal's first difference over
-//! `dt` (a rough derivative, so the large slow part of a position does not leak into the high
+//! its time step (a rough derivative, so the large slow part of a position does not leak into the high
 //! frequencies through the window). White noise of standard deviation σ on the signal puts
 //! `2·dt·σ²·(2·sin(π·f·dt)/dt)²` into that spectrum, highest near Nyquist, where smooth motion
 //! has none: σ² is read from the top quarter of the band (median, so a few tones do not count).
@@ -31,21 +31,38 @@ pub struct SignalSpectrum {
 /// Fewer samples than this: no spectrum (the caller uses its fallbacks).
 pub const MIN_SAMPLES: usize = 64;
 
-/// The spectrum of `x` sampled every `dt` seconds (nearly uniformly), or `None` for fewer
-/// than [`MIN_SAMPLES`] samples.
-pub fn analyse(x: &[f64], dt: f64) -> Option<SignalSpectrum> {
-    analyse_below(x, dt, None)
+/// The spectrum of `x` stamped at `t`, `dt` seconds apart (the median step; nearly uniformly),
+/// or `None` for fewer than [`MIN_SAMPLES`] samples.
+pub fn analyse(t: &[f64], x: &[f64], dt: f64) -> Option<SignalSpectrum> {
+    analyse_below(t, x, dt, None)
+}
+
+/// The rough derivative of `x` stamped at `t`: each first difference over the median step `dt`
+/// where the stamps are even (within 1 % of it, as [`super::lpr::estimate`] takes them), else
+/// over the sample's own step. A log whose stamps say when each sample was taken, on a clock
+/// that jitters, holds the motion exactly: a difference over the median step reads the
+/// jitter as a noise of `q̇·δt` on the angle, largest where the joint moves fastest (model-exact
+/// null seed 31, case 174: a chirp at 100 Hz with 13 % jitter read as a noise of 3.7 times the
+/// encoder's, a window for q̈ that wide attenuated the chirp's top by 5 %, and the refit took
+/// J·Δq̈ for `parameters`).
+fn rough_derivative(t: &[f64], x: &[f64], dt: f64) -> Vec<f64> {
+    let even = t.len() == x.len() && t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 0.01 * dt);
+    if even || t.len() != x.len() {
+        x.windows(2).map(|w| (w[1] - w[0]) / dt).collect()
+    } else {
+        x.windows(2).zip(t.windows(2)).map(|(w, s)| (w[1] - w[0]) / (s[1] - s[0])).collect()
+    }
 }
 
 /// As [`analyse`], told that the motion ends at `motion_edge_hz` (when given): everything
 /// above it is noise, whatever its slope (a noise filtered twice before it was logged falls as
 /// steeply as a motion does, and only another view of the motion can tell them apart; see
 /// `prep::prepare`).
-pub fn analyse_below(x: &[f64], dt: f64, motion_edge_hz: Option<f64>) -> Option<SignalSpectrum> {
+pub fn analyse_below(t: &[f64], x: &[f64], dt: f64, motion_edge_hz: Option<f64>) -> Option<SignalSpectrum> {
     if x.len() < MIN_SAMPLES || !(dt > 0.0) {
         return None;
     }
-    let d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+    let d = rough_derivative(t, x, dt);
     let (freqs, psd) = welch(&d, dt);
     let nyq = 0.5 / dt;
     let shape = |f: f64| white_shape(f, dt);
@@ -374,6 +391,11 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
+    /// `n` stamps `dt` apart.
+    fn even(n: usize, dt: f64) -> Vec<f64> {
+        (0..n).map(|i| i as f64 * dt).collect()
+    }
+
     #[test]
     fn noise_and_derivatives_of_a_known_signal() {
         let dt = 1e-3;
@@ -387,7 +409,7 @@ mod tests {
                 a * (w * i as f64 * dt).sin() + sigma * g
             })
             .collect();
-        let s = analyse(&x, dt).unwrap();
+        let s = analyse(&even(x.len(), dt), &x, dt).unwrap();
         assert!((s.noise_sd / sigma - 1.0).abs() < 0.1, "noise {} vs {sigma}", s.noise_sd);
         // RMS of the k-th derivative of a sine: a·w^k/√2. The window's leakage spreads the tone
         // over neighbouring bins, which weigh a high derivative more: within 10 % up to q̈, 40 %
@@ -401,6 +423,31 @@ mod tests {
         }
         // the tone's window leakage stands above the noise for a few Hz
         assert!(s.bandwidth_hz > 0.5 && s.bandwidth_hz < 5.0, "bandwidth {}", s.bandwidth_hz);
+    }
+
+    /// A chirp-like motion sampled on a clock that jitters by ±7 % of the step, each sample
+    /// stamped with the time it was taken, and a white noise on it: read over each sample's own
+    /// step, the noise is the sensor's; read over the median step, the jitter is taken for a
+    /// noise of `q̇·δt` several times larger (null seed 31, case 174 of the bench).
+    #[test]
+    fn a_clock_that_jitters_and_says_so_adds_no_noise() {
+        let dt = 1e-2;
+        let n = 6_000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let sigma = 2e-5;
+        let t: Vec<f64> = (0..n).map(|i| (i as f64 + 0.14 * (rng.random::<f64>() - 0.5)) * dt).collect();
+        let (a, w) = (0.06, std::f64::consts::TAU * 1.5);
+        let x: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                a * (w * t).sin() + sigma * g
+            })
+            .collect();
+        let s = analyse(&t, &x, dt).unwrap();
+        assert!((s.noise_sd / sigma - 1.0).abs() < 0.2, "noise {} vs {sigma}", s.noise_sd);
+        let blind = analyse(&even(n, dt), &x, dt).unwrap();
+        assert!(blind.noise_sd > 3.0 * sigma, "the jitter read as noise: {} vs {sigma}", blind.noise_sd);
     }
 
     /// A velocity logged through a drive's filter: the motion (two slow tones) plus white noise
@@ -422,7 +469,7 @@ mod tests {
                 0.8 * (std::f64::consts::TAU * 0.3 * t).sin() + 0.3 * (std::f64::consts::TAU * 1.1 * t).cos() + state
             })
             .collect();
-        let s = analyse(&x, dt).unwrap();
+        let s = analyse(&even(x.len(), dt), &x, dt).unwrap();
         assert!(s.bandwidth_hz < 10.0, "bandwidth {} Hz", s.bandwidth_hz);
         // the motion's 2nd derivative: √((0.8·w1²)² + (0.3·w2²)²)/√2
         let (w1, w2) = (std::f64::consts::TAU * 0.3, std::f64::consts::TAU * 1.1);
@@ -461,7 +508,7 @@ mod tests {
                 a * (w * i as f64 * dt).sin() + e
             })
             .collect();
-        let s = analyse(&x, dt).unwrap();
+        let s = analyse(&even(x.len(), dt), &x, dt).unwrap();
         assert!(!s.noise.is_white());
         assert!((s.noise.total_sd() / sd - 1.0).abs() < 0.25, "total {}", s.noise.total_sd());
         let r = s.noise.autocovariance(1);
