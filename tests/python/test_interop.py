@@ -15,6 +15,7 @@ import shutil
 import struct
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -129,6 +130,25 @@ def params(node):
 
 def f32(x):
     return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+def reset_node(network, node, timeout=5.0):
+    """NMT reset node, and wait for its boot-up message (0x700 + id, one byte 0). Listening
+    starts before the reset is sent: python-canopen's `wait_for_bootup` clears what it heard
+    before it is called, so a node that boots before the waiting starts (a loaded host delays
+    this thread past the sim's reboot) timed out the test (CI, sixteenth session)."""
+    booted = threading.Event()
+
+    def heard(cob, data, ts):
+        if bytes(data) == b"\x00":
+            booted.set()
+
+    network.subscribe(0x700 + node.id, heard)
+    try:
+        node.nmt.state = "RESET"
+        assert booted.wait(timeout), f"node {node.id} sent no boot-up within {timeout} s of a reset"
+    finally:
+        network.unsubscribe(0x700 + node.id, heard)
 
 
 def preop(node):
@@ -591,16 +611,14 @@ def test_tpdo_remapped_through_the_pdo_api_and_kept_by_store(rig):
     node.sdo[0x1800][1].raw = 0x185
     # stored with the parameters, back after a reset of the node
     node.store()
-    node.nmt.state = "RESET"
-    node.nmt.wait_for_bootup(timeout=2)
+    reset_node(network, node)
     time.sleep(0.2)
     node.sdo["clear_faults"].raw = 1
     node.tpdo.read()
     assert [v.name for v in node.tpdo[1]] == ["joint_state_real32.q", "joint_state.faults", "error_register"]
     # 0x1011: the defaults after the next reset
     node.restore()
-    node.nmt.state = "RESET"
-    node.nmt.wait_for_bootup(timeout=2)
+    reset_node(network, node)
     time.sleep(0.2)
     node.sdo["clear_faults"].raw = 1
     assert node.sdo[0x1A00][0].raw == 4 and node.sdo[0x1A00][1].raw == 0x23000110
