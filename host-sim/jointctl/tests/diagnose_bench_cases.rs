@@ -334,3 +334,22 @@ fn a_clock_that_jitters_and_says_so_is_no_effect() {
         assert_eq!(d.report.verdict.effect, "none", "null seed 31 case {case}: {:?}", d.report.verdict);
     }
 }
+
+/// A pre-sliding state whose travel is read from the angle's own steps (seed 9085 case 30, an
+/// unseen set of the sixteenth session, seen since: an elastic joint point-to-point at 338 Hz,
+/// a 0.05 mrad encoder without white noise, a Dahl friction of 0.45 mrad). The state integrated
+/// the prepared q̇, whose ±92 ms window spreads each reversal: its distance came out at 1.29 mrad,
+/// and a ripple of 4.7 mrad took the shape's error as a second effect. The travel from the
+/// angle's own steps is searched beside it (`candidates::travel`); here it fits, the distance
+/// comes out within 10 % of the truth, and nothing is named beside it.
+#[test]
+fn a_presliding_state_reads_its_travel_from_the_angle_where_that_fits() {
+    let (c, d) = run_case(9085, 30);
+    assert_eq!(c.truth.effects, strings(&["presliding_hysteresis"]), "the bench's case changed");
+    let v = &d.report.verdict;
+    let said = if v.effects.is_empty() { vec![v.effect.clone()] } else { v.effects.clone() };
+    assert_eq!(said, strings(&["presliding_hysteresis"]));
+    let e = d.report.effects.iter().find(|e| e.effect == "presliding_hysteresis").expect("the candidate");
+    let distance = e.params["distance"];
+    assert!((distance / 0.000_452_7 - 1.0).abs() < 0.1, "pre-sliding distance {distance} rad against 0.4527 mrad");
+}

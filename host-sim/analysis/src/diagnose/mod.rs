@@ -1129,7 +1129,7 @@ pub(crate) fn effect_params(s: &Scored, k: usize, d: &Data) -> BTreeMap<String, 
             put("seconds", lag.abs() * d.dt);
         }
         Effect::Dry => put("c", beta(0)),
-        Effect::Presliding { kappa } => {
+        Effect::Presliding { kappa, .. } => {
             // the Dahl column's coefficient is the Coulomb level c; σ = κ·c
             let c = s.design.cols.iter().position(|c| matches!(c, Col::Dahl { .. })).map_or(0.0, |k| s.beta[k]);
             put("sigma", kappa * c);

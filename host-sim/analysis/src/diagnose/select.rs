@@ -1907,7 +1907,7 @@ mod tests {
             Effect::Delay { lag: -4.0, channel: crate::diagnose::candidates::Channel::Tau },
             Effect::Delay { lag: 2.0, channel: crate::diagnose::candidates::Channel::State },
             Effect::Dry,
-            Effect::Presliding { kappa: 900.0 },
+            Effect::Presliding { kappa: 900.0, raw: false },
         ];
         for chosen in [
             vec![],
@@ -2011,7 +2011,7 @@ mod tests {
         let exact = GridCtx::new(&d, &base, &[], &idx);
         grid.compose_dahl = true;
         for kappa in [30.0, 900.0, 2e4] {
-            let e = Effect::Presliding { kappa };
+            let e = Effect::Presliding { kappa, raw: false };
             let (a, b) = (grid.delta(&e).replace.unwrap().1, exact.delta(&e).replace.unwrap().1);
             assert_eq!(a.len(), b.len());
             let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
