@@ -66,7 +66,12 @@ fn run_case(seed: u64, case: u64) -> (diag_bench::case::CaseData, Diagnosis) {
 
 /// [`run_case`] for the bench drawn in one mode (`diag-bench gen --mode`).
 fn run_case_in(seed: u64, case: u64, mode: ModeSel) -> (diag_bench::case::CaseData, Diagnosis) {
-    let c = gen::generate(seed, case, None, mode).expect("the bench draws the case");
+    run_case_of(seed, case, None, mode)
+}
+
+/// [`run_case_in`] for one effect family (`diag-bench gen --family`, e.g. `none`).
+fn run_case_of(seed: u64, case: u64, family: Option<&str>, mode: ModeSel) -> (diag_bench::case::CaseData, Diagnosis) {
+    let c = gen::generate(seed, case, family, mode).expect("the bench draws the case");
     let dir = tempfile::tempdir().unwrap();
     gen::write_case(dir.path(), &c, false).unwrap();
     let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
@@ -85,12 +90,22 @@ fn diagnosed(seed: u64, case: u64) -> (Vec<String>, Vec<String>) {
 fn diagnosed_in(seed: u64, case: u64, mode: ModeSel) -> (Vec<String>, Vec<String>) {
     let (c, d) = run_case_in(seed, case, mode);
     let v = &d.report.verdict;
-    let said = if v.effects.is_empty() { vec![v.effect.clone()] } else { v.effects.clone() };
+    let said = said(&d);
     println!(
         "seed {seed} case {case}: truth {:?}, said {said:?} (held-out RMSE {:.4} → {:.4}, floor {:.4})",
         c.truth.effects, v.holdout_rmse_before, v.holdout_rmse_after, d.report.gap.noise_floor
     );
     (c.truth.effects.clone(), said)
+}
+
+/// The effects a diagnosis reports: the verdict's chain, or its one effect.
+fn said(d: &Diagnosis) -> Vec<String> {
+    let v = &d.report.verdict;
+    if v.effects.is_empty() {
+        vec![v.effect.clone()]
+    } else {
+        v.effects.clone()
+    }
 }
 
 fn strings(v: &[&str]) -> Vec<String> {
@@ -323,14 +338,8 @@ fn a_kind_pruned_in_one_fold_is_still_judged_on_all_of_them() {
 #[test]
 fn a_clock_that_jitters_and_says_so_is_no_effect() {
     for case in [174, 227] {
-        let c = gen::generate(31, case, Some("none"), ModeSel::Torque).expect("the bench draws the case");
+        let (c, d) = run_case_of(31, case, Some("none"), ModeSel::Torque);
         assert!(c.truth.effects == ["none"] && c.truth.time_jitter > 0.04, "the bench's case changed (case {case})");
-        let dir = tempfile::tempdir().unwrap();
-        gen::write_case(dir.path(), &c, false).unwrap();
-        let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
-        let model = ModelFile::read_file(&dir.path().join("model.toml")).unwrap();
-        let d =
-            joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap();
         assert_eq!(d.report.verdict.effect, "none", "null seed 31 case {case}: {:?}", d.report.verdict);
     }
 }
@@ -346,9 +355,7 @@ fn a_clock_that_jitters_and_says_so_is_no_effect() {
 fn a_presliding_state_reads_its_travel_from_the_angle_where_that_fits() {
     let (c, d) = run_case(9085, 30);
     assert_eq!(c.truth.effects, strings(&["presliding_hysteresis"]), "the bench's case changed");
-    let v = &d.report.verdict;
-    let said = if v.effects.is_empty() { vec![v.effect.clone()] } else { v.effects.clone() };
-    assert_eq!(said, strings(&["presliding_hysteresis"]));
+    assert_eq!(said(&d), strings(&["presliding_hysteresis"]));
     let e = d.report.effects.iter().find(|e| e.effect == "presliding_hysteresis").expect("the candidate");
     let distance = e.params["distance"];
     assert!((distance / 0.000_452_7 - 1.0).abs() < 0.1, "pre-sliding distance {distance} rad against 0.4527 mrad");

@@ -241,10 +241,6 @@ impl Col {
     }
 }
 
-/// The Dahl state z along the log for inverse pre-sliding distance `kappa`, driven by the
-/// travel of the prepared q̇ (trapezoid; at rest q̇ = 0, so encoder noise does not move it).
-/// Each step is the exact solution of dz/dq = κ·(1 − z·sign(dq)) over its travel, so z stays
-/// in [−1, 1] whatever the step; it starts at the expected friction sign of the first sample.
 /// The angle travelled from sample `i − 1` to `i`, what a Dahl state integrates: the prepared
 /// q̇ over the step, or (`raw`) the logged angle's own step, outside rests (where the prepared
 /// q̇ is 0 on both sides, a still joint's noise is no travel). The prepared q̇ comes through a
@@ -264,6 +260,11 @@ fn travel(d: &Data, i: usize, raw: bool) -> f64 {
     0.5 * (d.qd[i] + d.qd[i - 1]) * (d.t[i] - d.t[i - 1])
 }
 
+/// The Dahl state z along the log for inverse pre-sliding distance `kappa`, driven by the
+/// [`travel`] of the prepared q̇ (trapezoid; at rest q̇ = 0, so encoder noise does not move it)
+/// or (`raw`) of the angle's own steps. Each step is the exact solution of
+/// dz/dq = κ·(1 − z·sign(dq)) over its travel, so z stays in [−1, 1] whatever the step; it
+/// starts at the expected friction sign of the first sample.
 pub fn dahl_state(d: &Data, kappa: f64, raw: bool) -> Vec<f64> {
     let mut z = Vec::with_capacity(d.n);
     let mut s = d.sgn.first().copied().unwrap_or(0.0).clamp(-1.0, 1.0);

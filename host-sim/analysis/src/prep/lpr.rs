@@ -135,6 +135,12 @@ pub struct Estimate {
     pub gain2: Vec<f64>,
 }
 
+/// Whether every step of `t` is `dt` within 1 %: evenly stamped, as the estimates and the
+/// spectrum take a log (its jitter, if any, too small to count).
+pub(crate) fn evenly_stamped(t: &[f64], dt: f64) -> bool {
+    t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 0.01 * dt)
+}
+
 pub fn estimate(t: &[f64], x: &[f64], h: usize) -> Estimate {
     let n = x.len().min(t.len());
     let m = (2 * h + 1).min(n);
@@ -155,7 +161,7 @@ pub fn estimate(t: &[f64], x: &[f64], h: usize) -> Estimate {
     // Evenly stamped (within 1 % of the step): the interior windows all have the same weights,
     // so the interior is a convolution; only the ends need their own fits.
     let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
-    let uniform = m == 2 * h + 1 && t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 0.01 * dt);
+    let uniform = m == 2 * h + 1 && evenly_stamped(t, dt);
     let interior = if uniform { weights(h, dt) } else { None }.map(|(w1, w2)| {
         let (g1, g2) = (w1.iter().map(|w| w * w).sum::<f64>(), w2.iter().map(|w| w * w).sum::<f64>());
         (w1, w2, g1, g2)

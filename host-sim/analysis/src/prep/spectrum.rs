@@ -2,8 +2,8 @@
 //! its higher derivatives are, the two numbers a derivative estimator's window trades off.
 //!
 //! The spectrum is Welch's (Hann windows, half overlap) of the signal's first difference over
-//! its time step (a rough derivative, so the large slow part of a position does not leak into the high
-//! frequencies through the window). White noise of standard deviation σ on the signal puts
+//! its time step (a rough derivative, so the large slow part of a position does not leak into
+//! the high frequencies through the window). White noise of standard deviation σ on the signal puts
 //! `2·dt·σ²·(2·sin(π·f·dt)/dt)²` into that spectrum, highest near Nyquist, where smooth motion
 //! has none: σ² is read from the top quarter of the band (median, so a few tones do not count).
 //! The motion is what stands clearly above that noise, from the lowest frequencies up to the
@@ -38,7 +38,7 @@ pub fn analyse(t: &[f64], x: &[f64], dt: f64) -> Option<SignalSpectrum> {
 }
 
 /// The rough derivative of `x` stamped at `t`: each first difference over the median step `dt`
-/// where the stamps are even (within 1 % of it, as [`super::lpr::estimate`] takes them), else
+/// where the stamps are even ([`super::lpr::evenly_stamped`], as the local fits take them), else
 /// over the sample's own step. A log whose stamps say when each sample was taken, on a clock
 /// that jitters, holds the motion exactly: a difference over the median step reads the
 /// jitter as a noise of `q̇·δt` on the angle, largest where the joint moves fastest (model-exact
@@ -46,8 +46,7 @@ pub fn analyse(t: &[f64], x: &[f64], dt: f64) -> Option<SignalSpectrum> {
 /// encoder's, a window for q̈ that wide attenuated the chirp's top by 5 %, and the refit took
 /// J·Δq̈ for `parameters`).
 fn rough_derivative(t: &[f64], x: &[f64], dt: f64) -> Vec<f64> {
-    let even = t.len() == x.len() && t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 0.01 * dt);
-    if even || t.len() != x.len() {
+    if t.len() != x.len() || super::lpr::evenly_stamped(t, dt) {
         x.windows(2).map(|w| (w[1] - w[0]) / dt).collect()
     } else {
         x.windows(2).zip(t.windows(2)).map(|(w, s)| (w[1] - w[0]) / (s[1] - s[0])).collect()
@@ -391,6 +390,11 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
+    /// A standard normal draw (the sum of twelve uniforms, centred).
+    fn gauss(rng: &mut impl Rng) -> f64 {
+        (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0
+    }
+
     /// `n` stamps `dt` apart.
     fn even(n: usize, dt: f64) -> Vec<f64> {
         (0..n).map(|i| i as f64 * dt).collect()
@@ -405,7 +409,7 @@ mod tests {
         let (a, w) = (0.5, std::f64::consts::TAU * 0.7);
         let x: Vec<f64> = (0..n)
             .map(|i| {
-                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                let g = gauss(&mut rng);
                 a * (w * i as f64 * dt).sin() + sigma * g
             })
             .collect();
@@ -440,7 +444,7 @@ mod tests {
         let x: Vec<f64> = t
             .iter()
             .map(|&t| {
-                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                let g = gauss(&mut rng);
                 a * (w * t).sin() + sigma * g
             })
             .collect();
@@ -464,7 +468,7 @@ mod tests {
         let x: Vec<f64> = (0..n)
             .map(|i| {
                 let t = i as f64 * dt;
-                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                let g = gauss(&mut rng);
                 state += alpha * (0.02 * g - state);
                 0.8 * (std::f64::consts::TAU * 0.3 * t).sin() + 0.3 * (std::f64::consts::TAU * 1.1 * t).cos() + state
             })
@@ -503,7 +507,7 @@ mod tests {
         let (a, w) = (0.4, std::f64::consts::TAU * 0.5);
         let x: Vec<f64> = (0..n)
             .map(|i| {
-                let g: f64 = (0..12).map(|_| rng.random::<f64>()).sum::<f64>() - 6.0;
+                let g = gauss(&mut rng);
                 e = phi * e + innov * g;
                 a * (w * i as f64 * dt).sin() + e
             })
