@@ -38,13 +38,15 @@ fn child(log: &str, model: &str) {
     let t_read = t0.elapsed().as_secs_f64();
     let m = ModelFile::read_file(std::path::Path::new(model)).unwrap();
     let t1 = Instant::now();
-    let d = joint_analysis::diagnose::diagnose(&l, &m, &joint_analysis::diagnose::Options::default()).unwrap();
+    let samples = l.len();
+    // as `jointctl diagnose` without --emit-model: the log handed over, not copied
+    let d = joint_analysis::diagnose::diagnose_owned(l, &m, &joint_analysis::diagnose::Options::default()).unwrap();
     let t_diag = t1.elapsed().as_secs_f64();
     let json = serde_json::to_string(&d.report).unwrap();
     let total = t0.elapsed().as_secs_f64();
     println!(
         "diagnose {} samples: read {t_read:.3} s + diagnose {t_diag:.3} s = {total:.3} s wall; peak RSS (VmHWM) {:.0} MB; verdict {} (shrink {:.1} %); {} B of JSON",
-        l.len(),
+        samples,
         vm_hwm_mb(),
         d.report.verdict.effect,
         100.0 * d.report.verdict.shrink,

@@ -569,6 +569,20 @@ pub struct Diagnosis {
 /// Runs the diagnosis in the mode the log's columns give, on the log as the shared
 /// preparation stage ([`crate::prep`]) leaves it.
 pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Diagnosis, DiagError> {
+    diagnose_cow(std::borrow::Cow::Borrowed(log), model, opts)
+}
+
+/// [`diagnose`], taking the log: its columns are moved into the analysis instead of copied (on
+/// a 1 M-sample log 32 MB less to allocate and fill).
+pub fn diagnose_owned(log: JointLog, model: &ModelFile, opts: &Options) -> Result<Diagnosis, DiagError> {
+    diagnose_cow(std::borrow::Cow::Owned(log), model, opts)
+}
+
+fn diagnose_cow(
+    log: std::borrow::Cow<'_, JointLog>,
+    model: &ModelFile,
+    opts: &Options,
+) -> Result<Diagnosis, DiagError> {
     let params = model.param_set().map_err(|e| DiagError::Input(e.to_string()))?;
     let others = model.other_columns();
     for o in &others {
@@ -584,11 +598,16 @@ pub fn diagnose(log: &JointLog, model: &ModelFile, opts: &Options) -> Result<Dia
         return Err(DiagError::Input(format!("the log has {} samples; the diagnosis needs at least {min}", log.len())));
     }
     let clock = std::time::Instant::now();
-    let mut prep = crate::prep::prepare(log).map_err(|e| DiagError::Input(e.to_string()))?;
+    let mode = log.mode();
+    let prepared = match log {
+        std::borrow::Cow::Borrowed(l) => crate::prep::prepare(l),
+        std::borrow::Cow::Owned(l) => crate::prep::prepare_owned(l),
+    };
+    let mut prep = prepared.map_err(|e| DiagError::Input(e.to_string()))?;
     if std::env::var_os("DIAG_TIMING").is_some() {
         eprintln!("[diagnose] preparation stage: {:.3} s", clock.elapsed().as_secs_f64());
     }
-    let mut d = match log.mode() {
+    let mut d = match mode {
         LogMode::Torque => torque_mode(&mut prep, model, &params, &others, opts)?,
         LogMode::Trajectory => trajectory::diagnose(&prep, model, &params, opts)?,
     };
@@ -697,7 +716,8 @@ fn torque_mode(
         sw: Vec::new(),
     };
     if model.explicit(ParamId::WeightAmplitude).is_some() {
-        let (ws, wc): (Vec<f64>, Vec<f64>) = data.q.iter().map(|&q| (data.ws * q).sin_cos()).unzip();
+        let (ws, wc): (Vec<f64>, Vec<f64>) =
+            par::per_sample(n, |i| (data.ws * data.q[i]).sin_cos()).into_iter().unzip();
         data.wsin = ws;
         data.wcos = wc;
     }
@@ -1414,12 +1434,28 @@ fn build_report(
         let qd: Vec<f64> = idx.iter().map(|&i| d.qd[i]).collect();
         let u: Vec<f64> = idx.iter().map(|&i| d.u[i]).collect();
         let lag = ((0.1 / d.dt).round() as usize).clamp(10, 100);
-        Some(Resid {
+        // the six correlations on the available cores (the cross-correlations, twice the lags,
+        // first)
+        let jobs: [(&[f64], &[f64], bool); 6] = [
+            (&rb, &rb, true),
+            (&ra, &ra, true),
+            (&rb, &qd, false),
+            (&rb, &u, false),
+            (&ra, &qd, false),
+            (&ra, &u, false),
+        ];
+        let c = par::costliest_first(
+            &jobs,
+            par::cores(8),
+            |j| u8::from(j.2),
+            |&(r, x, auto)| resid::xcorr(r, x, lag, auto),
+        );
+        <[resid::Correlation; 6]>::try_from(c).ok().map(|[auto_b, auto_a, qd_b, u_b, qd_a, u_a]| Resid {
             input: vec!["qd", "u"],
-            autocorrelation_before: resid::xcorr(&rb, &rb, lag, true),
-            autocorrelation_after: resid::xcorr(&ra, &ra, lag, true),
-            xcorr_before: vec![resid::xcorr(&rb, &qd, lag, false), resid::xcorr(&rb, &u, lag, false)],
-            xcorr_after: vec![resid::xcorr(&ra, &qd, lag, false), resid::xcorr(&ra, &u, lag, false)],
+            autocorrelation_before: auto_b,
+            autocorrelation_after: auto_a,
+            xcorr_before: vec![qd_b, u_b],
+            xcorr_after: vec![qd_a, u_a],
         })
     };
     let final_rmse = final_s.rmse();

@@ -1438,7 +1438,7 @@ pub fn select(
     bits: &[u32],
     n_regimes: usize,
     floor: f64,
-    reread: &dyn Fn(&Scored) -> f64,
+    reread: &(dyn Fn(&Scored) -> f64 + Sync),
     max_effects: usize,
 ) -> Selection {
     // Fits read at most 150 000 training rows, grids 20 000 (every k-th sample), per fold.
@@ -1507,7 +1507,8 @@ pub fn select(
     // lowest counts. (A log the model explains has no such candidate, and a fit of its noise
     // leaves the same noise.)
     // (each fit's floor kept: the first effect chosen is read once)
-    let read: Vec<(Vec<Effect>, f64)> = first
+    // (each read on its own, on the available cores: a read is a pass over every sample)
+    let to_read: Vec<&Scored> = first
         .iter()
         .filter(|s| {
             let (_, p, g) = compare(&refit_s, s);
@@ -1518,8 +1519,9 @@ pub fn select(
                 && g0 >= MIN_GAIN
                 && implausible(s, d).or_else(|| unphysical(s)).or_else(|| cancelling(s, d)).is_none()
         })
-        .map(|s| (s.effects.clone(), reread(s)))
         .collect();
+    let read: Vec<(Vec<Effect>, f64)> =
+        super::par::costliest_first(&to_read, super::par::cores(8), |_| 0, |s| (s.effects.clone(), reread(s)));
     let floor = read.iter().map(|r| r.1).fold(floor, f64::min);
     let floor_of = |s: &Scored| read.iter().find(|r| r.0 == s.effects).map_or_else(|| reread(s), |r| r.1);
     // Open while the residual is above the floor, or above the weighted floor in the weighted

@@ -68,11 +68,18 @@ pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
     let log = JointLog::read_file(&a.log)?;
     let model = ModelFile::read_file(&a.model)?;
     let t0 = std::time::Instant::now();
-    let d = diagnose::diagnose(&log, &model, &Options { max_effects: a.max_effects, cross_fit: !a.single_split })
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.log.display()))?;
+    let opts = Options { max_effects: a.max_effects, cross_fit: !a.single_split };
+    // The emitted model's gate reads the log again; without it the diagnosis takes the log's
+    // columns instead of copying them.
+    let (d, gate_log) = if model_out.is_some() {
+        (diagnose::diagnose(&log, &model, &opts), Some(log))
+    } else {
+        (diagnose::diagnose_owned(log, &model, &opts), None)
+    };
+    let d = d.map_err(|e| anyhow::anyhow!("{}: {e}", a.log.display()))?;
     let elapsed = t0.elapsed().as_secs_f64();
-    if model_out.is_some() {
-        gate_emitted(&d.emitted_model, &log, a.force)?;
+    if let Some(log) = &gate_log {
+        gate_emitted(&d.emitted_model, log, a.force)?;
     }
     // Render everything first, write every output to its temporary file, then commit them:
     // a failure on any one leaves none of them behind.
