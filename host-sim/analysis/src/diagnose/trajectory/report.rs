@@ -247,6 +247,10 @@ fn effect_params(ctx: &Ctx, f: &Fitted, k: usize, j: &Judged) -> BTreeMap<String
             put("offset", g(1) - ctx.lay.q_rest);
         }
         Kind::Dry => put("c", g(0)),
+        Kind::DryBand => {
+            put("c", g(0));
+            put("v_band", g(1).exp());
+        }
         Kind::Presliding => {
             let x = g(0).exp();
             put("distance", x);
@@ -364,6 +368,13 @@ fn emitted_model(ctx: &Ctx, final_fit: &Fitted, j: &Judged) -> String {
             ));
             continue;
         }
+        // the band is the friction law's (`[friction] v_band`, which the plant's dry friction
+        // reads too)
+        if *kind == Kind::DryBand {
+            if let Some(&band) = p.get("v_band") {
+                mf.set(joint_core::params::ParamId::FrictionVBand, band, None);
+            }
+        }
         if *kind == Kind::Presliding {
             if let Some(&sigma) = p.get("sigma") {
                 mf.set(joint_core::params::ParamId::PreslidingSigma, sigma, None);
@@ -435,7 +446,7 @@ fn effect_section(p: &BTreeMap<String, f64>, kind: Kind) -> String {
             g("width"),
             g("offset")
         ),
-        Kind::Dry => format!("\n[dry_friction]\nc = {:?}\n", g("c").max(0.0)),
+        Kind::Dry | Kind::DryBand => format!("\n[dry_friction]\nc = {:?}\n", g("c").max(0.0)),
         Kind::Delay if g("seconds") >= 0.0 => format!("\n[delay]\nseconds = {:?}\n", g("seconds")),
         Kind::Delay => format!(
             "\n# delay: the logged u is {:?} s late against the motion (the [delay] section takes the other sign only)\n",

@@ -10,7 +10,8 @@
 //! - `cable_spring`: one-sided (taut above or below an angle, with a blend width) or progressive
 //!   `k1·x + k3·x³`, or padding pressed over a stretch of angle `A·exp(−½((q − q_b)/w)²)`;
 //! - `backlash`: a dead zone of width `w` centred at `m` in the spring (either side of its rest);
-//! - `dry_friction`: `c·sign(q̇)` when the model has none;
+//! - `dry_friction`: `c·sign(q̇)` when the model has none, with the pure sign or (where the
+//!   file states no band) a sign band `clamp(q̇/v_band, −1, 1)` searched with it;
 //! - `presliding_hysteresis`: a Dahl state of the model's level `c` and pre-sliding distance
 //!   `x = c/σ` instead of `c·sign(q̇)`;
 //! - `delay`: the joint felt the logged input `u` shifted by `δ` either way (only with a logged
@@ -36,12 +37,14 @@ pub enum Kind {
     CableBump,
     Backlash,
     Dry,
+    /// dry friction with its own sign band (the file states none)
+    DryBand,
     Presliding,
     Delay,
 }
 
 impl Kind {
-    pub const ALL: [Kind; 12] = [
+    pub const ALL: [Kind; 13] = [
         Kind::Stribeck,
         Kind::Asymmetric,
         Kind::Ripple,
@@ -52,6 +55,7 @@ impl Kind {
         Kind::CableBump,
         Kind::Backlash,
         Kind::Dry,
+        Kind::DryBand,
         Kind::Presliding,
         Kind::Delay,
     ];
@@ -64,7 +68,7 @@ impl Kind {
             Kind::Ripple | Kind::Ripple2 => Vocab::PositionRipple,
             Kind::CableAbove | Kind::CableBelow | Kind::CableCubic | Kind::CableBump => Vocab::CableSpring,
             Kind::Backlash => Vocab::Backlash,
-            Kind::Dry => Vocab::DryFriction,
+            Kind::Dry | Kind::DryBand => Vocab::DryFriction,
             Kind::Presliding => Vocab::PreslidingHysteresis,
             Kind::Delay => Vocab::Delay,
         }
@@ -91,7 +95,7 @@ impl Kind {
             Vocab::CableSpring => Ok(&[Kind::CableAbove, Kind::CableBelow, Kind::CableCubic, Kind::CableBump]),
             Vocab::Backlash => Ok(&[Kind::Backlash]),
             Vocab::Delay => Ok(&[Kind::Delay]),
-            Vocab::DryFriction => Ok(&[Kind::Dry]),
+            Vocab::DryFriction => Ok(&[Kind::Dry, Kind::DryBand]),
             Vocab::PreslidingHysteresis => Ok(&[Kind::Presliding]),
             // verdicts, and the start state every trajectory fit frees anyway
             Vocab::Parameters | Vocab::InitialState | Vocab::None | Vocab::Unexplained => Ok(&[]),
@@ -102,7 +106,7 @@ impl Kind {
     pub fn size(self, lay: &Layout) -> usize {
         match self {
             Kind::Asymmetric | Kind::Dry | Kind::Presliding | Kind::Delay => 1,
-            Kind::Backlash => 2,
+            Kind::Backlash | Kind::DryBand => 2,
             Kind::CableCubic if lay.has(Col::Q) => 2,
             Kind::CableBump
             | Kind::Stribeck
@@ -241,9 +245,10 @@ impl Layout {
     pub fn applies(&self, k: Kind, has_u: bool) -> Result<(), &'static str> {
         match k {
             Kind::Backlash if !self.has(Col::Q) => Err("the model has no [spring] whose dead zone could be fitted"),
-            Kind::Dry if self.has(Col::Sgn) => {
+            Kind::Dry | Kind::DryBand if self.has(Col::Sgn) => {
                 Err("the model has a Coulomb term, so a missing Coulomb torque is `parameters`")
             }
+            Kind::DryBand if self.band > 0.0 => Err("the file states the sign band its friction has"),
             Kind::Asymmetric if !self.has(Col::Sgn) => {
                 Err("the model has no Coulomb term whose level could differ by direction")
             }
@@ -312,6 +317,7 @@ impl Layout {
                 (vec![(1e-4f64).ln(), self.q_rest - 0.5 * span], vec![(0.5 * span).ln(), self.q_rest + 0.5 * span])
             }
             Kind::Dry => (vec![0.0], vec![inf]),
+            Kind::DryBand => (vec![0.0, (1e-3 * self.v_typ).ln()], vec![inf, (0.5 * self.v_typ).ln()]),
             Kind::Presliding => (vec![(1e-5f64).ln()], vec![(0.05f64).ln()]),
             Kind::Delay => (vec![-0.2], vec![0.2]),
         };
@@ -329,7 +335,7 @@ impl Layout {
     /// 0.0110 rad, and the fit from one start stopped at c = 0.19 or 0.06. A step is c/n wide
     /// for n half-swings, so a ratio of 1.25 between levels puts a start on each of a dozen.
     pub fn level_grid(&self, k: Kind) -> bool {
-        matches!(k, Kind::Dry | Kind::Asymmetric)
+        matches!(k, Kind::Dry | Kind::DryBand | Kind::Asymmetric)
     }
 
     /// Starts of effect `k`'s values (several where its shape makes the fit multimodal).
@@ -397,6 +403,12 @@ impl Layout {
             Kind::Dry => std::iter::once(0.02 * tq)
                 .chain((0..28).map(|i| 0.002 * tq * 1.25f64.powi(i)))
                 .map(|c| vec![c])
+                .collect(),
+            // the level grid at a narrow and a wide band (a band lets a joint at rest creep where
+            // the pure sign holds it, so the level's steps are smoothed out)
+            Kind::DryBand => [0.01, 0.1]
+                .iter()
+                .flat_map(|f| (0..28).map(move |i| vec![0.002 * tq * 1.25f64.powi(i), (f * self.v_typ).ln()]))
                 .collect(),
             Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
             Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
@@ -468,6 +480,10 @@ impl Layout {
                 Kind::CableBump => law.cables.push(Cable::Bump { a: g(0), qb: g(1), w: g(2).exp() }),
                 Kind::Backlash => law.backlash = Some((g(0).exp(), g(1))),
                 Kind::Dry => law.c += g(0),
+                Kind::DryBand => {
+                    law.c += g(0);
+                    law.band = g(1).exp();
+                }
                 Kind::Presliding => law.dahl = Some(law.c.max(0.0) / g(0).exp()),
                 Kind::Delay => {}
             }
@@ -520,7 +536,7 @@ impl Layout {
             Kind::CableCubic if e.iter().rev().nth(1).copied().unwrap_or(0.0) <= tiny => {
                 Some("fitted progressive stiffness is not positive: the element does not stiffen")
             }
-            Kind::Dry if g(0) <= tiny => {
+            Kind::Dry | Kind::DryBand if g(0) <= tiny => {
                 Some("fitted dry friction level is not positive: friction cannot drive the motion")
             }
             // a step logged at 50 Hz whose edge came 5 ms after where the cubic between its
