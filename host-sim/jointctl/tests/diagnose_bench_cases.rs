@@ -108,6 +108,19 @@ fn said(d: &Diagnosis) -> Vec<String> {
     }
 }
 
+/// The diagnosis of `(seed, case)`, whose truth is still `truth` and which reports exactly it.
+fn found(seed: u64, case: u64, truth: &[&str]) -> Diagnosis {
+    let (c, d) = run_case(seed, case);
+    assert_eq!(c.truth.effects, strings(truth), "the bench's case changed (seed {seed} case {case})");
+    assert_eq!(said(&d), strings(truth), "seed {seed} case {case}");
+    d
+}
+
+/// The fitted values the report gives effect `name`.
+fn params_of<'a>(d: &'a Diagnosis, name: &str) -> &'a std::collections::BTreeMap<String, f64> {
+    &d.report.effects.iter().find(|e| e.effect == name).expect("the candidate").params
+}
+
 fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
@@ -353,11 +366,8 @@ fn a_clock_that_jitters_and_says_so_is_no_effect() {
 /// comes out within 10 % of the truth, and nothing is named beside it.
 #[test]
 fn a_presliding_state_reads_its_travel_from_the_angle_where_that_fits() {
-    let (c, d) = run_case(9085, 30);
-    assert_eq!(c.truth.effects, strings(&["presliding_hysteresis"]), "the bench's case changed");
-    assert_eq!(said(&d), strings(&["presliding_hysteresis"]));
-    let e = d.report.effects.iter().find(|e| e.effect == "presliding_hysteresis").expect("the candidate");
-    let distance = e.params["distance"];
+    let d = found(9085, 30, &["presliding_hysteresis"]);
+    let distance = params_of(&d, "presliding_hysteresis")["distance"];
     assert!((distance / 0.000_452_7 - 1.0).abs() < 0.1, "pre-sliding distance {distance} rad against 0.4527 mrad");
 }
 
@@ -372,13 +382,11 @@ fn a_presliding_state_reads_its_travel_from_the_angle_where_that_fits() {
 /// found.
 #[test]
 fn a_clean_logged_velocity_keeps_its_own_noise_and_gives_the_acceleration() {
-    let (c, d) = run_case(9082, 61);
-    assert_eq!(c.truth.effects, strings(&["thermal_drift"]), "the bench's case changed");
+    let d = found(9082, 61, &["thermal_drift"]);
     let prep = d.report.prep.as_ref().expect("the preparation's report");
     assert_eq!(prep.qd.source, "logged");
     assert!(prep.qd.noise_sd < 1e-5, "{:?}", prep.qd);
     assert_eq!(prep.qdd.source, "derived from the logged qd", "{:?}", prep.qdd);
-    assert_eq!(said(&d), strings(&["thermal_drift"]));
 }
 
 /// Dry friction with a sign band the file does not state (seed 9091 case 5, an unseen set of
@@ -390,11 +398,9 @@ fn a_clean_logged_velocity_keeps_its_own_noise_and_gives_the_acceleration() {
 /// 5 % of the plant's and the emitted model carries the band.
 #[test]
 fn dry_friction_with_a_band_the_file_does_not_state_is_found_with_it() {
-    let (c, d) = run_case(9091, 5);
-    assert_eq!(c.truth.effects, strings(&["dry_friction"]), "the bench's case changed");
-    assert_eq!(said(&d), strings(&["dry_friction"]));
-    let e = d.report.effects.iter().find(|e| e.effect == "dry_friction").expect("the candidate");
-    let (level, band) = (e.params["c"], e.params["v_band"]);
+    let d = found(9091, 5, &["dry_friction"]);
+    let p = params_of(&d, "dry_friction");
+    let (level, band) = (p["c"], p["v_band"]);
     assert!((level / 3.055 - 1.0).abs() < 0.05, "c {level} N·m against 3.055");
     assert!((band / 0.02988 - 1.0).abs() < 0.05, "v_band {band} rad/s against 0.02988");
     assert!(d.emitted_model.contains("v_band = "), "{}", d.emitted_model);

@@ -599,11 +599,7 @@ fn diagnose_cow(
     }
     let clock = std::time::Instant::now();
     let mode = log.mode();
-    let prepared = match log {
-        std::borrow::Cow::Borrowed(l) => crate::prep::prepare(l),
-        std::borrow::Cow::Owned(l) => crate::prep::prepare_owned(l),
-    };
-    let mut prep = prepared.map_err(|e| DiagError::Input(e.to_string()))?;
+    let mut prep = crate::prep::prepare_cow(log).map_err(|e| DiagError::Input(e.to_string()))?;
     if std::env::var_os("DIAG_TIMING").is_some() {
         eprintln!("[diagnose] preparation stage: {:.3} s", clock.elapsed().as_secs_f64());
     }

@@ -254,7 +254,8 @@ pub fn prepare_owned(log: JointLog) -> Result<Prepared, PrepError> {
     prepare_cow(std::borrow::Cow::Owned(log))
 }
 
-fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepared, PrepError> {
+/// [`prepare`] on a log borrowed or handed over.
+pub(crate) fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepared, PrepError> {
     let log: &JointLog = &input;
     let samples_in = log.len();
     let timing = std::env::var_os("DIAG_TIMING").is_some();

@@ -343,6 +343,8 @@ impl Layout {
         let span = self.span();
         let tq = self.torque;
         let lvl = if c_ref > 0.0 { 0.3 * c_ref } else { 0.05 * tq };
+        // the Coulomb levels a dry friction's scan starts from (see [`Layout::level_grid`])
+        let levels = || (0..28).map(move |i| 0.002 * tq * 1.25f64.powi(i));
         match k {
             Kind::Stribeck => {
                 // the speed is where the fit is multimodal (a high narrow curve and a low wide
@@ -400,16 +402,12 @@ impl Layout {
                 .iter()
                 .flat_map(|w| [0.0, 0.5, -0.5].map(|side| vec![(w * span).ln(), self.spring_q0 + side * w * span]))
                 .collect(),
-            Kind::Dry => std::iter::once(0.02 * tq)
-                .chain((0..28).map(|i| 0.002 * tq * 1.25f64.powi(i)))
-                .map(|c| vec![c])
-                .collect(),
+            Kind::Dry => std::iter::once(0.02 * tq).chain(levels()).map(|c| vec![c]).collect(),
             // the level grid at a narrow and a wide band (a band lets a joint at rest creep where
             // the pure sign holds it, so the level's steps are smoothed out)
-            Kind::DryBand => [0.01, 0.1]
-                .iter()
-                .flat_map(|f| (0..28).map(move |i| vec![0.002 * tq * 1.25f64.powi(i), (f * self.v_typ).ln()]))
-                .collect(),
+            Kind::DryBand => {
+                [0.01, 0.1].iter().flat_map(|f| levels().map(move |c| vec![c, (f * self.v_typ).ln()])).collect()
+            }
             Kind::Presliding => [2e-4f64, 2e-3].iter().map(|x| vec![x.ln()]).collect(),
             Kind::Delay => [-0.02, -0.005, 0.005, 0.02].iter().map(|d| vec![*d]).collect(),
         }
