@@ -1477,11 +1477,14 @@ fn longest(segments: &[std::ops::Range<usize>]) -> Option<&std::ops::Range<usize
     segments.iter().max_by_key(|r| r.len())
 }
 
-/// A logged column's own white noise: from its spectrum (or its 4th differences when short).
-fn own_noise(t: &[f64], x: &[f64], segments: &[std::ops::Range<usize>], dt: f64) -> f64 {
+/// A logged column's own noise from its spectrum (or its 4th differences when short), and
+/// whether that spectrum shows it coloured: then the sum of its noise model, which holds the
+/// level below the motion's band at the lowest one seen above it, and what lies under the
+/// motion stays unread.
+fn own_noise(t: &[f64], x: &[f64], segments: &[std::ops::Range<usize>], dt: f64) -> (f64, bool) {
     longest(segments)
         .and_then(|r| spectrum::analyse(&t[r.clone()], &x[r.clone()], dt))
-        .map_or_else(|| diff_noise(x), |s| s.noise_sd)
+        .map_or_else(|| (diff_noise(x), false), |s| (s.noise_sd.max(s.noise.total_sd()), !s.noise.is_white()))
 }
 
 /// White noise on `x` from its 4th differences (robust), for logs too short for a spectrum.
@@ -1560,7 +1563,7 @@ fn check_logged(
     let est_err = typical(&estimate.error());
     let short_of_estimate = || short(&estimate.values);
     let (scale, diff) = compare_logged(col, &estimate.values, est_err, &short_of_estimate, what.name, what.of)?;
-    let own = own_noise(t, col, segments, dt);
+    let (own, coloured) = own_noise(t, col, segments, dt);
     // The difference's spread less the estimate's modelled error is the column's noise only
     // where it clearly exceeds that error (the difference spreads √2 times beyond it): the
     // model of an estimate's error is good to a few tens of percent, and within that the excess
@@ -1571,7 +1574,13 @@ fn check_logged(
     // (`unexplained`, unseen t9082/0061). Beside a coarse encoder one was read at 3.6e-4 rad/s
     // (its spectrum: 3e-6), the q̈ from it given 7× its error and a floor four times the
     // refit's residual (unseen t9086/0072).
-    let noise = if diff > est_err { diff.max(own) } else { own };
+    // A coloured noise is read from the column's spectrum only above the motion's band (a
+    // drive's filtered velocity estimate, an AR(1) noise): its part under the motion, the
+    // slow one that flips the sign of q̇ near a reversal for many samples, is bounded by the
+    // difference alone. Read at its spectrum's level (ρ = 0.9: 0.23× the noise, or 0.6× with
+    // the coloured model), model-exact logs were `unexplained`, a reversal's sign taken as known
+    // where the noise had flipped it (null seed 4242, cases 29, 35, 168 with such a q̇).
+    let noise = if diff > est_err || coloured { diff.max(own) } else { own };
     if std::env::var_os("DIAG_TRACE").is_some() {
         eprintln!("[trace] logged {}: diff noise {diff:.3e}, own noise {own:.3e}, estimate's error {est_err:.3e} (effective {:.3e})", what.name, estimate.effective_error());
     }
@@ -1583,7 +1592,7 @@ fn check_logged(
         ));
     }
     if noise <= estimate.effective_error() && consistent(scale) && lag.is_none() {
-        let info = logged_info(noise, scale, own >= 0.5 * diff);
+        let info = logged_info(noise, scale, !coloured && own >= 0.5 * diff);
         return Ok((Deriv { values: col.to_vec(), noise: vec![noise; col.len()], bias: 0.0, info }, true));
     }
     notes.push(format!(
@@ -1852,5 +1861,45 @@ mod tests {
         let qd: Vec<f64> = t.iter().map(|t| 2.0 * (2.0 * t).cos() * 180.0 / std::f64::consts::PI).collect();
         let e = prepare(&JointLog { qd: Some(qd), ..log_of(t, q) }).unwrap_err();
         assert!(e.to_string().contains("57.29") && e.to_string().contains("degrees"), "{e}");
+    }
+
+    /// Gaussian noise from a seeded generator (Box–Muller), for the tests below.
+    fn gauss_noise(n: usize, seed: u64) -> Vec<f64> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..n)
+            .map(|_| {
+                let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random::<f64>());
+                (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_column_whose_noise_rises_towards_low_frequencies_says_so() {
+        // a slow motion at 500 Hz with white noise, or with an AR(1) noise of ρ = 0.9 of the same
+        // size: the white one reads at its size and plain; the coloured one coloured, read above
+        // its top quarter's level (0.23× its size) and at most its size
+        let dt = 0.002;
+        let n = 20_000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let motion: Vec<f64> = t.iter().map(|t| 0.5 * (0.7 * t).sin()).collect();
+        let w = gauss_noise(n, 3);
+        let seg = std::iter::once(0..n).collect::<Vec<_>>();
+        let white: Vec<f64> = motion.iter().zip(&w).map(|(m, w)| m + 1e-3 * w).collect();
+        let (sd, coloured) = own_noise(&t, &white, &seg, dt);
+        assert!(!coloured && (sd / 1e-3 - 1.0).abs() < 0.1, "{sd} {coloured}");
+        let rho: f64 = 0.9;
+        let mut e = 0.0;
+        let ar: Vec<f64> = w
+            .iter()
+            .map(|w| {
+                e = rho * e + (1.0 - rho * rho).sqrt() * 1e-3 * w;
+                e
+            })
+            .collect();
+        let col: Vec<f64> = motion.iter().zip(&ar).map(|(m, e)| m + e).collect();
+        let (sd, coloured) = own_noise(&t, &col, &seg, dt);
+        assert!(coloured && sd > 0.4e-3 && sd < 1.1e-3, "{sd} {coloured}");
     }
 }
