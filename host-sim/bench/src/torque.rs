@@ -94,7 +94,7 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
     let (u, tau, mut sensors) = noisy_torques(rng, &att, sigma);
     let mut log = Log::default();
     log.columns.push(("t".into(), setup.times.iter().map(|t| setup.t0 + t).collect()));
-    let kin_cols = sensor_kinematics(rng, &setup, &att.kin_log, truth_model.j(), sigma, &mut sensors, &mut notes);
+    let kin_cols = sensor_kinematics(rng, (seed, case), &setup, &att.kin_log, truth_model.j(), sigma, &mut sensors, &mut notes);
     log.columns.extend(kin_cols);
     log.columns.push(("u".into(), u));
     log.columns.push(("tau".into(), tau));
@@ -486,8 +486,10 @@ fn draw_colour(rng: &mut Rng64, sigma: f64) -> TorqueNoise {
 }
 
 /// q, and optionally qd and qdd, through the encoder and the logger's processing.
+#[allow(clippy::too_many_arguments)]
 fn sensor_kinematics(
     rng: &mut Rng64,
+    (seed, case): (u64, u64),
     setup: &Setup,
     kin: &[Kin],
     j: f64,
@@ -508,6 +510,11 @@ fn sensor_kinematics(
     let qd_mode = weighted(rng, &[("absent", 0.35), ("clean", 0.2), ("white", 0.45)]).unwrap_or("absent");
     let qd_sigma = if qd_mode == "white" { v_rms * log_uniform(rng, 0.001, 0.02) } else { 0.0 };
     let qd: Vec<f64> = v_true.iter().map(|v| v + qd_sigma * crate::rngs::normal(rng)).collect();
+    // A drive's logged velocity is seldom white: an observer's noise is coloured (most of its
+    // power under the motion's band) and a low-pass on it makes it late by a fraction of a
+    // sample or more. Drawn from a stream of their own, so every other draw of a case keeps
+    // its value.
+    let (qd, drive) = drive_velocity(&mut crate::rngs::stream(seed, case, 0xD71E), qd_mode, qd, &v_true, qd_sigma, &setup.times);
     if qd_mode != "absent" {
         cols.push(("qd".to_string(), qd.clone()));
     }
@@ -527,10 +534,51 @@ fn sensor_kinematics(
     if let Some(obj) = sensors.as_object_mut() {
         obj.insert("q_step".into(), json!(step));
         obj.insert("q_white".into(), json!(q_white));
-        obj.insert("qd".into(), json!({"mode": qd_mode, "sigma": qd_sigma}));
+        obj.insert("qd".into(), drive.unwrap_or_else(|| json!({"mode": qd_mode, "sigma": qd_sigma})));
         obj.insert("qdd".into(), qdd_info);
     }
     cols
+}
+
+/// A noisy logged velocity as a drive gives it: half the time the white noise as drawn, else an
+/// AR(1) noise of the same size (ρ 0.8–0.98), or the white column through a causal first-order
+/// low-pass at 10–100 Hz (the discrete filter's lag at low frequency is `(1 − α)/α` samples).
+/// The column and what the truth says of it; `None`: unchanged.
+fn drive_velocity(
+    side: &mut Rng64,
+    qd_mode: &str,
+    qd: Vec<f64>,
+    v_true: &[f64],
+    sigma: f64,
+    times: &[f64],
+) -> (Vec<f64>, Option<serde_json::Value>) {
+    if qd_mode != "white" || qd.len() < 2 {
+        return (qd, None);
+    }
+    match weighted(side, &[("white", 0.5), ("ar1", 0.3), ("lowpass", 0.2)]).unwrap_or("white") {
+        "ar1" => {
+            let rho = uniform(side, 0.8, 0.98);
+            let e = noise::ar1(side, v_true.len(), sigma, rho);
+            let col = v_true.iter().zip(&e).map(|(v, e)| v + e).collect();
+            (col, Some(json!({"mode": "ar1", "sigma": sigma, "rho": rho})))
+        }
+        "lowpass" => {
+            let fc = log_uniform(side, 10.0, 100.0);
+            let mut y = qd[0];
+            let mut col = Vec::with_capacity(qd.len());
+            col.push(y);
+            for (w, x) in times.windows(2).zip(&qd[1..]) {
+                let alpha = 1.0 - (-std::f64::consts::TAU * fc * (w[1] - w[0]).max(0.0)).exp();
+                y += alpha * (x - y);
+                col.push(y);
+            }
+            let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
+            let alpha = 1.0 - (-std::f64::consts::TAU * fc * dt).exp();
+            let lag_ms = 1e3 * dt * (1.0 - alpha) / alpha.max(1e-12);
+            (col, Some(json!({"mode": "lowpass", "sigma": sigma, "cutoff_hz": fc, "lag_ms": lag_ms})))
+        }
+        _ => (qd, None),
+    }
 }
 
 /// A logger's acceleration: differentiate the logged velocity (or q twice), then a

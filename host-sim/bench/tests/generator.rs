@@ -482,3 +482,40 @@ fn effects_too_small_for_their_scene_get_a_new_scene() {
         assert!(!t.notes.iter().any(|n| n.contains("outside the 0.5–5×")), "seed {seed} case {k}: {:?}", t.notes);
     }
 }
+
+/// A drive's logged velocity: the AR(1) kind has the drawn ρ about the true velocity, the
+/// low-passed one is late by the filter's lag at low frequency. Cases are found by scanning,
+/// so the test holds whichever cases draw them.
+#[test]
+fn a_drive_velocity_is_coloured_or_late_as_its_truth_says() {
+    let (mut ar1, mut lowpass) = (0, 0);
+    for k in 0..80 {
+        let c = case(4242, k, Some("none"), ModeSel::Torque);
+        let info = &c.truth.sensors["qd"];
+        let Some(col) = c.log.columns.iter().find(|(n, _)| n == "qd").map(|(_, v)| v) else { continue };
+        let n = col.len();
+        assert_eq!(n, c.clean.qd.len(), "case {k}");
+        let e: Vec<f64> = col.iter().zip(&c.clean.qd).map(|(x, v)| x - v).collect();
+        match info["mode"].as_str().unwrap() {
+            "ar1" if n >= 5000 => {
+                let rho = info["rho"].as_f64().unwrap();
+                let est = noise::lag1(&e);
+                assert!((est - rho).abs() < 0.02, "case {k}: ρ {rho}, the column's noise {est}");
+                println!("case {k}: AR(1) ρ {rho:.3}, read {est:.3}");
+                ar1 += 1;
+            }
+            "lowpass" => {
+                // e ≈ −τ·q̈ plus the filtered noise: τ from the regression on the true q̈
+                let a = &c.clean.qdd;
+                let tau = -e.iter().zip(a).map(|(e, a)| e * a).sum::<f64>() / a.iter().map(|a| a * a).sum::<f64>();
+                let lag = info["lag_ms"].as_f64().unwrap() * 1e-3;
+                // (these motions lie well under the cutoffs, where a first-order lag is τ)
+                assert!(tau > 0.8 * lag && tau < 1.1 * lag, "case {k}: late by {tau} s, the filter's lag {lag} s");
+                println!("case {k}: low-pass lag {lag:.2e} s, read {tau:.2e}");
+                lowpass += 1;
+            }
+            _ => {}
+        }
+    }
+    assert!(ar1 >= 2 && lowpass >= 2, "drawn: {ar1} AR(1), {lowpass} low-passed");
+}
