@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The null test (issue 13.1): logs generated from exactly the file's model (every trajectory
-# family, 20 Hz–2 kHz, white or AR(1) noise, quantised encoders, clean or noisy qd, pure or
-# banded sign; torque and trajectory mode), diagnosed blind by `jointctl diagnose`. Fails when
+# family, 20 Hz–2 kHz, white or AR(1) noise, quantised encoders, clean, white, AR(1) or
+# low-passed qd, pure or banded sign; torque and trajectory mode), diagnosed blind by `jointctl diagnose`. Fails when
 # more than 1 % of them are named an effect, or more than 1 % are refused.
 #   scripts/null-test.sh [CASES] [SEED]      (default 500 logs, seed 31; measured 2 named, 0 refused)
 # The generator is its own crate (host-sim/bench) that never imports the diagnosis.
