@@ -94,7 +94,8 @@ pub fn generate(rng: &mut Rng64, seed: u64, case: u64, effects: &[&'static str])
     let (u, tau, mut sensors) = noisy_torques(rng, &att, sigma);
     let mut log = Log::default();
     log.columns.push(("t".into(), setup.times.iter().map(|t| setup.t0 + t).collect()));
-    let kin_cols = sensor_kinematics(rng, (seed, case), &setup, &att.kin_log, truth_model.j(), sigma, &mut sensors, &mut notes);
+    let kin_cols =
+        sensor_kinematics(rng, (seed, case), &setup, &att.kin_log, truth_model.j(), sigma, &mut sensors, &mut notes);
     log.columns.extend(kin_cols);
     log.columns.push(("u".into(), u));
     log.columns.push(("tau".into(), tau));
@@ -514,7 +515,8 @@ fn sensor_kinematics(
     // power under the motion's band) and a low-pass on it makes it late by a fraction of a
     // sample or more. Drawn from a stream of their own, so every other draw of a case keeps
     // its value.
-    let (qd, drive) = drive_velocity(&mut crate::rngs::stream(seed, case, 0xD71E), qd_mode, qd, &v_true, qd_sigma, &setup.times);
+    let (qd, drive) =
+        drive_velocity(&mut crate::rngs::stream(seed, case, 0xD71E), qd_mode, qd, &v_true, qd_sigma, &setup.times);
     if qd_mode != "absent" {
         cols.push(("qd".to_string(), qd.clone()));
     }
