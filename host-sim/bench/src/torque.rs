@@ -566,15 +566,23 @@ fn drive_velocity(
         }
         "lowpass" => {
             let fc = log_uniform(side, 10.0, 100.0);
-            let mut y = qd[0];
             let mut col = Vec::with_capacity(qd.len());
-            col.push(y);
-            for (w, x) in times.windows(2).zip(&qd[1..]) {
-                let alpha = 1.0 - (-std::f64::consts::TAU * fc * (w[1] - w[0]).max(0.0)).exp();
-                y += alpha * (x - y);
+            let mut prev: Option<(f64, f64)> = None;
+            for (t, x) in times.iter().zip(&qd) {
+                let y = match prev {
+                    None => *x,
+                    Some((t0, y0)) => {
+                        let alpha = 1.0 - (-std::f64::consts::TAU * fc * (t - t0).max(0.0)).exp();
+                        y0 + alpha * (x - y0)
+                    }
+                };
                 col.push(y);
+                prev = Some((*t, y));
             }
-            let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
+            let dt = match (times.first(), times.last()) {
+                (Some(a), Some(b)) => (b - a) / (times.len() - 1).max(1) as f64,
+                _ => 0.0,
+            };
             let alpha = 1.0 - (-std::f64::consts::TAU * fc * dt).exp();
             let lag_ms = 1e3 * dt * (1.0 - alpha) / alpha.max(1e-12);
             (col, Some(json!({"mode": "lowpass", "sigma": sigma, "cutoff_hz": fc, "lag_ms": lag_ms})))
