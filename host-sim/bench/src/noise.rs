@@ -71,6 +71,12 @@ pub fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
+/// A causal first-order low-pass at `fc` over (possibly uneven) samples, as a drive filters
+/// its velocity estimate: late by `(1 − α)/α` samples at low frequency, `α = 1 − e^(−2π·fc·dt)`.
+pub fn causal_lowpass(t: &[f64], x: &[f64], fc: f64) -> Vec<f64> {
+    lowpass_pass(t.iter(), x.iter(), fc)
+}
+
 /// One first-order low-pass pass over (possibly uneven) samples.
 fn lowpass_pass<'a>(t: impl Iterator<Item = &'a f64>, x: impl Iterator<Item = &'a f64>, fc: f64) -> Vec<f64> {
     let wc = std::f64::consts::TAU * fc;

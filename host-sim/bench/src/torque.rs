@@ -566,19 +566,7 @@ fn drive_velocity(
         }
         "lowpass" => {
             let fc = log_uniform(side, 10.0, 100.0);
-            let mut col = Vec::with_capacity(qd.len());
-            let mut prev: Option<(f64, f64)> = None;
-            for (t, x) in times.iter().zip(&qd) {
-                let y = match prev {
-                    None => *x,
-                    Some((t0, y0)) => {
-                        let alpha = 1.0 - (-std::f64::consts::TAU * fc * (t - t0).max(0.0)).exp();
-                        y0 + alpha * (x - y0)
-                    }
-                };
-                col.push(y);
-                prev = Some((*t, y));
-            }
+            let col = noise::causal_lowpass(times, &qd, fc);
             let dt = match (times.first(), times.last()) {
                 (Some(a), Some(b)) => (b - a) / (times.len() - 1).max(1) as f64,
                 _ => 0.0,

@@ -72,12 +72,30 @@ fn run_case_in(seed: u64, case: u64, mode: ModeSel) -> (diag_bench::case::CaseDa
 /// [`run_case_in`] for one effect family (`diag-bench gen --family`, e.g. `none`).
 fn run_case_of(seed: u64, case: u64, family: Option<&str>, mode: ModeSel) -> (diag_bench::case::CaseData, Diagnosis) {
     let c = gen::generate(seed, case, family, mode).expect("the bench draws the case");
+    let d = diagnose_written(&c);
+    (c, d)
+}
+
+/// The diagnosis of a case as the tool reads it: its log and model written and read back.
+fn diagnose_written(c: &diag_bench::case::CaseData) -> Diagnosis {
     let dir = tempfile::tempdir().unwrap();
-    gen::write_case(dir.path(), &c, false).unwrap();
+    gen::write_case(dir.path(), c, false).unwrap();
     let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
     let model = ModelFile::read_file(&dir.path().join("model.toml")).unwrap();
-    let d = joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap();
-    (c, d)
+    joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap()
+}
+
+/// A model-exact torque case of the null seed 4242 (`--family none --mode torque`) and its
+/// logged q̇, for a test to change as a drive would.
+fn null_case_with_logged_qd(case: u64) -> diag_bench::case::CaseData {
+    let c = gen::generate(4242, case, Some("none"), ModeSel::Torque).expect("the bench draws the case");
+    assert_eq!(c.truth.effects, strings(&["none"]), "the bench's case changed (seed 4242 case {case})");
+    assert!(c.log.columns.iter().any(|(n, _)| n == "qd"), "seed 4242 case {case} has no logged qd");
+    c
+}
+
+fn column<'a>(c: &'a mut diag_bench::case::CaseData, name: &str) -> &'a mut Vec<f64> {
+    c.log.columns.iter_mut().find(|(n, _)| n == name).map(|(_, v)| v).expect("the column")
 }
 
 /// The bench's truth for `(seed, case)` and the effects the diagnosis reports (the verdict's
@@ -418,18 +436,12 @@ fn dry_friction_with_a_band_the_file_does_not_state_is_found_with_it() {
 #[test]
 fn a_logged_velocity_with_coloured_noise_leaves_a_model_exact_log_explained() {
     for (case, sigma) in [(29, 1.8e-3), (35, 6.8e-4), (168, 7.7e-4)] {
-        let mut c = gen::generate(4242, case, Some("none"), ModeSel::Torque).expect("the bench draws the case");
-        assert_eq!(c.truth.effects, strings(&["none"]), "the bench's case changed (seed 4242 case {case})");
-        let qd = c.log.columns.iter_mut().find(|(n, _)| n == "qd").map(|(_, v)| v).expect("a logged qd");
+        let mut c = null_case_with_logged_qd(case);
+        let qd = column(&mut c, "qd");
         let mut rng = diag_bench::rngs::stream(4242, case, 0xC01);
         let e = diag_bench::noise::ar1(&mut rng, qd.len(), sigma, 0.9);
         qd.iter_mut().zip(&e).for_each(|(v, e)| *v += e);
-        let dir = tempfile::tempdir().unwrap();
-        gen::write_case(dir.path(), &c, false).unwrap();
-        let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
-        let model = ModelFile::read_file(&dir.path().join("model.toml")).unwrap();
-        let d =
-            joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap();
+        let d = diagnose_written(&c);
         let prep = d.report.prep.as_ref().expect("the preparation's report");
         println!("case {case}: qd {:?}; said {:?}", prep.qd, said(&d));
         assert_eq!(said(&d), strings(&["none"]), "seed 4242 case {case}");
@@ -445,25 +457,16 @@ fn a_logged_velocity_with_coloured_noise_leaves_a_model_exact_log_explained() {
 /// derivative of q is used, the preparation says why, and the log is `none`.
 #[test]
 fn a_logged_velocity_late_by_less_than_a_sample_is_not_taken_for_the_velocity() {
-    let mut c = gen::generate(4242, 128, Some("none"), ModeSel::Torque).expect("the bench draws the case");
-    assert_eq!(c.truth.effects, strings(&["none"]), "the bench's case changed (seed 4242 case 128)");
-    let t = c.log.columns.iter().find(|(n, _)| n == "t").map(|(_, v)| v.clone()).expect("t");
+    let mut c = null_case_with_logged_qd(128);
+    let t = column(&mut c, "t").clone();
     let dt = t[1] - t[0];
-    let qd = c.log.columns.iter_mut().find(|(n, _)| n == "qd").map(|(_, v)| v).expect("a logged qd");
-    let alpha = 1.0 - (-std::f64::consts::TAU * 30.0 * dt).exp();
-    let mut y = qd[0];
-    qd.iter_mut().for_each(|v| {
-        y += alpha * (*v - y);
-        *v = y;
-    });
-    let dir = tempfile::tempdir().unwrap();
-    gen::write_case(dir.path(), &c, false).unwrap();
-    let log = JointLog::read_file(&dir.path().join("log.csv")).unwrap();
-    let model = ModelFile::read_file(&dir.path().join("model.toml")).unwrap();
-    let d = joint_analysis::diagnose::diagnose(&log, &model, &joint_analysis::diagnose::Options::default()).unwrap();
+    let qd = column(&mut c, "qd");
+    *qd = diag_bench::noise::causal_lowpass(&t, qd, 30.0);
+    let d = diagnose_written(&c);
     let prep = d.report.prep.as_ref().expect("the preparation's report");
     println!("qd {:?}; notes {:?}; said {:?}", prep.qd, prep.notes, said(&d));
     // the filter's lag at low frequency: (1 − α)/α samples
+    let alpha = 1.0 - (-std::f64::consts::TAU * 30.0 * dt).exp();
     let lag_ms = 1e3 * dt * (1.0 - alpha) / alpha;
     let note = prep.notes.iter().find(|n| n.contains("lags the derivative of q")).expect("a note on the lag");
     let said_ms: f64 =
