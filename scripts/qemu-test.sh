@@ -15,7 +15,7 @@
 #   4. qemu-canopen: a scripted CANopen session through the core's node (NMT, SDO pushes with
 #      aborts, commit, save, RPDOs, heartbeat loss) interleaved with 1 kHz control steps;
 #      every frame the node sends and every control output compared byte for byte with the
-#      host's run of the same script; on m0 also qemu-canopen-q16, the node with its control
+#      host's run of the same script; then qemu-canopen-q16, the node with its control
 #      step in Q16.16 (what the G0B1 image runs), compared the same way.
 # Exits non-zero on any failure, a timeout included. Prints "N passed, M failed".
 set -uo pipefail
@@ -81,8 +81,8 @@ else
     result "parity QEMU vs host, bit for bit" $?
 fi
 
-canopen() { # IMAGE LOG_VAR TEST_FILTER LABEL
-    local img=$1 var=$2 filter=$3 label=$4 st peak
+canopen() { # IMAGE LOG_VAR TEST_FILTER LABEL [nostack]
+    local img=$1 var=$2 filter=$3 label=$4 nostack=${5:-} st peak
     qemu "$BIN/$img"; st=$?
     if [[ $st -ne 0 ]]; then
         result "$label image run" $st "$(explain $st)"
@@ -98,16 +98,23 @@ canopen() { # IMAGE LOG_VAR TEST_FILTER LABEL
     if [[ $BEYOND_NODE == 1 && -n "$peak" && -n "$node" ]]; then
         peak=$((peak - node)) what="stack beyond the node (${node} B, a static on the board)"
     fi
-    [[ -n "$peak" && "$peak" -le $STACK_BUDGET ]]
-    result "$label $what ${peak:-?} B within $((STACK_BUDGET / 1024)) KiB" $?
+    if [[ -z "$nostack" ]]; then
+        [[ -n "$peak" && "$peak" -le $STACK_BUDGET ]]
+        result "$label $what ${peak:-?} B within $((STACK_BUDGET / 1024)) KiB" $?
+    fi
     env "$var=$LOG_DIR/$img.out" cargo test -p joint-tests --test qemu_parity -- --nocapture --exact "$filter"
     result "$label QEMU vs host, byte for byte" $?
 }
 canopen qemu-canopen QEMU_CANOPEN_LOG canopen_session_on_qemu_matches_host_byte_for_byte "CANopen session (f32 node)"
-if [[ $CORE == m0 ]]; then
-    canopen qemu-canopen-q16 QEMU_CANOPEN_Q16_LOG canopen_session_q16_on_qemu_matches_host_byte_for_byte \
-        "CANopen session (Q16.16 node)"
-fi
+# The Q16.16 node on both cores: on the M0+ it is what the G0B1 image runs; on the M4F it is
+# the same integer code through another compiler back end (and scripts/test.sh leaves these
+# comparisons out of the host suite, which would otherwise build and run the images again).
+# No board runs the Q16.16 node on an M4F: its stack budget is checked on m0 only (16.3 KiB
+# beyond the node here, over the G431's 16 KiB, which only its f32 node has to fit).
+q16_stack=""
+[[ $CORE == m0 ]] || q16_stack=nostack
+canopen qemu-canopen-q16 QEMU_CANOPEN_Q16_LOG canopen_session_q16_on_qemu_matches_host_byte_for_byte \
+    "CANopen session (Q16.16 node)" $q16_stack
 
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]
