@@ -51,6 +51,13 @@
 //!   the Bonferroni level, and a pre-sliding state 17 % at 2e-3 was named alone. A candidate that
 //!   explains more than the verdict and beats the file's model at the uncorrected 5 % is now named
 //!   as its alternative: the verdict does not beat it, so the log cannot tell them apart.
+//! - **Two mesh periods that are not harmonics** (seed 9102 case 29, trajectory mode, twentieth
+//!   session). A released elastic joint with a ripple of periods 0.058 and 0.037 rad: the
+//!   two-period fit started its second period on a 6-point grid (the nearest start 18 % off)
+//!   and prefiltered the starts on the first 40 % of the training samples, where the right one
+//!   lost; the verdict was the ripple plus a `dry_friction` that took part of the second mesh.
+//!   Where the single ripple leaves the training residual above 1.5× the angle noise, the
+//!   second period now starts on a 15 % grid prefiltered on the whole training part.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use diag_bench::gen::{self, ModeSel};
@@ -473,4 +480,28 @@ fn a_logged_velocity_late_by_less_than_a_sample_is_not_taken_for_the_velocity() 
         note.split(" by ").nth(1).and_then(|r| r.split(" ms").next()).and_then(|x| x.parse().ok()).unwrap();
     assert!((said_ms / lag_ms - 1.0).abs() < 0.1, "{note} against {lag_ms:.2} ms");
     assert_eq!(said(&d), strings(&["none"]));
+}
+
+#[test]
+fn two_mesh_periods_that_are_not_harmonics_are_one_ripple() {
+    let (c, d) = run_case(9102, 29);
+    assert_eq!(c.truth.effects, strings(&["position_ripple"]), "the bench's case changed");
+    let details = serde_json::to_value(&c.truth.effect_details).unwrap();
+    let periods: Vec<f64> = details[0]["harmonics"]
+        .as_array()
+        .expect("the ripple's harmonics in the truth")
+        .iter()
+        .filter_map(|h| h["period"].as_f64())
+        .collect();
+    assert_eq!(said(&d), strings(&["position_ripple"]), "{:?}", d.report.verdict);
+    let params = &d.report.selected[0].params;
+    let mut got = [params["period"], params.get("period_2").copied().expect("a second period fitted")];
+    got.sort_by(f64::total_cmp);
+    let mut want = [periods[0], periods[1]];
+    want.sort_by(f64::total_cmp);
+    for (g, w) in got.iter().zip(&want) {
+        assert!((g / w - 1.0).abs() < 0.02, "periods {got:?}, truth {want:?}");
+    }
+    let v = &d.report.verdict;
+    assert!(v.holdout_rmse_after < 1.1 * d.report.gap.noise_floor, "{v:?}, floor {}", d.report.gap.noise_floor);
 }

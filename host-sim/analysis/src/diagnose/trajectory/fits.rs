@@ -236,6 +236,20 @@ impl Problem<'_> {
     /// last effect's own values (the model's terms held) and the best two (three of a dense
     /// grid) are kept.
     pub fn prefilter(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        self.prefilter_on(effects, free, starts, 2, 5, 4)
+    }
+
+    /// [`Problem::prefilter`] on the first `num/den` of the training samples, a dense grid
+    /// (more than 8 starts) descended `dense_iters` steps.
+    pub fn prefilter_on(
+        &self,
+        effects: &[Kind],
+        free: Free,
+        starts: Vec<Vec<f64>>,
+        num: usize,
+        den: usize,
+        dense_iters: usize,
+    ) -> Vec<Vec<f64>> {
         let idx = self.free_idx(effects, free);
         let prior = free != Free::Start;
         match effects.last() {
@@ -247,8 +261,8 @@ impl Problem<'_> {
                     (idx.len().saturating_sub(len)..idx.len()).filter_map(|k| idx.get(k).copied()).collect();
                 // a dense grid of starts (the ripple's periods) keeps three; the shapes are told
                 // apart on the first 40 % of the training samples (at least 30)
-                let (iters, keep) = if starts.len() > 8 { (4, 3) } else { (3, 2) };
-                let cut = self.train_idx.len() * 2 / 5;
+                let (iters, keep) = if starts.len() > 8 { (dense_iters, 3) } else { (3, 2) };
+                let cut = self.train_idx.len() * num / den.max(1);
                 let early: Vec<usize> = self.train_idx.iter().copied().take(cut.max(30)).collect();
                 let mut pre: Vec<(Vec<f64>, f64)> = on_threads(&starts, |th| {
                     self.lm(effects, &own, th, iters, Some(&early), prior).map(|(t, f)| (t, f.cost))
