@@ -233,8 +233,8 @@ impl Problem<'_> {
     }
 
     /// The starts worth a full fit: with more than two, each first gets a few iterations on the
-    /// last effect's own values (the model's terms held) and the best two (three of a dense
-    /// grid) are kept.
+    /// last effect's own values (the model's terms held) on the first 40 % of the training
+    /// samples, and the best two (three of a dense grid, after four iterations) are kept.
     pub fn prefilter(&self, effects: &[Kind], free: Free, starts: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
         self.prefilter_on(effects, free, starts, 2, 5, 4)
     }
@@ -260,7 +260,7 @@ impl Problem<'_> {
                 let own: Vec<usize> =
                     (idx.len().saturating_sub(len)..idx.len()).filter_map(|k| idx.get(k).copied()).collect();
                 // a dense grid of starts (the ripple's periods) keeps three; the shapes are told
-                // apart on the first 40 % of the training samples (at least 30)
+                // apart on the first num/den of the training samples (at least 30)
                 let (iters, keep) = if starts.len() > 8 { (dense_iters, 3) } else { (3, 2) };
                 let cut = self.train_idx.len() * num / den.max(1);
                 let early: Vec<usize> = self.train_idx.iter().copied().take(cut.max(30)).collect();
