@@ -10,13 +10,14 @@ cd "$(dirname "$0")/.."
 # Each step's wall time, printed as the next starts and summed at the end: CI's budget is 40 min
 # on 2 cores, and the log says where the minutes go.
 step_name="setup" step_start=$SECONDS timings=()
+lap() { timings+=("$(printf '%5d s  %s' $((SECONDS - step_start)) "${step_name%% (*}")"); }
 step() {
-    timings+=("$(printf '%5d s  %s' $((SECONDS - step_start)) "${step_name%% (*}")")
+    lap
     step_name="$1" step_start=$SECONDS
     echo "== $1"
 }
 print_timings() {
-    timings+=("$(printf '%5d s  %s' $((SECONDS - step_start)) "${step_name%% (*}")")
+    lap
     echo "== step times (total $SECONDS s)"
     printf '%s\n' "${timings[@]}"
 }
