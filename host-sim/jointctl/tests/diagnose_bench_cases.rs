@@ -58,6 +58,9 @@
 //!   lost; the verdict was the ripple plus a `dry_friction` that took part of the second mesh.
 //!   Where the single ripple leaves the training residual above 1.5× the angle noise, the
 //!   second period now starts on a 15 % grid prefiltered on the whole training part.
+//! - **A noise sample is no start** (development seed 4 torque case 18, twenty-first session).
+//!   One angle sample beyond a rest's 4σ band ended a start's undecided samples while the
+//!   joint still stood; q now leaves (or reaches) a rest over three samples in a row.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use diag_bench::gen::{self, ModeSel};
@@ -365,6 +368,20 @@ fn a_kind_pruned_in_one_fold_is_still_judged_on_all_of_them() {
     let (t, s) = diagnosed_in(9051, 9, ModeSel::Torque);
     assert_eq!(t, strings(&["stribeck", "position_ripple"]), "the bench's case changed");
     assert_eq!(s, strings(&["position_ripple", "stribeck"]));
+}
+
+/// A noise sample beyond a rest's band is no start (development seed 4, torque case 18, the
+/// twenty-first session): a model-exact trunk log at 2 kHz, point-to-point with long dwells, a
+/// pure Coulomb level of 17 N·m. One angle sample 4.2σ off the rest 45 ms after the rest
+/// detector's end ended the undecided samples there while the joint stood for another 90 ms;
+/// the q̇ estimate over them (its window reaching into the coming move) changed sign twice, and
+/// the residual was ±c on 157 samples: `unexplained` at 1.8× the floor. q now leaves a rest
+/// only when it stays beyond the band for three samples in a row.
+#[test]
+fn a_noise_sample_beyond_a_rests_band_is_no_start() {
+    let (t, said) = diagnosed_in(4, 18, ModeSel::Torque);
+    assert_eq!(t, strings(&["none"]), "the bench's case changed (seed 4 case 18)");
+    assert_eq!(said, t, "development seed 4 case 18");
 }
 
 /// Model-exact torque logs whose clock jitters by 5–14 % of the step, each row stamped with the
