@@ -61,6 +61,8 @@
 //! - **A noise sample is no start** (development seed 4 torque case 18, twenty-first session).
 //!   One angle sample beyond a rest's 4σ band ended a start's undecided samples while the
 //!   joint still stood; q now leaves (or reaches) a rest over three samples in a row.
+//! - **A logged q̇'s lone noise sample is no move** (null seed 4242 case 459, the same
+//!   session). A logged q̇ now signs a move from two samples in a row beyond 4σ, not one.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use diag_bench::gen::{self, ModeSel};
@@ -382,6 +384,17 @@ fn a_noise_sample_beyond_a_rests_band_is_no_start() {
     let (t, said) = diagnosed_in(4, 18, ModeSel::Torque);
     assert_eq!(t, strings(&["none"]), "the bench's case changed (seed 4 case 18)");
     assert_eq!(said, t, "development seed 4 case 18");
+}
+
+/// A logged q̇'s lone noise sample is no move (null seed 4242 case 459, the same session): a
+/// model-exact arm log at 500 Hz with a white logged q̇, one sample of it 4.1σ off zero in a
+/// dwell. It broke the rest, signed itself, and put the Coulomb level (5.2 N·m) on one sample:
+/// `unexplained` at 2× the floor. A logged q̇ signs a move from two samples in a row now.
+#[test]
+fn a_logged_velocitys_lone_noise_sample_is_no_move() {
+    let (c, d) = run_case_of(4242, 459, Some("none"), ModeSel::Any);
+    assert_eq!(c.truth.effects, strings(&["none"]), "the bench's case changed (null seed 4242 case 459)");
+    assert_eq!(d.report.verdict.effect, "none", "null seed 4242 case 459: {:?}", d.report.verdict);
 }
 
 /// Model-exact torque logs whose clock jitters by 5–14 % of the step, each row stamped with the
