@@ -1329,12 +1329,12 @@ fn transitions(
     // same way come once in 5·10⁸ (null seed 4242 case 459: one logged q̇ at 4.1σ in a dwell put
     // the full Coulomb level, 5.2 N·m, on a model-exact log and made it `unexplained`); a creep
     // at 5σ keeps most of its samples.
-    let beyond: Vec<i8> =
-        (0..n).map(|i| if logged && qd[i].abs() > 4.0 * qd_noise[i] { sgn(qd[i]) } else { 0 }).collect();
-    let signed = |i: usize| {
-        let w = beyond[i];
-        w != 0 && ((i > 0 && beyond[i - 1] == w) || beyond.get(i + 1) == Some(&w))
+    let beyond = |way: f64| -> Vec<bool> {
+        let past: Vec<bool> = (0..n).map(|i| logged && qd[i] * way > 4.0 * qd_noise[i]).collect();
+        runs_of_at_least(&past, 2, segments)
     };
+    let (up, down) = (beyond(1.0), beyond(-1.0));
+    let signed = |i: usize| up[i] || down[i];
     for seg in segments {
         for run in motion_runs(rest, seg.clone()) {
             // leaving a rest at run.start
