@@ -535,3 +535,20 @@ fn two_mesh_periods_that_are_not_harmonics_are_one_ripple() {
     let v = &d.report.verdict;
     assert!(v.holdout_rmse_after < 1.1 * d.report.gap.noise_floor, "{v:?}, floor {}", d.report.gap.noise_floor);
 }
+
+/// A short log's floor is not read from a residual that holds the effect (development seed 8,
+/// trajectory mode, case 113: an input read 32 ms late, 61 samples at 100 Hz, 14 mrad of angle
+/// noise). The floor came from the best fit's training residual, 2.9× the angle noise since no
+/// refit absorbs the delay; the held-out RMSE sat under it and the log was `none`. Where that
+/// reading is significantly above q's own fourth differences', the differences' is the floor.
+#[test]
+fn a_short_logs_floor_is_not_read_from_a_residual_that_holds_the_effect() {
+    let (c, d) = run_case_in(8, 113, ModeSel::Trajectory);
+    assert_eq!(c.truth.effects, strings(&["delay"]), "the bench's case changed");
+    assert_eq!(d.report.mode, "trajectory");
+    let noise = c.truth.noise_rms;
+    let floor = d.report.gap.noise_floor;
+    println!("floor {floor:.4} against the angle noise {noise:.4}; verdict {:?}", d.report.verdict);
+    assert!(floor < 1.5 * noise, "floor {floor} against the angle noise {noise}");
+    assert_eq!(said(&d), strings(&["delay"]));
+}

@@ -91,14 +91,14 @@ fn chi2_upper(k: f64, z: f64) -> f64 {
 /// Upper-tail normal deviate of the F ratio `f` with `(k, d)` degrees of freedom (Paulson's
 /// approximation, from Wilson–Hilferty on both χ²s; within a few hundredths of the exact
 /// quantiles from d ≈ 6 on).
-fn f_deviate(f: f64, k: f64, d: f64) -> f64 {
+pub fn f_deviate(f: f64, k: f64, d: f64) -> f64 {
     let (a, b) = (2.0 / (9.0 * k), 2.0 / (9.0 * d));
     let c = f.cbrt();
     ((1.0 - b) * c - (1.0 - a)) / (b * c * c + a).sqrt()
 }
 
 /// z of p = 0.001, one-sided.
-const Z_001: f64 = 3.090_232;
+pub const Z_001: f64 = 3.090_232;
 
 /// Whether held-out mean square `mse` over `n` samples is significantly above `floor²`
 /// (p < 0.001): χ²_n when the floor is taken as known, the F ratio with `floor_dof` degrees of
