@@ -366,8 +366,10 @@ impl<'a> Window<'a> {
         // the first samples: a short log's own noise estimate of the column can be 20× low);
         // an assumed rest exactly (S's standard errors carry the uncertainty; what keeps a
         // statistically resolved but harmless creep from being a verdict is in [`judge`]).
+        // (and a start that takes the log to the floor also against the first angle's noise:
+        // [`judge::start_is_off`])
         let start_sd = (pb.prior.sd_q, if self.assumed_rest { 0.0 } else { pb.prior.sd_v }, se(0), se(1));
-        let start_off = judge::start_chi2(&r0, &s, start_sd) > judge::START_CHI2;
+        let start_off = judge::start_is_off(&r0, &s, start_sd, noise, floor);
         let f_rmse = if start_off { &r0 } else { &s }.scored.rmse();
         let mut fits = vec![r0, s, p];
         // Nothing is tested once the file's model is at the floor: the candidates are not fitted.
@@ -382,7 +384,7 @@ impl<'a> Window<'a> {
             got
         };
         lap("candidates");
-        let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd);
+        let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd, noise);
         second_effect(&pb, &mut fits, &mut judged, opts);
         lap("second effect");
         let ctx = report::Ctx {
