@@ -98,7 +98,7 @@ pub fn f_deviate(f: f64, k: f64, d: f64) -> f64 {
 }
 
 /// z of p = 0.001, one-sided.
-pub const Z_001: f64 = 3.090_232;
+const Z_001: f64 = 3.090_232;
 
 /// Whether held-out mean square `mse` over `n` samples is significantly above `floor²`
 /// (p < 0.001): χ²_n when the floor is taken as known, the F ratio with `floor_dof` degrees of
@@ -146,19 +146,19 @@ pub fn start_is_off(r0: &Fitted, s: &Fitted, start_sd: (f64, f64, f64, f64), noi
 }
 
 /// Judges the fits. `fits[0]` is R0, `fits[1]` S, `fits[2]` P; `families` lists, per tried
-/// effect family, the indices of its variants' fits.
+/// effect family, the indices of its variants' fits; `start_off` is [`start_is_off`] for R0
+/// and S, as the candidates were fitted by.
 pub fn judge(
     lay: &Layout,
     fits: &[Fitted],
     families: &[Vec<usize>],
     (floor, floor_dof): (f64, Option<usize>),
     start_sd: (f64, f64, f64, f64),
-    noise_q: f64,
+    start_off: bool,
 ) -> Judged {
     let (r0, s, p) = (&fits[0], &fits[1], &fits[2]);
     let alpha_each = ALPHA / (families.len() + 2) as f64;
     let start_chi2 = start_chi2(r0, s, start_sd);
-    let start_off = start_is_off(r0, s, start_sd, noise_q, floor);
     if crate::diagnose::select::trace() {
         eprintln!(
             "[trace] start: R0 {:?}, S {:?}, widths {start_sd:?}: χ² {start_chi2:.3e}; held-out RMSE R0 {:.3e}, S {:.3e}, floor {floor:.3e}",

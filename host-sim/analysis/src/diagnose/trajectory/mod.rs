@@ -384,7 +384,7 @@ impl<'a> Window<'a> {
             got
         };
         lap("candidates");
-        let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd, noise);
+        let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd, start_off);
         second_effect(&pb, &mut fits, &mut judged, opts);
         lap("second effect");
         let ctx = report::Ctx {
