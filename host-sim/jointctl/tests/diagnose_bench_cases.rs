@@ -563,33 +563,3 @@ fn a_short_logs_floor_is_not_read_from_a_residual_that_holds_the_effect() {
 fn a_start_the_model_cannot_follow_is_read_against_the_angles_noise() {
     reports_truth(9103, 61, &["initial_state"]);
 }
-
-/// The floor holds the derived q̈'s error once, at its size (seed 9107, case 39: a trunk joint
-/// of inertia 11.6 with its Coulomb level 28 % high in the file, a 200 Hz chirp from an encoder
-/// of 48 µrad steps, 0.04 N·m of torque noise; seed 9106, case 58: a viscous friction that
-/// drifts with temperature, J = 9.8, 100 Hz). The local check for the estimator's bias read
-/// noise as bias on a tenth of the samples, and the residual's variogram counted the estimate's
-/// noise, correlated over its window, as torque noise that the estimates' share then added
-/// again: floors of 0.41 and 0.77 N·m where the exact refit's held-out RMSE is 0.13 and
-/// 0.25, and both logs were `none`.
-#[test]
-fn the_floor_holds_the_derived_accelerations_error_once_at_its_size() {
-    for (seed, case, truth) in [(9107, 39, "parameters"), (9106, 58, "thermal_drift")] {
-        let (c, d) = run_case(seed, case);
-        assert_eq!(c.truth.effects, strings(&[truth]), "the bench's case changed (seed {seed} case {case})");
-        let (floor, v) = (d.report.gap.noise_floor, &d.report.verdict);
-        println!(
-            "seed {seed} case {case}: floor {floor:.4}, said {:?}, held-out RMSE {:.4} → {:.4}",
-            said(&d),
-            v.holdout_rmse_before,
-            v.holdout_rmse_after
-        );
-        assert_ne!(said(&d), strings(&["none"]), "seed {seed} case {case}");
-        assert!(floor < 1.3 * v.holdout_rmse_after, "seed {seed} case {case}: floor {floor} against {v:?}");
-        // (case 58's drift, beyond the refitted viscous level, is 1.2 % of the RMSE: it says
-        // `parameters`, the simpler explanation)
-        if seed == 9107 {
-            assert_eq!(said(&d), strings(&[truth]), "seed {seed} case {case}");
-        }
-    }
-}

@@ -19,21 +19,6 @@ thread_local! {
 /// Measurement-noise RMS of a residual from its robust variogram (see the module doc), and the
 /// lag-1 correlation it found.
 pub fn variogram_noise(r: &[f64]) -> (f64, f64) {
-    variogram_noise_less(r, &[])
-}
-
-/// [`variogram_noise`] of a residual that may also hold a known correlated part: `known[k − 1]`
-/// is that part's variogram at lag k (0 past its end) at its full size, and the fit takes it at
-/// a size α in [0, 1] beside the noise and the smooth error (`V(k) = s2·2(1 − ρ^k) + c·k² +
-/// α·known(k)`, all three non-negative).
-/// A q̈ estimated from q carries q's noise through the estimator's window; times the inertia it
-/// sits in the residual as noise correlated over the window, which the plain fit reads as AR(1)
-/// noise, and the floor, counting it again as the estimate's error, held it twice (unseen
-/// u9106/case-0058: a floor of 0.40 N·m where an exact fit reached 0.25). The size is fitted,
-/// not taken as stated: a coarse encoder's steps at a high rate are no white noise, and the
-/// estimate's error they leave is far under the white-noise figure (null seed 31, case 344: taken
-/// off at full size it left 0.8 mN·m of a 3 mN·m torque noise, and an exact log `unexplained`).
-pub fn variogram_noise_less(r: &[f64], known: &[f64]) -> (f64, f64) {
     let n = r.len();
     if n < 8 {
         return (0.0, 0.0);
@@ -61,10 +46,6 @@ pub fn variogram_noise_less(r: &[f64], known: &[f64]) -> (f64, f64) {
             })
         },
     );
-    let known: Vec<f64> = (0..v.len()).map(|i| known.get(i).copied().unwrap_or(0.0)).collect();
-    if known.iter().any(|&x| x > 0.0) {
-        return fit_with_known(&v, &known);
-    }
     // For each ρ on a grid, V(k) = s2·2(1 − ρ^k) + c·k² is linear in (s2, c) ≥ 0.
     let mut best = (f64::INFINITY, 0.0, 0.0);
     for step in 0..=95 {
@@ -110,77 +91,6 @@ pub fn variogram_noise_less(r: &[f64], known: &[f64]) -> (f64, f64) {
     (best.1, best.2)
 }
 
-/// [`variogram_noise_less`]'s fit where a known part is given: for each ρ on the grid, the
-/// least squares over `(s2, c, α)` with `s2, c ≥ 0` and `0 ≤ α ≤ 1`, solved exactly by trying
-/// every set of bounds that may be active (each of the three at its bound or free) and keeping
-/// the best fit whose free values lie within theirs.
-fn fit_with_known(v: &[f64], known: &[f64]) -> (f64, f64) {
-    let mut best = (f64::INFINITY, 0.0, 0.0);
-    for step in 0..=95 {
-        let rho = step as f64 / 100.0;
-        let cols: [Vec<f64>; 3] = [
-            (1..=v.len()).map(|k| 2.0 * (1.0 - rho.powf(k as f64))).collect(),
-            (1..=v.len()).map(|k| (k * k) as f64).collect(),
-            known.to_vec(),
-        ];
-        // each variable: 0 = at its lower bound (0), 1 = free, 2 = at its upper bound (α = 1)
-        for code in 0..12usize {
-            let state = [code % 2, (code / 2) % 2, code / 4];
-            let target: Vec<f64> =
-                v.iter().zip(known).map(|(vk, kk)| if state[2] == 2 { vk - kk } else { *vk }).collect();
-            let free: Vec<usize> = (0..3).filter(|&j| state[j] == 1).collect();
-            let Some(x) = least_squares(&cols, &free, &target) else { continue };
-            let mut val = [0.0, 0.0, if state[2] == 2 { 1.0 } else { 0.0 }];
-            for (j, xj) in free.iter().zip(&x) {
-                val[*j] = *xj;
-            }
-            if val[0] < 0.0 || val[1] < 0.0 || !(0.0..=1.0).contains(&val[2]) {
-                continue;
-            }
-            let sse: f64 = (0..v.len())
-                .map(|i| {
-                    let e = v[i] - val[0] * cols[0][i] - val[1] * cols[1][i] - val[2] * cols[2][i];
-                    e * e
-                })
-                .sum();
-            if sse < best.0 {
-                best = (sse, val[0].sqrt(), rho);
-            }
-        }
-    }
-    (best.1, best.2)
-}
-
-/// Least squares of `y` on the columns `cols[j]`, `j` in `free` (at most three): the normal
-/// equations by Gaussian elimination; `None` where they are singular. Empty `free`: no values.
-fn least_squares(cols: &[Vec<f64>; 3], free: &[usize], y: &[f64]) -> Option<Vec<f64>> {
-    let m = free.len();
-    let mut a = vec![vec![0.0; m + 1]; m];
-    for (r, &jr) in free.iter().enumerate() {
-        for (c, &jc) in free.iter().enumerate() {
-            a[r][c] = cols[jr].iter().zip(&cols[jc]).map(|(x, z)| x * z).sum();
-        }
-        a[r][m] = cols[jr].iter().zip(y).map(|(x, z)| x * z).sum();
-    }
-    for p in 0..m {
-        let piv = (p..m).max_by(|&i, &j| a[i][p].abs().total_cmp(&a[j][p].abs()))?;
-        a.swap(p, piv);
-        let d = a[p][p];
-        if d.abs() <= 1e-300 * (1.0 + a[p][m].abs()) || !d.is_finite() {
-            return None;
-        }
-        for r in 0..m {
-            if r != p {
-                let f = a[r][p] / d;
-                for c in p..=m {
-                    a[r][c] -= f * a[p][c];
-                }
-            }
-        }
-    }
-    Some((0..m).map(|r| a[r][m] / a[r][r]).collect())
-}
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::indexing_slicing)]
 mod tests {
@@ -215,35 +125,5 @@ mod tests {
             let (s, rho_hat) = variogram_noise(&r);
             assert!((s / sigma - 1.0).abs() < 0.1, "rho {rho}: {s} vs {sigma} (rho_hat {rho_hat})");
         }
-    }
-
-    /// A residual of white torque noise plus a q̈ estimate's error through a large inertia: the
-    /// angle's white noise through a local cubic's second-derivative weights (±9 samples), four
-    /// times the torque noise. The plain reading takes much of the estimate's error for torque
-    /// noise; less the estimate's known variogram, the torque noise is read at its size.
-    #[test]
-    fn a_known_estimate_error_is_taken_off_the_noise() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let (sigma, dt, h) = (0.05, 1e-3, 9usize);
-        let (_, w) = crate::prep::lpr::weights(h, dt).unwrap();
-        let c0: f64 = w.iter().map(|x| x * x).sum();
-        // angle noise scaled so the estimate's error is 4σ
-        let sq = 4.0 * sigma / c0.sqrt();
-        let n = 200_000;
-        let e: Vec<f64> = (0..n + w.len()).map(|_| sq * normal(&mut rng)).collect();
-        let r: Vec<f64> = (0..n)
-            .map(|i| sigma * normal(&mut rng) + w.iter().enumerate().map(|(j, wj)| wj * e[i + j]).sum::<f64>())
-            .collect();
-        let known: Vec<f64> = (1..=30)
-            .map(|k| {
-                let ck: f64 = w.iter().zip(w.get(k..).unwrap_or(&[])).map(|(a, b)| a * b).sum();
-                2.0 * 16.0 * sigma * sigma * (1.0 - ck / c0)
-            })
-            .collect();
-        let (plain, _) = variogram_noise(&r);
-        let (less, _) = variogram_noise_less(&r, &known);
-        eprintln!("torque noise {sigma}: read {plain:.4} plainly, {less:.4} less the estimate's part");
-        assert!(plain > 2.0 * sigma, "{plain}");
-        assert!((less / sigma - 1.0).abs() < 0.15, "{less} vs {sigma}");
     }
 }

@@ -757,7 +757,7 @@ fn torque_mode(
     // Test units long against the residual's correlation: the noise's (AR(1) from the
     // variogram: (1 + ρ)/(1 − ρ) samples) and the derivative estimates' windows, twice over, at
     // least 20 samples (the 50 of a fixed rule left a 3000-sample log 12 units).
-    let (noise0, rho) = residual_noise(&r0, &data, (&base.cols, &base.beta0), prep);
+    let (noise0, rho) = floor::variogram_noise(&r0);
     let unit_min = {
         let noise_corr = (1.0 + rho) / (1.0 - rho).max(0.05);
         let window = |i: &crate::prep::DerivInfo| if i.white { 0.0 } else { i.half_window_s / dt };
@@ -915,61 +915,7 @@ fn torque_floor(
     prep: &crate::prep::Prepared,
     idx: &[u32],
 ) -> f64 {
-    torque_floor_with(residual_noise(r0, d, (cols, beta), prep).0, d, (cols, beta), prep, idx)
-}
-
-/// The measurement noise in a torque-mode residual ([`floor::variogram_noise_less`]), and its
-/// lag-1 correlation: its variogram less what the estimated q̇/q̈ carry of their sources' white
-/// noise through the model's terms `(cols, beta)` (the part [`torque_floor_with`] adds as the
-/// estimates' error).
-fn residual_noise(r: &[f64], d: &Data, (cols, beta): (&[Col], &[f64]), prep: &crate::prep::Prepared) -> (f64, f64) {
-    let known = estimates_variogram(&EstimateTerms::new((cols, beta), prep), d, prep);
-    floor::variogram_noise_less(r, &known)
-}
-
-/// The variogram, lags 1…30, of the part of the residual that the white noise under a derived
-/// q̇ and q̈ makes through the model's terms: an estimate's noise is its source's white noise
-/// through the window's weights `w`, so its variogram at lag k is `2·σ²·(1 − ρ_w(k))`, with σ
-/// the estimate's noise and ρ_w the weights' normalised autocorrelation; it reaches the residual
-/// times the inertia (q̈) and the friction's slope (q̇, its mean square over the moving
-/// samples), on the moving share of the samples (q̇ = q̈ = 0 is taken at rest). The two
-/// estimates' cross term vanishes: one window's weights are even, the other's odd. Logged
-/// columns (their noise is the residual's own) and estimates without a window add nothing.
-fn estimates_variogram(terms: &EstimateTerms, d: &Data, prep: &crate::prep::Prepared) -> Vec<f64> {
-    const LAGS: usize = 30;
-    let mut v = vec![0.0; LAGS];
-    let dt = crate::prep::median_step(&d.t);
-    if !(dt > 0.0) || d.n == 0 {
-        return v;
-    }
-    let moving: Vec<usize> = (0..d.n).filter(|&i| !prep.rest[i]).collect();
-    let share = moving.len() as f64 / d.n as f64;
-    if moving.is_empty() {
-        return v;
-    }
-    let slope2 =
-        moving.iter().map(|&i| (terms.b + 2.0 * terms.a * d.qd[i].abs()).powi(2)).sum::<f64>() / moving.len() as f64;
-    let mut add = |info: &crate::prep::DerivInfo, derived: bool, gain2: f64, second: bool| {
-        let h = (info.half_window_s / dt).round() as usize;
-        if !derived || gain2 <= 0.0 || h == 0 || info.source == "logged" {
-            return;
-        }
-        let Some((w1, w2)) = crate::prep::lpr::weights(h, dt) else { return };
-        let w = if second { w2 } else { w1 };
-        let c0: f64 = w.iter().map(|x| x * x).sum();
-        if c0 <= 0.0 {
-            return;
-        }
-        for (k, vk) in v.iter_mut().enumerate() {
-            let lag = k + 1;
-            let ck: f64 = w.iter().zip(w.get(lag..).unwrap_or(&[])).map(|(a, b)| a * b).sum();
-            *vk += share * gain2 * 2.0 * info.noise_sd * info.noise_sd * (1.0 - ck / c0);
-        }
-    };
-    // q̈ from q is q's second derivative; from the logged q̇ that column's first
-    add(&prep.report.qdd, terms.qdd_derived, terms.j * terms.j, prep.report.qdd.source == "derived from q");
-    add(&prep.report.qd, terms.qd_derived, slope2, false);
-    v
+    torque_floor_with(floor::variogram_noise(r0).0, d, (cols, beta), prep, idx)
 }
 
 /// [`torque_floor`] with the residual's noise already read from its variogram.

@@ -222,8 +222,6 @@ struct Recipe {
     second: bool,
     h: usize,
     sigma: f64,
-    /// [`local_bias`] counts for q̈ only an excess its noise cannot reach (torque mode)
-    barred: bool,
 }
 
 /// Derivative estimates of `x` per segment (rest boundaries count as segment ends when given).
@@ -417,8 +415,8 @@ pub(crate) fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepa
         estimate_deriv(&log.t, x, pieces, r, &mut v, &mut s);
         (v, s)
     };
-    let r1 = Recipe { from_q: true, second: false, h: h1, sigma: sigma1, barred: false };
-    let r2 = Recipe { from_q: true, second: true, h: h2, sigma: sigma2, barred: false };
+    let r1 = Recipe { from_q: true, second: false, h: h1, sigma: sigma1 };
+    let r2 = Recipe { from_q: true, second: true, h: h2, sigma: sigma2 };
     // q̇ and q̈ are independent fits: one on each core
     let ((v1, s1), (v2, s2)) = std::thread::scope(|sc| {
         let second = sc.spawn(|| derive(r2, &log.q, &segments));
@@ -460,7 +458,7 @@ pub(crate) fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepa
             let sigma = qd.info.noise_sd;
             match lpr::choose_half_width(dt, lpr::Order::First, sigma, dv(4), dv(5), h_max) {
                 Some((h, var, bias)) if (var + bias * bias).sqrt() < typical(&qdd_q.error()) => {
-                    let r = Recipe { from_q: false, second: false, h, sigma, barred: false };
+                    let r = Recipe { from_q: false, second: false, h, sigma };
                     let (v, s) = derive(r, &qd.values, &segments);
                     let info = derived_info("derived from the logged qd", h, dt, &s, bias);
                     (Deriv { values: v, noise: s, bias, info }, Some(r))
@@ -606,10 +604,6 @@ pub(crate) fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepa
     // The estimator's bias follows the motion: where the motion turns sharply (a stop, a
     // reversal at speed) it is far above the log's typical figure. Measured locally by
     // comparing each estimate with the same fit on half the window.
-    // (q̈'s bar, `local_bias`, applies to torque-mode logs: trajectory mode's energy test for a
-    // release and its start's prior were set on the errors as they were, and are not re-tuned;
-    // with the bar the Jensen swings' releases went unseen)
-    let barred = log.mode() == joint_formats::log::LogMode::Torque;
     std::thread::scope(|sc| {
         let (qd_err, qdd_err, log, segments, rest, qd, qdd) =
             (&mut qd_err, &mut qdd_err, &log, &segments, &rest, &qd, &qdd);
@@ -617,7 +611,6 @@ pub(crate) fn prepare_cow(input: std::borrow::Cow<'_, JointLog>) -> Result<Prepa
             if let Some(r) = qdd_recipe {
                 let src = if r.from_q { &log.q } else { log.qd.as_ref().unwrap_or(&log.q) };
                 let q_quantum = if r.from_q { quantum } else { 0.0 };
-                let r = Recipe { barred, ..r };
                 local_bias(&log.t, src, segments, r, &qdd.values, rest, (q_quantum, &qd.values), qdd_err);
             }
         });
@@ -822,8 +815,8 @@ fn local_bias(
     };
     let d2: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (est[i] - v[i]).powi(2) - stair_var(i) }).collect();
     if std::env::var_os("DIAG_TRACE").is_some() {
-        let moving = (0..n).filter(|&i| !rest[i]).count();
-        let mean_all = (0..n).filter(|&i| !rest[i]).map(|i| d2[i]).sum::<f64>() / moving.max(1) as f64;
+        let moving: Vec<f64> = (0..n).filter(|&i| !rest[i]).map(|i| d2[i]).collect();
+        let m = moving.iter().sum::<f64>() / moving.len().max(1) as f64;
         eprintln!(
             "[trace] local bias ({}): h {} half {} sigma {:.3e} noise_var {:.3e} mean d2 {:.3e} -> bias rms {:.3e}",
             if r.second { "qdd" } else { "qd" },
@@ -831,42 +824,10 @@ fn local_bias(
             half.h,
             r.sigma,
             noise_var,
-            mean_all,
-            grow * (mean_all - noise_var).max(0.0).sqrt()
+            m,
+            grow * (m - noise_var).max(0.0).sqrt()
         );
     }
-    // For q̈ the difference of the two estimates is mostly the half window's noise (several
-    // times the estimate's own) smoothed over as many samples again: a running mean over ±h has
-    // few degrees of freedom, and its excess over `noise_var` where noise alone lifts it is no
-    // bias. Read as bias all along the log, it stated a tenth of an exact-model log's q̈ errors
-    // at 3–9 times the estimate's own and its torque floor at ten times the torque noise
-    // (unseen u9107/case-0039), and a smooth motion's q̈ error under white noise at 3× its size.
-    // Only an excess that noise cannot reach at one-sided p ≈ 0.01 counts: the mean of squares
-    // read as a χ² with the degrees of freedom its spread gives (k = 2/cv², Wilson–Hilferty).
-    // The white-noise figure is no noise where the data show far less (a coarse encoder's
-    // steps at a high rate: the two estimates differ by a fiftieth of it, and a sharp move's
-    // bias stands out of that, not of the figure: null seed 31, case 344): the level the
-    // differences show (their median square over a χ²₁'s) is taken where it is the lower.
-    // q̇'s check is unchanged: its excesses mark where a stop bends the motion inside the
-    // window, which signs the Coulomb level there (with the bar, 169 samples of a
-    // point-to-point null log next to its stops took a sign against the joint's: null seed 31,
-    // case 171).
-    let bar = if r.second && r.barred {
-        // (the squares as they are: the staircase's share is part of what the data show)
-        let mut moving_d2: Vec<f64> = (0..n).filter(|&i| !rest[i]).map(|i| (est[i] - v[i]).powi(2)).collect();
-        let shown = if moving_d2.is_empty() {
-            noise_var
-        } else {
-            let k = moving_d2.len() / 2;
-            let (_, m, _) = moving_d2.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-            m.max(0.0) / CHI2_1_MEDIAN
-        };
-        noise_var.min(shown) * chi2_upper_over_k(2.0 / local_mean_spread(r, half.h, dt, 2 * r.h + 1).powi(2).max(1e-12))
-    } else {
-        noise_var
-    };
-    // each sample's excess over the noise, from the running mean over ±h around it
-    let mut excess = vec![0.0f64; n];
     for seg in segments {
         let mut acc = 0.0;
         let (lo, hi) = (seg.start, seg.end);
@@ -884,56 +845,13 @@ fn local_bias(
                 acc -= d2[a];
                 a += 1;
             }
-            excess[i] = (acc.max(0.0) / (b - a).max(1) as f64 - bar).max(0.0);
+            let mean = acc.max(0.0) / (b - a).max(1) as f64;
+            let bias = grow * (mean - noise_var).max(0.0).sqrt();
+            if bias > err[i] {
+                err[i] = err[i].hypot(bias);
+            }
         }
     }
-    for (e, &x) in err.iter_mut().zip(&excess) {
-        let bias = grow * x.sqrt();
-        if bias > *e {
-            *e = e.hypot(bias);
-        }
-    }
-}
-
-/// One-sided normal deviate for [`local_bias`]'s excess (p ≈ 0.01).
-const BIAS_Z: f64 = 2.326;
-
-/// The median of χ² with one degree of freedom.
-const CHI2_1_MEDIAN: f64 = 0.454_936;
-
-/// The upper p ≈ 0.01 quantile of χ²_k / k (Wilson–Hilferty), k > 0 degrees of freedom.
-fn chi2_upper_over_k(k: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    (1.0 - a + BIAS_Z * a.sqrt()).max(0.0).powi(3)
-}
-
-/// The relative standard deviation of [`local_bias`]'s running mean (over `m` samples) of the
-/// squared difference between the estimates on windows of half-width `r.h` and `half`, where
-/// the source is white noise: the difference is that noise through the two windows' weight
-/// difference `g`, so its autocorrelation is `g`'s, and the mean of the squares of a Gaussian
-/// series with autocorrelation ρ over M samples has variance `2·σ⁴/M · Σ_k (1 − |k|/M)·ρ_k²`.
-/// 0 when either window has no weights.
-fn local_mean_spread(r: Recipe, half: usize, dt: f64, m: usize) -> f64 {
-    let pick = |h: usize| lpr::weights(h, dt).map(|(w1, w2)| if r.second { w2 } else { w1 });
-    let (Some(full), Some(small)) = (pick(r.h), pick(half)) else {
-        return 0.0;
-    };
-    let off = r.h - half;
-    let g: Vec<f64> = full
-        .iter()
-        .enumerate()
-        .map(|(j, w)| w - j.checked_sub(off).and_then(|k| small.get(k)).unwrap_or(&0.0))
-        .collect();
-    let c0: f64 = g.iter().map(|x| x * x).sum();
-    if c0 <= 0.0 {
-        return 0.0;
-    }
-    let mut sum = 1.0;
-    for k in 1..g.len().min(m) {
-        let rho = g.iter().zip(&g[k..]).map(|(a, b)| a * b).sum::<f64>() / c0;
-        sum += 2.0 * (1.0 - k as f64 / m as f64) * rho * rho;
-    }
-    (2.0 * sum / m as f64).sqrt()
 }
 
 /// A logged derivative whose scale against the estimate is off by more than 20 % is not the
