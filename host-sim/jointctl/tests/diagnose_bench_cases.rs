@@ -559,7 +559,19 @@ fn a_short_logs_floor_is_not_read_from_a_residual_that_holds_the_effect() {
 /// freed start took the log from 35× the floor to the floor at p = 0, but the test's width for
 /// the angle was the fits' prior, which spans the distance to the start that makes the model
 /// follow the first samples: the 37 mrad read as 1.2 of it, and the log was `none`.
+/// The report gives the χ² that decided beside the wide one: the wide test's χ² is under its
+/// bar on this log, and shown alone it contradicted the verdict.
 #[test]
 fn a_start_the_model_cannot_follow_is_read_against_the_angles_noise() {
-    reports_truth(9103, 61, &["initial_state"]);
+    let (c, d) = run_case(9103, 61);
+    assert_eq!(c.truth.effects, strings(&["initial_state"]), "the bench's case changed");
+    assert_eq!(d.report.mode, "trajectory");
+    assert_eq!(said(&d), strings(&["initial_state"]));
+    let p = params_of(&d, "initial_state");
+    // χ² with 2 degrees of freedom at p = 0.001, the start test's bar
+    let bar = -2.0 * 0.001f64.ln();
+    println!("initial_state params {p:?}");
+    assert!(p["chi2"] <= bar, "the wide test alone decides this start now: {p:?}");
+    assert!(p["chi2_angle_noise"] > bar, "{p:?}");
+    assert!(p["q_noise_sd"] > 0.0 && p["q_noise_sd"] < p["q_estimate_sd"], "{p:?}");
 }

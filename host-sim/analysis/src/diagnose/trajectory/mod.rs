@@ -385,6 +385,10 @@ impl<'a> Window<'a> {
         };
         lap("candidates");
         let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd, start_off);
+        if start_off && judged.start_chi2 <= judge::START_CHI2 {
+            judged.start_chi2_noise =
+                judge::start_off_by_noise(&fits[0], &fits[1], start_sd, noise, floor).map(|c| (c, noise));
+        }
         second_effect(&pb, &mut fits, &mut judged, opts);
         lap("second effect");
         let ctx = report::Ctx {

@@ -194,6 +194,12 @@ fn effect_params(ctx: &Ctx, f: &Fitted, k: usize, j: &Judged) -> BTreeMap<String
             put("q_estimate_sd", ctx.prior.sd_q);
             put("qd_estimate_sd", ctx.prior.sd_v);
             put("chi2", j.start_chi2);
+            if let Some((c, sd)) = j.start_chi2_noise {
+                // the start was judged off against the first angle's noise, not the estimate's
+                // width: that χ² and the width it used, beside the wide one
+                put("chi2_angle_noise", c);
+                put("q_noise_sd", sd);
+            }
         } else {
             for (key, v) in refit_values(ctx.model, ctx.lay, f.base(ctx.lay)) {
                 put(&key, v);
