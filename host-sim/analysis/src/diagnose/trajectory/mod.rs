@@ -714,6 +714,16 @@ fn fit_candidates(
     }
     let mut families: Vec<Vec<usize>> = Vec::new();
     for f in got.into_iter().flatten() {
+        if super::select::trace() {
+            eprintln!(
+                "[trace] candidate {:?} {:?}: training SSE {:.4e}, held-out RMSE {:.4e}, effect values {:?}",
+                f.effects,
+                f.free,
+                f.train_sse,
+                f.scored.rmse(),
+                f.effect_values(lay, 0)
+            );
+        }
         let name = f.effects[0].name();
         fits.push(f);
         let k = fits.len() - 1;
