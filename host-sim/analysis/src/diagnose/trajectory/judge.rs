@@ -141,28 +141,27 @@ pub fn start_chi2(r0: &Fitted, s: &Fitted, (sd_q, sd_v, se_q, se_v): (f64, f64, 
 /// noise alone in every case, a start 3 noise widths off that took a log from 1.6× the floor
 /// to 1.5× made the file's model R0 instead of S, and the Stribeck curve fitted from there lost
 /// to a cable spring (development seed 7, case 40).
-pub fn start_is_off(r0: &Fitted, s: &Fitted, start_sd: (f64, f64, f64, f64), noise_q: f64, floor: f64) -> bool {
-    start_chi2(r0, s, start_sd) > START_CHI2 || start_off_by_noise(r0, s, start_sd, noise_q, floor).is_some()
-}
-
-/// The narrower half of [`start_is_off`]: S's start against the first angle's noise `noise_q`
-/// (χ², 2 dof) where it is above [`START_CHI2`] and the freed start takes the log from clearly
-/// above the floor to it; `None` otherwise. The report gives this χ² beside the wide one, so a
-/// start judged off by it does not show only a χ² under the bar.
-pub fn start_off_by_noise(
+///
+/// Returns whether the start is off, and the χ² against the angle noise when that narrower test,
+/// not the estimate's width, decided it (the report gives it beside the wide one, so such a
+/// start does not show only a χ² under the bar).
+pub fn start_is_off(
     r0: &Fitted,
     s: &Fitted,
     start_sd: (f64, f64, f64, f64),
     noise_q: f64,
     floor: f64,
-) -> Option<f64> {
+) -> (bool, Option<f64>) {
+    if start_chi2(r0, s, start_sd) > START_CHI2 {
+        return (true, None);
+    }
     let chi2 = start_chi2(r0, s, (noise_q, start_sd.1, start_sd.2, start_sd.3));
-    (chi2 > START_CHI2 && r0.scored.rmse() > START_MATTERS * floor && s.scored.rmse() <= AT_FLOOR * floor)
-        .then_some(chi2)
+    let off = chi2 > START_CHI2 && r0.scored.rmse() > START_MATTERS * floor && s.scored.rmse() <= AT_FLOOR * floor;
+    (off, off.then_some(chi2))
 }
 
 /// Judges the fits. `fits[0]` is R0, `fits[1]` S, `fits[2]` P; `families` lists, per tried
-/// effect family, the indices of its variants' fits; `start_off` is [`start_is_off`] for R0
+/// effect family, the indices of its variants' fits; `start_off` is [`start_is_off`]'s verdict for R0
 /// and S, as the candidates were fitted by.
 pub fn judge(
     lay: &Layout,

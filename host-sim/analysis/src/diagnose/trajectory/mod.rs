@@ -369,7 +369,7 @@ impl<'a> Window<'a> {
         // (and a start that takes the log to the floor also against the first angle's noise:
         // [`judge::start_is_off`])
         let start_sd = (pb.prior.sd_q, if self.assumed_rest { 0.0 } else { pb.prior.sd_v }, se(0), se(1));
-        let start_off = judge::start_is_off(&r0, &s, start_sd, noise, floor);
+        let (start_off, by_noise) = judge::start_is_off(&r0, &s, start_sd, noise, floor);
         let f_rmse = if start_off { &r0 } else { &s }.scored.rmse();
         let mut fits = vec![r0, s, p];
         // Nothing is tested once the file's model is at the floor: the candidates are not fitted.
@@ -385,10 +385,7 @@ impl<'a> Window<'a> {
         };
         lap("candidates");
         let mut judged = judge::judge(&lay, &fits, &families, (floor, floor_dof), start_sd, start_off);
-        if start_off && judged.start_chi2 <= judge::START_CHI2 {
-            judged.start_chi2_noise =
-                judge::start_off_by_noise(&fits[0], &fits[1], start_sd, noise, floor).map(|c| (c, noise));
-        }
+        judged.start_chi2_noise = by_noise.map(|c| (c, noise));
         second_effect(&pb, &mut fits, &mut judged, opts);
         lap("second effect");
         let ctx = report::Ctx {
