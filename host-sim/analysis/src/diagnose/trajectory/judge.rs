@@ -264,6 +264,16 @@ pub fn judge(
             && sig(t0, alpha_each)
             && share
             && beats_placed(&e.scored);
+        if crate::diagnose::select::trace() {
+            eprintln!(
+                "[trace] judge {name:?} (fit {k}): against its reference p {:.2e} gain {:.3}, against F p {:.2e} gain {:.3}, share {share}, beats placed {}, implausible {implausible:?}",
+                t.1,
+                t.2,
+                t0.1,
+                t0.2,
+                beats_placed(&e.scored)
+            );
+        }
         Outcome { name, fit: k, t: t.0, p: t.1, gain: t.2, significant, implausible }
     };
     let effects: Vec<Outcome> = families
