@@ -267,6 +267,16 @@ pub fn normal_quantile(p: f64) -> f64 {
     }
 }
 
+/// z of p = 0.001, one-sided: the upper 0.1 % point of the standard normal.
+pub const Z_P001: f64 = 3.090_232;
+
+/// `χ²_k/k` at the upper-tail normal deviate `z` (Wilson–Hilferty; `z = 0` is the median):
+/// times `k`, the χ²_k quantile.
+pub fn chi2_ratio(k: f64, z: f64) -> f64 {
+    let a = 2.0 / (9.0 * k);
+    (1.0 - a + z * a.sqrt()).powi(3)
+}
+
 /// 97.5 % quantile of Student's t with `dof` degrees of freedom (exact for 1 and 2, a
 /// Cornish–Fisher expansion above, within 0.2 % for dof ≥ 3).
 pub fn t_quantile_975(dof: f64) -> f64 {

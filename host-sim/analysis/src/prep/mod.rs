@@ -32,6 +32,7 @@ pub mod lpr;
 pub(crate) mod quantile;
 pub mod spectrum;
 
+use crate::identify::robust::{chi2_ratio, Z_P001};
 use joint_formats::log::JointLog;
 use serde::Serialize;
 
@@ -817,8 +818,14 @@ fn local_bias(
     // Each sample's own: near a segment's ends (a rest's start or end, a gap) both fits are
     // shifted windows whose noise is several times the centred one's; the half window's own
     // noise `s` is known there, and the difference keeps the centred share of it.
+    // Only a corrected q̈'s bar reads it (see below).
+    let barred = r.corrected;
     let keep = if gain(half.h) > 0.0 { (1.0 - gain(r.h) / gain(half.h)).max(0.0) } else { 0.0 };
-    let nv: Vec<f64> = (0..n).map(|i| if rest[i] { 0.0 } else { (s[i] * s[i] * keep).max(noise_var) }).collect();
+    let nv: Vec<f64> = if barred {
+        (0..n).map(|i| if rest[i] { 0.0 } else { (s[i] * s[i] * keep).max(noise_var) }).collect()
+    } else {
+        Vec::new()
+    };
     let grow = if r.from_q && !r.second { 16.0 / 15.0 } else { 4.0 / 3.0 };
     // A quantised source's staircase error is not white either: on the half window it is up to
     // one step over the window, less as the move crosses more steps (as the error floor after
@@ -848,9 +855,19 @@ fn local_bias(
             grow * (m - noise_var).max(0.0).sqrt()
         );
     }
-    // each sample's windowed means of d2 and of its noise, and the window's size (shorter at a
-    // segment's ends)
-    let mut means = vec![(0.0, 0.0, 0usize); n];
+    // Raises sample i's error to the bias a windowed mean `mean` of d2 reads beyond `bar`.
+    let raise = |err: &mut [f64], i: usize, mean: f64, bar: f64| {
+        if bar >= 0.0 && mean > bar {
+            let bias = grow * (mean - bar).sqrt();
+            if bias > err[i] {
+                err[i] = err[i].hypot(bias);
+            }
+        }
+    };
+    // Each sample's windowed mean of d2: taken as the bias where it passes the white figure, or
+    // (barred) kept with the mean of its noise and the window's size (shorter at a segment's
+    // ends) for the bar below.
+    let mut means = if barred { vec![(0.0, 0.0, 0usize); n] } else { Vec::new() };
     for seg in segments {
         let (mut acc, mut acc_nv) = (0.0, 0.0);
         let (lo, hi) = (seg.start, seg.end);
@@ -862,17 +879,29 @@ fn local_bias(
             let (want_a, want_b) = (i.saturating_sub(w).max(lo), (i + w + 1).min(hi));
             while b < want_b {
                 acc += d2[b];
-                acc_nv += nv[b];
+                if barred {
+                    acc_nv += nv[b];
+                }
                 b += 1;
             }
             while a < want_a {
                 acc -= d2[a];
-                acc_nv -= nv[a];
+                if barred {
+                    acc_nv -= nv[a];
+                }
                 a += 1;
             }
             let m = (b - a).max(1);
-            means[i] = (acc.max(0.0) / m as f64, acc_nv.max(0.0) / m as f64, m);
+            let mean = acc.max(0.0) / m as f64;
+            if barred {
+                means[i] = (mean, acc_nv.max(0.0) / m as f64, m);
+            } else {
+                raise(err, i, mean, noise_var);
+            }
         }
+    }
+    if !barred {
+        return;
     }
     // The noise's scale read from the log too, either way: an estimate of q's noise a few per
     // cent low (a quantiser's share of it) moves a bar of 3–4 × the noise into the bulk of the
@@ -898,31 +927,14 @@ fn local_bias(
     } else {
         1.0
     };
-    for i in 0..n {
-        let (mean, mean_nv, m) = means[i];
+    for (i, &(mean, mean_nv, m)) in means.iter().enumerate() {
         // what the noise alone reaches in this window (p < 0.001) is no bias: only the reading
         // beyond it counts, so that a window the noise just pushes over is not read as a bias
         // of 2.3 × the noise's variance at once (the reading's lower bound; a stop at speed
         // reads tens to thousands of times the noise, where the bound is the reading)
-        let bar = if r.corrected { kappa * mean_nv * chi2_ratio(dof(m), Z_0001) } else { noise_var };
-        if !(bar >= 0.0) || mean <= bar {
-            continue;
-        }
-        let bias = grow * (mean - bar).sqrt();
-        if bias > err[i] {
-            err[i] = err[i].hypot(bias);
-        }
+        raise(err, i, mean, kappa * mean_nv * chi2_ratio(dof(m), Z_P001));
     }
 }
-
-/// `χ²_ν/ν` at the normal deviate `z` (Wilson–Hilferty: `z = 0` is the median).
-fn chi2_ratio(nu: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * nu.max(1e-9));
-    (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
-}
-
-/// z of p = 0.001, one-sided.
-const Z_0001: f64 = 3.090_232;
 
 /// The degrees of freedom of [`local_bias`]'s windowed mean of the squared difference between
 /// the estimate and its half-window twin where q holds white noise only, as a function of the

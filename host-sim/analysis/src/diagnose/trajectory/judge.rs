@@ -25,6 +25,7 @@ use super::fits::Fitted;
 use super::terms::Layout;
 use crate::diagnose::candidates::Col;
 use crate::diagnose::select::{compare, takes_share, Scored, ALPHA, AT_FLOOR, MIN_GAIN, UNEXPLAINED};
+use crate::identify::robust::Z_P001 as Z_001;
 use joint_formats::vocab::Effect as Vocab;
 
 /// χ² with 2 degrees of freedom at p = 0.001: a fitted start further than this (in squared
@@ -87,8 +88,7 @@ impl Judged {
 
 /// Quantile of χ²_k at upper tail `p` (Wilson–Hilferty; `z` the normal quantile of p).
 fn chi2_upper(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
+    k * crate::identify::robust::chi2_ratio(k, z)
 }
 
 /// Upper-tail normal deviate of the F ratio `f` with `(k, d)` degrees of freedom (Paulson's
@@ -99,9 +99,6 @@ pub fn f_deviate(f: f64, k: f64, d: f64) -> f64 {
     let c = f.cbrt();
     ((1.0 - b) * c - (1.0 - a)) / (b * c * c + a).sqrt()
 }
-
-/// z of p = 0.001, one-sided.
-const Z_001: f64 = 3.090_232;
 
 /// Whether held-out mean square `mse` over `n` samples is significantly above `floor²`
 /// (p < 0.001): χ²_n when the floor is taken as known, the F ratio with `floor_dof` degrees of
