@@ -45,10 +45,18 @@ pub struct Data {
     /// `tau` is absent or zero the model's own non-friction torque (never `u`: it holds the
     /// friction being explained, and its noise would explain itself)
     pub load: Vec<f64>,
-    /// variance of the white noise on the log's own `qdd` column (0 when q̈ was derived here):
-    /// the final fits remove its share from the q̈ column's Gram diagonal, so the inertia is not
-    /// shrunk by the noise in its regressor (errors in variables)
+    /// variance of the noise part of the q̈ used (the logged column's white noise, or the
+    /// estimate's), averaged over the log: the report's figure, and 0 where q̈ has none. The
+    /// fits remove the noise in their regressor from the q̈ column's Gram diagonal row by row
+    /// (`qdd_nv`), so the inertia is not shrunk by it (errors in variables)
     pub qdd_noise_var: f64,
+    /// per sample, the variance of the noise part of the q̈ used (empty: `qdd_noise_var` for
+    /// every sample). A fit removes the noise of its own rows, each at its fit weight
+    /// ([`Data::row_noise`]): a log's shortest windows (next to its rests) carry most of its
+    /// q̈ noise, and the average over the log put 90 times the noise of the fitted rows on the
+    /// Gram of a point-to-point log (bench 9103/35), whose inertia then doubled with any column
+    /// added
+    pub qdd_nv: Vec<f64>,
     /// variance of the noise on q and on the q̇ used (the preparation's), for the excitation
     /// check: a model column that varies over the rows only within its noise is not excited
     pub q_noise_var: f64,
@@ -71,6 +79,15 @@ impl Data {
             }
             None => y,
         }
+    }
+
+    /// What sample `i`, fitted, adds to the q̈ column's Gram entry as noise ([`Gram::eiv`]): its
+    /// q̈ noise variance times its fit weight.
+    #[inline]
+    pub fn row_noise(&self, i: usize) -> f64 {
+        let v = self.qdd_nv.get(i).copied().unwrap_or(self.qdd_noise_var);
+        let w = self.sw.get(i).map_or(1.0, |s| s * s);
+        v * w
     }
 }
 
@@ -571,6 +588,7 @@ impl Design {
             let y = self.row(d, i as usize, &mut x);
             let y = d.weigh_row(i as usize, &mut x, y);
             g.add(&x, y);
+            g.add_noise(d.row_noise(i as usize));
         }
         g
     }
@@ -686,6 +704,7 @@ impl<'a> GridCtx<'a> {
             if gram {
                 yi = d.weigh_row(i as usize, row, yi);
                 g.add(row, yi);
+                g.add_noise(d.row_noise(i as usize));
             }
             y.push(yi);
         }
@@ -795,6 +814,7 @@ impl<'a> GridCtx<'a> {
             g.prior[a] = self.g.prior.get(a).copied().unwrap_or(0.0);
         }
         g.yy = self.g.yy;
+        g.eiv = self.g.eiv;
         let n = self.idx.len();
         // Cross products that change: with the extra columns, with a replaced column, and
         // with another target. Each sum runs over the rows in order, as `Gram::add` does.

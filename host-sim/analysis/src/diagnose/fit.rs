@@ -17,6 +17,9 @@ pub struct Gram {
     /// the value each coefficient keeps where the rows do not determine it (the file's own
     /// value for a model term, 0 for an effect's amplitude; see [`PRIOR_RIDGE`])
     pub prior: Vec<f64>,
+    /// errors in variables: the white noise the q̈ column's own entry of `g` carries on these
+    /// rows, `Σ w·σ²` (each row's fit weight times its q̈ noise variance, [`Gram::add_noise`])
+    pub eiv: f64,
 }
 
 /// The ridge, relative to each column's own scale, that pulls a coefficient towards its prior:
@@ -28,7 +31,7 @@ pub const PRIOR_RIDGE: f64 = 1e-6;
 
 impl Gram {
     pub fn new(p: usize) -> Gram {
-        Gram { p, g: vec![0.0; p * p], b: vec![0.0; p], yy: 0.0, n: 0, prior: vec![0.0; p] }
+        Gram { p, g: vec![0.0; p * p], b: vec![0.0; p], yy: 0.0, n: 0, prior: vec![0.0; p], eiv: 0.0 }
     }
 
     /// Adds one row (upper triangle only; [`Gram::solve`] mirrors it).
@@ -49,7 +52,14 @@ impl Gram {
         self.n += 1;
     }
 
+    /// Adds one row's q̈ noise, `w·σ²` (see [`Gram::eiv`]).
+    #[inline]
+    pub fn add_noise(&mut self, v: f64) {
+        self.eiv += v;
+    }
+
     pub fn merge(&mut self, o: &Gram) {
+        self.eiv += o.eiv;
         for (a, b) in self.g.iter_mut().zip(&o.g) {
             *a += b;
         }

@@ -707,6 +707,8 @@ fn torque_mode(
         wcos: Vec::new(),
         load: own_load,
         qdd_noise_var: prep.qdd_noise_var(),
+        // at rest q̈ is 0, not an estimate: no noise in the regressor there
+        qdd_nv: prep.qdd_noise.iter().zip(&prep.rest).map(|(s, &still)| if still { 0.0 } else { s * s }).collect(),
         q_noise_var: prep.report.q_noise_sd.powi(2),
         qd_noise_var: prep.qd_err.iter().map(|e| e * e).sum::<f64>() / prep.qd_err.len().max(1) as f64,
         sw: Vec::new(),

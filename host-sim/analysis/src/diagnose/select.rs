@@ -656,8 +656,9 @@ pub fn inertia_held(s: &Scored) -> bool {
         .any(|((c, &b), &p)| matches!(c, Col::Qdd) && p > 0.0 && b == p)
 }
 
-/// Errors in variables: white noise of variance σ² on the logged q̈ adds n·σ² to the q̈
-/// column's Gram diagonal and shrinks the fitted inertia by `var(q̈)/(var(q̈) + σ²)`. A shrunk
+/// Errors in variables: white noise of variance σᵢ² on the q̈ of the fitted rows adds
+/// `Σ wᵢ·σᵢ²` ([`super::fit::Gram::eiv`], `wᵢ` the row's fit weight) to the q̈ column's Gram
+/// diagonal and shrinks the fitted inertia by `var(q̈)/(var(q̈) + σ²)`. A shrunk
 /// inertia predicts the same noisy q̈ slightly better, so without this a refit "beats" an exact
 /// model on long logs with physically wrong values. The noise share is removed (corrected
 /// least squares) unless that would take more than half the column's energy, where q̈ is
@@ -668,7 +669,7 @@ fn eiv_correct(g: &mut super::fit::Gram, des: &Design, d: &Data) {
     }
     let Some(j) = des.cols.iter().position(|&c| c == super::candidates::Col::Qdd) else { return };
     let p = g.p;
-    let noise = g.n as f64 * d.qdd_noise_var;
+    let noise = g.eiv;
     if let Some(gjj) = g.g.get_mut(j * p + j) {
         // noise-dominated: not corrected, the inertia is held instead ([`undetermined`])
         if noise < 0.5 * *gjj {
@@ -695,7 +696,7 @@ pub fn undetermined(des: &Design, d: &Data, g: &super::fit::Gram) -> Vec<bool> {
             let noisy_qdd = *c == super::candidates::Col::Qdd
                 && prior > 0.0
                 && d.qdd_noise_var > 0.0
-                && g.g.get(k * p + k).is_some_and(|&gkk| g.n as f64 * d.qdd_noise_var >= 0.5 * gkk);
+                && g.g.get(k * p + k).is_some_and(|&gkk| g.eiv >= 0.5 * gkk);
             noisy_qdd || structural.get(k).copied().unwrap_or(false) || des.fixed.get(k).copied().unwrap_or(false)
         })
         .collect()
@@ -1817,6 +1818,7 @@ mod tests {
             ws,
             load: (0..n).map(|i| 1.0 + (i % 7) as f64).collect(),
             qdd_noise_var: 0.01,
+            qdd_nv: Vec::new(),
             q_noise_var: 1e-8,
             qd_noise_var: 1e-4,
             sw: Vec::new(),
@@ -2055,6 +2057,39 @@ mod tests {
                 x
             })
             .collect()
+    }
+
+    /// Errors in variables remove the q̈ noise of the rows a fit uses, at their weights, not the
+    /// log's average: a log whose q̈ is noisy where it is not fitted (or weighs little) has a
+    /// fit whose own rows carry a small part of it. Here the fitted (even) rows carry noise of
+    /// variance 0.09 and the others 1.44: removing the log's average (0.765 per row) from a
+    /// column of energy 2.09 per row inflated the inertia by half (1.51×).
+    #[test]
+    fn errors_in_variables_remove_the_noise_of_the_fitted_rows_only() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = 8_000;
+        let (j, mut d) = (0.7, data(n).0);
+        let sd: Vec<f64> = (0..n).map(|i| if i % 2 == 0 { 0.3 } else { 1.2 }).collect();
+        let e = ar_noise(&mut rng, n, 0.0);
+        let w = ar_noise(&mut rng, n, 0.0);
+        let truth: Vec<f64> = (0..n).map(|i| 2.0 * (i as f64 * 0.0031).sin()).collect();
+        d.qdd = (0..n).map(|i| truth[i] + sd[i] * e[i]).collect();
+        d.y = (0..n).map(|i| j * truth[i] + 0.05 * w[i]).collect();
+        d.qdd_nv = sd.iter().map(|s| s * s).collect();
+        d.qdd_noise_var = d.qdd_nv.iter().sum::<f64>() / n as f64;
+        let base = Base { cols: vec![Col::Qdd], beta0: vec![0.5], fixed: vec![false] };
+        let des = Design::new(&d, &base, &[]);
+        let fit: Vec<u32> = (0..n as u32).step_by(2).collect();
+        let mut g = des.gram(&d, &fit);
+        eiv_correct(&mut g, &des, &d);
+        let (beta, _) = g.solve();
+        assert!((beta[0] / j - 1.0).abs() < 0.03, "inertia {} against {j}", beta[0]);
+        // and with fit weights, each row's noise counts at its weight
+        d.sw = (0..n).map(|i| if i % 4 == 0 { 1.3 } else { 0.6 }).collect();
+        let mut g = des.gram(&d, &fit);
+        eiv_correct(&mut g, &des, &d);
+        let (beta, _) = g.solve();
+        assert!((beta[0] / j - 1.0).abs() < 0.03, "weighted: inertia {} against {j}", beta[0]);
     }
 
     /// A correction that sits in one unit of 24 (a free decay's first held-out block): per unit
