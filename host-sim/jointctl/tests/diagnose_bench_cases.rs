@@ -589,3 +589,21 @@ fn a_start_the_model_cannot_follow_is_read_against_the_angles_noise() {
     assert!(p["chi2_angle_noise"] > bar, "{p:?}");
     assert!(p["q_noise_sd"] > 0.0 && p["q_noise_sd"] < p["q_estimate_sd"], "{p:?}");
 }
+
+/// A file whose offset is wrong shifts its rests as it shifts the motion, and that is no creep
+/// (seed 9114, case 1, torque mode: a point-to-point log with dwells, the offset 0.47 N·m off
+/// under a pure Coulomb level of 0.75 N·m). Read from the file's model alone, 2 178 of the 3 280
+/// rest samples stood at ±c and were left out as creeps; the rests that stayed pulled the
+/// refit's offset, and an asymmetric friction took what that left (p = 6e-19): the verdict was
+/// `asymmetric_friction`. A creep is now a rest at ±c from the file's model and from the model's
+/// terms refitted on the motion.
+#[test]
+fn a_wrong_offset_at_rest_is_no_creep() {
+    let (c, d) = run_case(9114, 1);
+    assert_eq!(c.truth.effects, strings(&["parameters"]), "the bench's case changed");
+    assert_eq!(d.report.mode, "torque");
+    let creeps = d.report.gap.rest_creep_samples.unwrap_or(0);
+    println!("creep samples {creeps}; verdict {:?}", d.report.verdict);
+    assert!(creeps < 300, "{creeps} rest samples left out as creeps");
+    assert_eq!(said(&d), strings(&["parameters"]));
+}
