@@ -607,3 +607,24 @@ fn a_wrong_offset_at_rest_is_no_creep() {
     assert!(creeps < 300, "{creeps} rest samples left out as creeps");
     assert_eq!(said(&d), strings(&["parameters"]));
 }
+
+/// A trajectory floor is never above what a fit of the file's terms leaves held out (seed 9114,
+/// case 9: an elastic joint with asymmetric friction driven by a smooth random input at 100 Hz).
+/// The spread of reading the input between its samples put the floor at 7.2e-4 rad, where the
+/// refit left 1.7e-4 held out; the file's model at 5.1e-4 was "at the floor", and the log
+/// `none` though the refit took 67 % off it at p = 2e-11. With the floor at the best held-out
+/// fit's, the refit is the verdict, and the asymmetry it cannot be told from while the joint
+/// moves is named beside it.
+#[test]
+fn a_trajectory_floor_is_not_above_what_the_refit_leaves() {
+    let (c, d) = run_case(9114, 9);
+    assert_eq!(c.truth.effects, strings(&["asymmetric_friction"]), "the bench's case changed");
+    assert_eq!(d.report.mode, "trajectory");
+    let v = &d.report.verdict;
+    let alts: Vec<&str> = v.alternatives.iter().map(|a| a.effect.as_str()).collect();
+    let floor = d.report.gap.noise_floor;
+    println!("floor {floor:.3e}; verdict {} ({:?}), alternatives {alts:?}", v.effect, v.effects);
+    assert!(floor < 3e-4, "floor {floor}");
+    assert_ne!(v.effect, "none");
+    assert!(v.effect == "asymmetric_friction" || alts.contains(&"asymmetric_friction"), "{} {alts:?}", v.effect);
+}

@@ -360,6 +360,29 @@ impl<'a> Window<'a> {
             (noise, None)
         };
         let floor = (noise * noise + spread_ms).sqrt();
+        // A floor no fit of the file's terms may be under: R0, S and P are scored on samples
+        // they were not fitted on, so each held-out RMSE estimates the noise and what the fit
+        // leaves. The best one far under the floor shows the floor over-read (the spread of a
+        // smooth random input read between its samples at 100 Hz counted 7.2e-4 rad where the
+        // refit left 1.7e-4 held out, and the file's model at 5.1e-4 was `none` though the refit
+        // took 67 % off it at p = 2e-11: bench 9114/9). The floor is then the best one's, at the
+        // top of its sampling spread over the held-out units (two standard deviations of a mean
+        // square of that many), with that many degrees of freedom.
+        let (floor, floor_dof) = {
+            let best = [&r0, &s, &p].iter().map(|f| f.scored.rmse()).fold(f64::INFINITY, f64::min);
+            let units = sp.units.max(1);
+            let cap = best * (1.0 + 2.0 * (2.0 / units as f64).sqrt()).sqrt();
+            if cap < floor {
+                if std::env::var_os("DIAG_TRACE").is_some() {
+                    eprintln!(
+                        "[trace] floor {floor:.3e} over the best held-out RMSE {best:.3e}: {cap:.3e} ({units} units)"
+                    );
+                }
+                (cap, Some(units))
+            } else {
+                (floor, floor_dof)
+            }
+        };
         let se = |k: usize| s.lm.as_ref().and_then(|f| f.std_err(k, noise)).unwrap_or(0.0);
         // `initial_state` is tested against the assumed start: a logged q̇ with the fits' prior
         // width (its noise and the distance to the start that makes the file's model follow
