@@ -56,6 +56,11 @@ pub enum LogError {
     Empty { file: String },
     #[error("{file}: line 1: required column `{column}` is missing")]
     MissingColumn { file: String, column: &'static str },
+    #[error(
+        "{file}: line 1: the header `{header}` is one column: the file is separated by `{delimiter}`, \
+         not by commas (write it with `,` between the cells)"
+    )]
+    NotCommaSeparated { file: String, header: String, delimiter: String },
     #[error("{file}: line 1: column `{column}` appears twice")]
     DuplicateColumn { file: String, column: String },
     #[error("{file}: line 1: column {index} has an empty name")]
@@ -237,6 +242,16 @@ impl Header {
             } else {
                 h.slots.push(Slot::Skip);
                 h.unknown.push(name.clone());
+            }
+        }
+        // one column whose name holds another usual delimiter: the file is not comma-separated
+        if let [only] = names.as_slice() {
+            if let Some(d) = [";", "\t", "|"].into_iter().find(|d| only.contains(d)) {
+                return Err(LogError::NotCommaSeparated {
+                    file: file.to_string(),
+                    header: only.clone(),
+                    delimiter: if d == "\t" { "tab".to_string() } else { d.to_string() },
+                });
             }
         }
         for (k, req) in [(0usize, "t"), (1, "q")] {

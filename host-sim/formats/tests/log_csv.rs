@@ -59,6 +59,9 @@ fn bad_files_name_line_and_column() {
         ("", &["empty"]),
         ("t,q\n0,0\n\n0.1,0\n", &["line 3"]),
         ("t,q,q_shoulder\n0,0,x\n", &["line 2", "`q_shoulder`"]),
+        // another delimiter: said, not taken for a missing `t`
+        ("t;q;u;tau\n0;0;1;1\n", &["line 1", "`t;q;u;tau`", "separated by `;`", "not by commas"]),
+        ("t\tq\n0\t0\n", &["line 1", "separated by `tab`"]),
     ];
     for (text, needles) in cases {
         let msg = err(text);
