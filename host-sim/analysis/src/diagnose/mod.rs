@@ -806,11 +806,14 @@ fn torque_mode(
     let creep = if pure_sign {
         let c = base.cols.iter().position(|x| *x == Col::Sgn).map_or(0.0, |k| base.beta0[k].abs());
         // at ±c from the file's model and from its terms as the motion has them (see
-        // [`rest_creep`]): either alone reads a model error as a creep
-        let r_rest = rest_residual(&data, &base, prep, (&split, &regimes), &r0);
-        let refit = rest_creep(&r_rest, &prep.rest, c, floor);
-        let creep: Vec<bool> =
-            rest_creep(&r0, &prep.rest, c, floor).into_iter().zip(refit).map(|(a, b)| a && b).collect();
+        // [`rest_creep`]): either alone reads a model error as a creep (the refit only where
+        // the file's model marks a rest)
+        let mut creep = rest_creep(&r0, &prep.rest, c, floor);
+        if creep.contains(&true) {
+            if let Some(r) = rest_residual(&data, &base, prep, (&split, &regimes), &creep) {
+                creep.iter_mut().zip(rest_creep(&r, &prep.rest, c, floor)).for_each(|(a, b)| *a &= b);
+            }
+        }
         let k = creep.iter().filter(|&&b| b).count();
         split.leave_out(&creep);
         (k > 0).then_some(k)
@@ -913,32 +916,31 @@ pub fn rest_creep(r0: &[f64], rest: &[bool], c: f64, floor: f64) -> Vec<bool> {
     r0.iter().zip(rest).map(|(&r, &still)| still && r.abs() > 0.5 * c && (r.abs() - c).abs() < tol).collect()
 }
 
-/// The residual at the rest samples (0 elsewhere) of the model's own terms refitted on the
-/// moving training samples ([`rest_creep`] reads it): what the model's terms, as the motion
-/// has them, leave at a rest is the rest's own (a creep's ±c), not an offset or a weight the
-/// file has wrong.
-/// With under 30 moving training samples the file's residual `r0` is read instead.
+/// The residual at the samples `at` (0 elsewhere) of the model's own terms refitted on the
+/// moving training samples ([`rest_creep`] reads it at the rests): what the model's terms, as
+/// the motion has them, leave at a rest is the rest's own (a creep's ±c), not an offset or a
+/// weight the file has wrong. `None` with under 30 moving training samples.
 fn rest_residual(
     d: &Data,
     base: &Base,
     prep: &crate::prep::Prepared,
     (split, regimes): (&Split, &Regimes),
-    r0: &[f64],
-) -> Vec<f64> {
+    at: &[bool],
+) -> Option<Vec<f64>> {
     let moving: Vec<u32> = split.train.iter().copied().filter(|&i| !prep.rest[i as usize]).collect();
     let idx = candidates::thin_idx(&moving, select::FIT_ROWS);
     if idx.len() < 30 {
-        return r0.to_vec();
+        return None;
     }
     let rm = select::fit_and_score(d, base, &[], &idx, split, &regimes.bits, regimes.defs.len());
     let p = rm.design.cols.len();
-    par::per_sample(d.n, |i| {
-        if prep.rest[i] {
+    Some(par::per_sample(d.n, |i| {
+        if at[i] {
             par::with_row(p, |x| select::residual_at(d, &rm.design, &rm.beta, i, x))
         } else {
             0.0
         }
-    })
+    }))
 }
 
 /// The torque-mode noise floor ([`floor`]): the measurement noise in the file's residual (any
