@@ -60,7 +60,7 @@ pub enum LogError {
         "{file}: line 1: the header `{header}` is one column: the file is separated by `{delimiter}`, \
          not by commas (write it with `,` between the cells)"
     )]
-    NotCommaSeparated { file: String, header: String, delimiter: String },
+    NotCommaSeparated { file: String, header: String, delimiter: &'static str },
     #[error("{file}: line 1: column `{column}` appears twice")]
     DuplicateColumn { file: String, column: String },
     #[error("{file}: line 1: column {index} has an empty name")]
@@ -246,11 +246,13 @@ impl Header {
         }
         // one column whose name holds another usual delimiter: the file is not comma-separated
         if let [only] = names.as_slice() {
-            if let Some(d) = [";", "\t", "|"].into_iter().find(|d| only.contains(d)) {
+            if let Some((_, name)) =
+                [(';', ";"), ('\t', "tab"), ('|', "|")].into_iter().find(|(d, _)| only.contains(*d))
+            {
                 return Err(LogError::NotCommaSeparated {
                     file: file.to_string(),
                     header: only.clone(),
-                    delimiter: if d == "\t" { "tab".to_string() } else { d.to_string() },
+                    delimiter: name,
                 });
             }
         }
