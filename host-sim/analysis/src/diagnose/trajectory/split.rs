@@ -9,6 +9,8 @@
 //! through the block to meet the next training block, and the block's angles are never fitted.
 //! Each held-out block is cut into up to four test units (one per sample in a short log: a
 //! 20-sample log has six units of one sample, a 60-sample log twelve of one sample).
+//! Cross-fitting ([`Split::folds`]) adds two more splits whose held-out blocks are the other
+//! inner ones.
 
 /// The split of one window.
 #[derive(Clone, Debug)]
@@ -32,6 +34,19 @@ fn is_held(b: usize) -> bool {
     matches!(b % 10, 2 | 5 | 8)
 }
 
+/// The cross-fitting folds' held-out blocks (0-based), as torque mode's
+/// ([`crate::diagnose::select::Split::cross_fitted`]): mod 10 in {0, 3, 6, 9} and in {1, 4, 7},
+/// never the first block (where the start is read) nor the last. With [`is_held`]'s blocks
+/// every other block is held out once.
+fn fold_held(fold: usize, b: usize) -> bool {
+    let inner = b != 0 && b + 1 != BLOCKS;
+    inner
+        && match fold {
+            0 => matches!(b % 10, 0 | 3 | 6 | 9),
+            _ => matches!(b % 10, 1 | 4 | 7),
+        }
+}
+
 impl Split {
     pub fn new(n: usize) -> Split {
         Split::over(n, None)
@@ -43,6 +58,16 @@ impl Split {
     /// held-out samples; every sample not held out is fitted, the whole rest included (its
     /// angle is evidence: a spring's or a friction's rest).
     pub fn over(n: usize, thin: Option<(usize, usize)>) -> Split {
+        Split::over_blocks(n, thin, &is_held)
+    }
+
+    /// The two further folds of [`Split::over`]'s window for cross-fitting (see [`fold_held`]):
+    /// with it, each inner block is held out by exactly one of the three.
+    pub fn folds(n: usize, thin: Option<(usize, usize)>) -> [Split; 2] {
+        [Split::over_blocks(n, thin, &|b| fold_held(0, b)), Split::over_blocks(n, thin, &|b| fold_held(1, b))]
+    }
+
+    fn over_blocks(n: usize, thin: Option<(usize, usize)>, is_held: &dyn Fn(usize) -> bool) -> Split {
         let used: Vec<usize> =
             (0..n).filter(|&i| thin.is_none_or(|(from, m)| i < from || (i - from) % m.max(1) == 0)).collect();
         let nu = used.len();
@@ -118,5 +143,26 @@ mod tests {
         // no thinning: the plain split
         let (a, b) = (Split::over(1000, None), Split::new(1000));
         assert_eq!((a.held, a.unit, a.train), (b.held, b.unit, b.train));
+    }
+
+    #[test]
+    fn the_three_folds_hold_out_every_inner_block_once() {
+        for (n, thin) in [(1000, None), (57, None), (2000, Some((200, 9)))] {
+            let main = Split::over(n, thin);
+            let folds = Split::folds(n, thin);
+            let mut times = vec![0usize; n];
+            for s in std::iter::once(&main).chain(&folds) {
+                assert_eq!(s.n_train() + s.n_held(), n);
+                for i in 0..n {
+                    times[i] += usize::from(s.held[i]);
+                }
+            }
+            // never a sample held out twice; the first and the last block never
+            assert!(times.iter().all(|&k| k <= 1));
+            let all: Vec<usize> = std::iter::once(&main).chain(&folds).flat_map(|s| s.held_blocks.clone()).collect();
+            let mut sorted = all.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (2..=19).collect::<Vec<_>>(), "{n}");
+        }
     }
 }
