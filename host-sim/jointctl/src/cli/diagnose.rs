@@ -51,9 +51,10 @@ pub struct DiagnoseArgs {
     /// negative friction or stiffness, a weight the log's static samples contradict)
     #[arg(long)]
     pub force: bool,
-    /// Torque mode: score every candidate on one training/held-out split even for a log of at
-    /// most 250 000 samples, which is otherwise cross-fitted over three folds (every sample
-    /// held out once). A third of the selection's time; the tests have less power
+    /// Score every candidate on one training/held-out split even for a torque log of at most
+    /// 250 000 samples or a trajectory window of at most 3 000, which are otherwise
+    /// cross-fitted over three folds (every inner sample held out once). A third of the
+    /// selection's time in torque mode, about half in trajectory mode; the tests have less power
     #[arg(long)]
     pub single_split: bool,
 }

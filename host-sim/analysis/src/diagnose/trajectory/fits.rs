@@ -232,6 +232,15 @@ impl Problem<'_> {
         self.finish(effects.to_vec(), free, theta, Some(f))
     }
 
+    /// One descent of `effects` from `theta` (a fit of the same values on another fold's
+    /// training part: it starts at that fit's optimum), at most `iters` finite-difference
+    /// Jacobians, scored.
+    pub fn refit_from(&self, effects: &[Kind], free: Free, theta: &[f64], iters: usize) -> Option<Fitted> {
+        let idx = self.free_idx(effects, free);
+        let (th, f) = self.lm(effects, &idx, theta, iters, None, free != Free::Start)?;
+        self.finish(effects.to_vec(), free, th, Some(f))
+    }
+
     /// The starts worth a full fit: with more than two, each first gets a few iterations on the
     /// last effect's own values (the model's terms held) on the first 40 % of the training
     /// samples, and the best two (three of a dense grid, after four iterations) are kept.

@@ -100,7 +100,7 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             "short log ({n} samples, {} held out): the noise floor is read from the fits' training residual ({d} \
              degrees of freedom), so a model error the refit absorbs there counts as noise; a `none` here means \
              this log cannot tell, not that the model is confirmed",
-            ctx.split.n_held()
+            f.scored.n
         ));
     }
     let report = Report {
@@ -113,10 +113,10 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
             blocks: ctx.split.blocks,
             held_blocks: ctx.split.held_blocks.clone(),
             guard_samples: 0,
-            test_units: f.scored.unit_n.len(),
+            test_units: ctx.split.units,
             rest_tail: ctx.rest_tail.clone(),
-            cross_fitted: None,
-            holdout_scored: None,
+            cross_fitted: (!f.scored.folds.is_empty()).then_some(1 + f.scored.folds.len()),
+            holdout_scored: (!f.scored.folds.is_empty()).then_some(f.scored.n),
         },
         gap: Gap {
             rmse: (total / n.max(1) as f64).sqrt(),
@@ -136,7 +136,8 @@ pub fn build(ctx: &Ctx, fits: &[Fitted], j: &Judged) -> Diagnosis {
         test: TestInfo {
             method: "one-sided t-test on the per-unit log ratio of held-out MSE and a projection test of the held-out MSE difference \
                      (its variance from the units, Satterthwaite degrees of freedom; six interleaved held-out blocks of 20, up to four \
-                     units each, or one per sample when fewer; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
+                     units each, or one per sample when fewer; windows up to 3 000 samples cross-fitted over three such folds, \
+                     every inner block held out once; p = 2·min), Bonferroni over everything tested, a 2 % minimum gain, \
                      nothing tested once the file's model is within 10 % of the noise floor; initial_state only when the \
                      freed start differs from the log's estimate beyond its uncertainty (χ², 2 dof, p < 0.001)",
             alpha: ALPHA,
