@@ -53,7 +53,7 @@ pub struct Options {
     pub max_effects: usize,
     /// cross-fit torque logs up to [`CROSS_FIT_MAX`] samples and trajectory windows up to
     /// [`trajectory::CROSS_FIT_MAX`] (false: one split, as longer logs have; a third of the
-    /// selection's time in torque mode, about half in trajectory mode, and less power)
+    /// selection's time in torque mode, about three quarters in trajectory mode, and less power)
     pub cross_fit: bool,
 }
 

@@ -54,7 +54,8 @@ pub struct DiagnoseArgs {
     /// Score every candidate on one training/held-out split even for a torque log of at most
     /// 250 000 samples or a trajectory window of at most 3 000, which are otherwise
     /// cross-fitted over three folds (every inner sample held out once). A third of the
-    /// selection's time in torque mode, about half in trajectory mode; the tests have less power
+    /// selection's time in torque mode, about three quarters in trajectory mode; the tests have
+    /// less power
     #[arg(long)]
     pub single_split: bool,
 }

@@ -277,7 +277,6 @@ impl<'a> Window<'a> {
             input_slack: u.map_or(0.0, |u| sim::edge_slack(t, u, n, u_noise)),
             ..Layout::new(model, min_of(&train_q), max_of(&train_q), v_typ, driven)
         };
-        let stride = sp.n_train().div_ceil(2000).max(1);
         let noise = angle_noise(&self.prep.report, q).max(1e-12);
         let mut pb = Problem {
             t,
@@ -286,7 +285,7 @@ impl<'a> Window<'a> {
             lay: &lay,
             n,
             split: &sp,
-            train_idx: sp.train.iter().copied().step_by(stride).collect(),
+            train_idx: sp.fit_rows(),
             prior: self.prior0,
             noise,
             bits: &regimes.bits,
@@ -309,11 +308,7 @@ impl<'a> Window<'a> {
         };
         let folds: Vec<Problem> = fold_splits
             .iter()
-            .map(|fs| Problem {
-                split: fs,
-                train_idx: fs.train.iter().copied().step_by(fs.n_train().div_ceil(2000).max(1)).collect(),
-                ..pb.clone_shallow()
-            })
+            .map(|fs| Problem { split: fs, train_idx: fs.fit_rows(), ..pb.clone_shallow() })
             .collect();
 
         let clock = std::time::Instant::now();
@@ -328,12 +323,9 @@ impl<'a> Window<'a> {
         let s = pb.fit(&[], Free::Start, vec![th0.clone()]).unwrap_or_else(|| r0.clone());
         let p = fit_terms(&pb, &th0, &s.theta).unwrap_or_else(|| s.clone());
         let (s, p) = restart_start(&pb, &th0, s, p);
-        let mut fits = vec![r0, s, p];
-        cross_fit(&folds, &mut fits);
-        let [r0, s, p]: [Fitted; 3] = match fits.try_into() {
-            Ok(three) => three,
-            Err(_) => return Err(DiagError::Input("the fits of the file's model were lost".into())),
-        };
+        let mut refs = [r0, s, p];
+        cross_fit(&folds, &mut refs);
+        let [r0, s, p] = refs;
         lap("start, initial_state and the refit");
         // The floor: the angle noise, and what reading a sampled input between its samples
         // leaves open (a step's edge spanning a few samples): half the difference between a
@@ -652,10 +644,7 @@ fn cross_fit(folds: &[Problem], fits: &mut [Fitted]) {
                 folds
                     .iter()
                     .filter_map(|fp| {
-                        let refit = match f.lm {
-                            Some(_) => fp.refit_from(&f.effects, f.free, &f.theta, FOLD_ITERS),
-                            None => None,
-                        };
+                        let refit = f.lm.as_ref().and_then(|_| fp.refit_from(&f.effects, f.free, &f.theta, FOLD_ITERS));
                         // (a refit that fails scores the first fold's values: the same simulation)
                         refit.or_else(|| fp.finish(f.effects.clone(), f.free, f.theta.clone(), None)).map(|g| g.scored)
                     })

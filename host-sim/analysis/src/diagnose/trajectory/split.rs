@@ -98,6 +98,12 @@ impl Split {
         self.train.len()
     }
 
+    /// The training samples a fit's residual reads: every one, thinned to at most 2 000 (every
+    /// k-th).
+    pub fn fit_rows(&self) -> Vec<usize> {
+        self.train.iter().copied().step_by(self.n_train().div_ceil(2000).max(1)).collect()
+    }
+
     pub fn n_held(&self) -> usize {
         self.held.iter().filter(|h| **h).count()
     }
